@@ -1,0 +1,62 @@
+// The generalized inverse of a cluster of m x m subdomains joined by primal constraints
+// (paper, Section 5: K~ = Z^T diag(K_i) Z, with Z an orthonormal basis of the vectors that satisfy
+// the primal constraints C u = 0: corner continuity and/or equal edge averages).
+//
+// K~^+ is never formed. Applied to a physical right-hand side x (one vector per subdomain) it
+// returns y = Z K~^+ Z^T x, the solution of
+//     min 1/2 u'Ku - x'u   subject to  C u = 0  and  u(fixed node of subdomain 0) = 0,
+// computed from the subdomain generalized inverses K_i^+ (fixed nodes, sparse Cholesky) and a
+// small dense saddle-point system over the primal constraints mu and the kernel coefficients beta
+// of subdomains 1..s-1 (subdomain 0 is fixed, which removes the cluster kernel):
+//     u = K^+ (x - C^T mu) + R' beta,
+//     [ C K^+ C^T   -C R' ] [mu  ]   [ C K^+ x ]
+//     [ -R'^T C^T     0   ] [beta] = [ -R'^T x ].
+// Fixing one cluster variable gives K~^+ = [K~_rr^{-1} 0; 0 0], so K~ K~^+ K~ = K~. For m = 1
+// there are no constraints and y = K_0^+ x: plain TFETI.
+//
+// Cost of one application: one K_i^+ solve per subdomain, plus a dense solve of size
+// (#constraints + s - 1) and products with the precomputed K_i^+ C_i^T (at most 12 columns each).
+// Setup: #constraints touching a subdomain extra solves per subdomain, and one dense LU.
+#pragma once
+
+#include <Eigen/Dense>
+#include <vector>
+
+#include "htfeti/feti/subdomain.hpp"
+
+namespace htfeti {
+
+class Cluster {
+ public:
+  /// subs: the cluster's m*m subdomains in cluster-local order (already assembled). Factors them.
+  Cluster(const Decomposition& dec, int id, std::vector<Subdomain*> subs, Ordering ordering);
+
+  int id() const { return id_; }
+  const std::vector<Subdomain*>& subdomains() const { return subs_; }
+  int num_primal_constraints() const { return nc_; }
+  /// Value of the cluster kernel R~ (the normalized constant) at every physical dof.
+  double kernel_value() const { return kernel_value_; }
+  /// Doubles held by the cluster's dense data (K^+ C^T blocks and the LU).
+  long dense_doubles() const;
+
+  /// x[i] -> K~^+ x[i] in place (physical vectors of the cluster's subdomains). Allocates nothing.
+  void solve(std::vector<Eigen::VectorXd>& x);
+
+ private:
+  struct LocalRow {
+    int constraint;
+    int dof;
+    double value;
+  };
+  int id_;
+  int nc_ = 0;  // primal constraints
+  std::vector<Subdomain*> subs_;
+  std::vector<std::vector<LocalRow>> c_of_sub_;   // C_i entries, per subdomain
+  std::vector<std::vector<int>> cols_of_sub_;     // constraints touching subdomain i
+  std::vector<Eigen::MatrixXd> W_;                // K_i^+ C_i^T (columns: cols_of_sub_[i])
+  Eigen::PartialPivLU<Eigen::MatrixXd> lu_;
+  Eigen::VectorXd rhs_, sol_;
+  double kernel_value_ = 0;
+};
+
+}  // namespace htfeti

@@ -1,0 +1,132 @@
+// The (H-)TFETI dual problem (paper, (8)-(12) and (14)-(16)):
+//     min 1/2 lambda' F lambda - lambda' d   s.t.  lambda_I >= 0,  G lambda = e,
+// with F = B~ K~^+ B~^T applied matrix-free, d = B~ K~^+ f, G~ = R~^T B~^T (one row per cluster),
+// e~ = R~^T f and the orthogonal projector P = I - G~^T (G~ G~^T)^{-1} G~ onto Ker G. The
+// orthonormalized G = T G~ with T = L^{-1}, G~ G~^T = L L^T, is never formed: P, Q = I - P and
+// ||G x|| = ||Q x|| need only the coarse matrix G~ G~^T, which is sparse, assembled once and
+// factored by CHOLMOD on every rank (its dimension is the number of clusters).
+//
+// Vectors passed in and out are the rank's owned part of a dual vector (DualLayout).
+// Cost of one F: one forward and one reverse neighbour exchange, per cluster one K~^+ (see
+// cluster.hpp) and 2 nnz(B~) flops. Cost of one P: one exchange each way, an allreduce of the
+// coarse vector and one sparse coarse solve.
+#pragma once
+
+#include <Eigen/Dense>
+#include <memory>
+#include <vector>
+
+#include "htfeti/feti/cluster.hpp"
+#include "htfeti/feti/constraints.hpp"
+#include "htfeti/feti/sparse_cholesky.hpp"
+#include "htfeti/parallel/dual_layout.hpp"
+
+namespace htfeti {
+
+struct FetiOptions {
+  Ordering ordering = Ordering::amd;  ///< fill-reducing ordering of the subdomain factors
+};
+
+/// Seconds spent in each setup phase (wall clock on this rank).
+struct SetupTimings {
+  double assembly = 0, factorization = 0, constraints = 0, coarse = 0;
+};
+
+class DualProblem {
+ public:
+  using Vec = Eigen::VectorXd;
+  DualProblem(const Decomposition& dec, const Comm& comm, const FetiOptions& options = {});
+
+  const Decomposition& decomposition() const { return dec_; }
+  const Comm& comm() const { return comm_; }
+  int n_owned() const { return layout_.n_owned(); }
+  long long dual_dimension() const { return n_dual_; }
+  long long equalities() const { return n_dual_ - n_inequalities_; }
+  long long inequalities() const { return n_inequalities_; }
+  int coarse_dimension() const { return dec_.num_clusters(); }
+  const SetupTimings& setup_timings() const { return setup_; }
+  /// Global index of owned entry i.
+  long long global_index(int i) const { return layout_.global(i); }
+
+  void apply_F(const Vec& lambda, Vec& y);
+  /// coarse = G~ lambda (all clusters, on every rank).
+  void apply_G(const Vec& lambda, Vec& coarse);
+  /// lambda = G~^T coarse.
+  void apply_Gt(const Vec& coarse, Vec& lambda);
+  /// coarse <- (G~ G~^T)^{-1} coarse.
+  void coarse_solve(Vec& coarse) { coarse_factor_.solve(coarse.data(), coarse.data()); }
+  /// y = P x (x and y may alias).
+  void project(const Vec& x, Vec& y);
+
+  const Vec& d() const { return d_; }
+  /// e~ = R~^T f (all clusters).
+  const Vec& e() const { return e_; }
+  /// lambda~ = G~^T (G~ G~^T)^{-1} e~: the least-squares solution of G~ lambda = e~.
+  const Vec& lambda_tilde() const { return lambda_tilde_; }
+  /// Lower bounds on the owned multipliers: 0 on contact rows, -infinity elsewhere.
+  const Vec& lower_bounds() const { return lower_; }
+  bool has_inequalities() const { return n_inequalities_ > 0; }
+
+  /// Primal solution u = K~^+ (f - B~^T lambda) + R~ alpha, with alpha chosen so that the
+  /// equality rows and the contact rows with lambda_i > 0 hold in the least-squares sense
+  /// (paper, (10)). One vector per local subdomain, in the order of subdomains().
+  std::vector<Vec> reconstruct(const Vec& lambda);
+
+  const std::vector<std::unique_ptr<Subdomain>>& subdomains() const { return subs_; }
+  const std::vector<Cluster>& clusters() const { return clusters_; }
+
+  /// Checks of a primal solution (global, on every rank).
+  struct Kkt {
+    double equality_residual = 0;  ///< ||B_E u||
+    double max_violation = 0;      ///< max over contact nodes of (u_left - u_right)_+
+    double min_multiplier = 0;     ///< smallest contact force (0 without contact)
+    double complementarity = 0;    ///< max |force * gap| over contact nodes
+  };
+  Kkt kkt(const std::vector<Vec>& u, const Vec& lambda);
+  /// q(u) = 1/2 u'Ku - f'u summed over subdomains.
+  double energy(const std::vector<Vec>& u) const;
+
+  /// Contact data along x = 1, sorted by y, gathered on rank 0 (empty elsewhere).
+  struct ContactData {
+    std::vector<double> y, u_left, u_right, multiplier;
+  };
+  ContactData contact_data(const std::vector<Vec>& u, const Vec& lambda);
+
+  long factor_nonzeros() const;  ///< summed over this rank's subdomains
+  long coarse_factor_nonzeros() const { return coarse_factor_.factor_nonzeros(); }
+
+ private:
+  struct Row {
+    int k;  // extended dual index
+    int dof;
+    double value;
+  };
+  void gather_to_ext(const Vec& owned);           // ext_in_ = [owned, ghosts]
+  void cluster_rhs_from_ext(int c, bool add_f, double sign);  // x_i = (f_i) + sign B_i^T ext_in_
+  void add_B_of_x(int c);                         // ext_out_ += B_i x_i
+  void gt_into_ext(const Vec& coarse);            // ext_out_ = G~^T coarse (owners summed)
+  void assemble_coarse(const std::vector<double>& weight, SparseCholesky& factor);
+  // B~ applied to per-subdomain vectors; sums are on owners afterwards (reverse_add done).
+  void apply_B(const std::vector<Vec>& u, Vec& out);
+
+  const Decomposition& dec_;
+  const Comm& comm_;
+  SetupTimings setup_;
+  long long n_dual_ = 0, n_inequalities_ = 0;
+  int first_sub_ = 0;
+  std::vector<std::unique_ptr<Subdomain>> subs_;
+  std::vector<Cluster> clusters_;
+  std::vector<std::vector<Row>> rows_;  // B~ rows per local subdomain
+  DualLayout layout_;
+  std::vector<int> owner_;  // owner rank of each extended entry
+  std::vector<MultiplierKind> kind_;  // per owned entry
+  std::vector<double> contact_y_, contact_scale_;  // per owned entry (contact rows)
+  std::vector<std::vector<std::pair<int, double>>> g_rows_;  // G~ row of each local cluster
+  SparseCholesky coarse_factor_;
+  Vec d_, e_, lambda_tilde_, lower_;
+  // work arrays (allocated once)
+  Vec ext_in_, ext_out_, coarse_work_;
+  std::vector<std::vector<Vec>> x_;  // per cluster, per subdomain
+};
+
+}  // namespace htfeti

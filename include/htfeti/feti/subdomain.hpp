@@ -1,0 +1,53 @@
+// One subdomain of TFETI (paper, Section 4): stiffness K_i, load f_i, orthonormal kernel R_i and
+// the generalized inverse K_i^+ obtained by fixing one node: K_rr (K without the fixed node's row
+// and column) is factored by sparse Cholesky and K^+ = [K_rr^{-1} 0; 0 0], so K K^+ K = K.
+// For the Laplacian the kernel is the constant vector, R_i = e / sqrt(n_i).
+//
+// Cost of one K^+ application: one forward and one backward triangular solve with the factor
+// of K_rr (about 4 nnz(L) flops) plus two gathers of n_i values.
+#pragma once
+
+#include <Eigen/Dense>
+#include <Eigen/Sparse>
+
+#include "htfeti/decomposition/decomposition.hpp"
+#include "htfeti/feti/sparse_cholesky.hpp"
+
+namespace htfeti {
+
+class Subdomain {
+ public:
+  /// Assembles K_i and f_i of subdomain `id`; the factorization is separate (factorize()).
+  Subdomain(const Decomposition& dec, int id);
+
+  int id() const { return id_; }
+  const SubdomainPosition& position() const { return pos_; }
+  int size() const { return static_cast<int>(f_.size()); }
+  const Eigen::SparseMatrix<double>& K() const { return K_; }
+  const Eigen::VectorXd& f() const { return f_; }
+  /// The orthonormal kernel basis (one column for the Laplacian).
+  const Eigen::VectorXd& kernel() const { return R_; }
+  int fixed_node() const { return fixed_; }
+
+  void factorize(Ordering ordering);
+  /// y = K^+ x (x and y of length size(); they may alias). Allocates nothing.
+  void apply_pinv(const double* x, double* y);
+  long factor_nonzeros() const { return chol_.factor_nonzeros(); }
+
+  /// Coordinates of local node k.
+  double x_of(int k) const;
+  double y_of(int k) const;
+
+ private:
+  int id_;
+  SubdomainPosition pos_;
+  int H_;
+  double h_;
+  Eigen::SparseMatrix<double> K_;
+  Eigen::VectorXd f_, R_;
+  int fixed_ = 0;
+  SparseCholesky chol_;
+  Eigen::VectorXd work_;  // reduced vectors of length size() - 1
+};
+
+}  // namespace htfeti

@@ -1,0 +1,43 @@
+// MPRGP: modified proportioning with reduced gradient projections (Dostal, "Optimal Quadratic
+// Programming Algorithms", 2009, ch. 8; Dostal et al., "Scalable Algorithms for Contact
+// Problems", 2016, ch. 8; the paper's inner solver, Section 7.3) for
+//     min 1/2 x'Ax - b'x   subject to  x_i >= l_i  (l_i = -infinity: no bound on x_i).
+//
+// With g = Ax - b, the free gradient phi (g on the free set x_i > l_i), the chopped gradient beta
+// (min(g_i, 0) on the active set) and the reduced free gradient
+// phi~_i = min((x_i - l_i)/alpha, phi_i), an iteration is
+//   - proportional (||beta||^2 <= Gamma^2 phi~'phi): a CG step in the face if the CG step length
+//     keeps x feasible, otherwise an expansion step: the largest feasible CG step, then a
+//     projected gradient step of fixed length alpha on the free gradient;
+//   - not proportional: a proportioning step, an exact line search along beta (leaves the face).
+// Cost of one iteration: one application of A (two for an expansion step) and a few vector ops.
+// Stops when the caller's test holds for the projected gradient g^P = phi + beta.
+#pragma once
+
+#include "htfeti/qp/operator.hpp"
+
+namespace htfeti::qp {
+
+struct MprgpOptions {
+  double gamma = 1.0;   ///< proportioning parameter Gamma > 0
+  double alpha = 0.0;   ///< expansion step length in (0, 2/||A||]; required (> 0)
+  int max_iterations = 10000;
+};
+
+struct MprgpResult {
+  StopReason reason = StopReason::max_iterations;
+  int iterations = 0;
+  int cg_steps = 0, expansion_steps = 0, proportioning_steps = 0;
+  double projected_gradient = 0;  ///< ||g^P|| at exit
+};
+
+/// stop(x, g, ||g^P||) decides convergence. x: start in (projected onto the bounds), solution out;
+/// g: the gradient A x - b at exit.
+using MprgpStop = std::function<bool(const Vec& x, const Vec& g, double gp_norm)>;
+MprgpResult mprgp(Operator& A, const Vec& b, const Vec& lower, Vec& x, Vec& g, const Reducer& red,
+                  const MprgpOptions& options, const MprgpStop& stop);
+
+/// The projected gradient g^P of min 1/2 x'Ax - b'x, x >= l, for the gradient g at x.
+void projected_gradient(const Vec& x, const Vec& g, const Vec& lower, Vec& gp);
+
+}  // namespace htfeti::qp

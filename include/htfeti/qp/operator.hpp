@@ -1,0 +1,83 @@
+// What the QP solvers know of the world: a symmetric operator with apply(x, y), local vectors,
+// and a Reducer that sums, maxes and mins scalars over all ranks. Nothing here knows FETI or MPI.
+//
+// Operator::apply is non-virtual: it counts applications and times them, then calls the
+// implementation (the pattern of Ginkgo's LinOp), so counting happens in one place.
+#pragma once
+
+#include <Eigen/Dense>
+#include <chrono>
+#include <functional>
+#include <string>
+
+namespace htfeti::qp {
+
+using Vec = Eigen::VectorXd;
+
+class Operator {
+ public:
+  virtual ~Operator() = default;
+  void apply(const Vec& x, Vec& y) {
+    const auto t0 = std::chrono::steady_clock::now();
+    do_apply(x, y);
+    seconds_ += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    ++count_;
+  }
+  long count() const { return count_; }
+  double seconds() const { return seconds_; }
+  void reset_counters() { count_ = 0, seconds_ = 0; }
+
+ protected:
+  virtual void do_apply(const Vec& x, Vec& y) = 0;
+
+ private:
+  long count_ = 0;
+  double seconds_ = 0;
+};
+
+/// An operator given by a callable (the callable owns nothing of the caller's lifetime).
+class FunctionOperator final : public Operator {
+ public:
+  explicit FunctionOperator(std::function<void(const Vec&, Vec&)> f) : f_(std::move(f)) {}
+
+ protected:
+  void do_apply(const Vec& x, Vec& y) override { f_(x, y); }
+
+ private:
+  std::function<void(const Vec&, Vec&)> f_;
+};
+
+/// Global reductions of rank-local scalars.
+class Reducer {
+ public:
+  virtual ~Reducer() = default;
+  virtual double sum(double v) const = 0;
+  virtual double max(double v) const = 0;
+  virtual double min(double v) const = 0;
+  double dot(const Vec& a, const Vec& b) const { return sum(a.dot(b)); }
+  double norm(const Vec& a) const { return std::sqrt(dot(a, a)); }
+};
+
+/// One process: the reductions are the identity.
+class SerialReducer final : public Reducer {
+ public:
+  double sum(double v) const override { return v; }
+  double max(double v) const override { return v; }
+  double min(double v) const override { return v; }
+};
+
+/// Why a solver stopped. Non-convergence is a result, not an exception.
+enum class StopReason { converged, max_iterations, breakdown };
+inline std::string to_string(StopReason r) {
+  switch (r) {
+    case StopReason::converged: return "converged";
+    case StopReason::max_iterations: return "max_iterations";
+    case StopReason::breakdown: return "breakdown";
+  }
+  return "?";
+}
+
+/// Called once per outer iteration with (iteration, projected gradient norm, ||G x|| or 0).
+using Progress = std::function<void(int, double, double)>;
+
+}  // namespace htfeti::qp

@@ -1,0 +1,29 @@
+// Projected conjugate gradients for the equality-constrained dual problem (paper, (11) without
+// inequalities): min 1/2 x'Ax - b'x subject to G x = e, started from a feasible x0 (G x0 = e), with
+// P the orthogonal projector onto Ker G. Every iterate stays feasible because every direction is
+// a P-image. Stops when ||P(b - A x)|| <= rtol ||P b||.
+//
+// Cost of one iteration: one application of A, one of P, three dot products, three axpys.
+#pragma once
+
+#include "htfeti/qp/operator.hpp"
+
+namespace htfeti::qp {
+
+struct PcgOptions {
+  double rtol = 1e-4;      ///< relative precision on the projected residual
+  int max_iterations = 1000;
+};
+
+struct PcgResult {
+  StopReason reason = StopReason::max_iterations;
+  int iterations = 0;
+  double projected_residual = 0;  ///< ||P(b - A x)|| at exit
+  double projected_rhs = 0;       ///< ||P b||
+};
+
+/// x: feasible start in, solution out. A counts its applications (see Operator).
+PcgResult projected_cg(Operator& A, Operator& P, const Vec& b, Vec& x, const Reducer& red,
+                       const PcgOptions& options, const Progress& progress = {});
+
+}  // namespace htfeti::qp

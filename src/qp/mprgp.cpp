@@ -1,0 +1,105 @@
+#include "htfeti/qp/mprgp.hpp"
+
+#include <algorithm>
+#include <limits>
+#include <stdexcept>
+
+namespace htfeti::qp {
+
+void projected_gradient(const Vec& x, const Vec& g, const Vec& lower, Vec& gp) {
+  gp.resize(x.size());
+  for (Eigen::Index i = 0; i < x.size(); ++i)
+    gp[i] = x[i] > lower[i] ? g[i] : std::min(g[i], 0.0);
+}
+
+namespace {
+// phi: free gradient, beta: chopped gradient.
+void split_gradient(const Vec& x, const Vec& g, const Vec& l, Vec& phi, Vec& beta) {
+  for (Eigen::Index i = 0; i < x.size(); ++i) {
+    const bool free = x[i] > l[i];
+    phi[i] = free ? g[i] : 0.0;
+    beta[i] = free ? 0.0 : std::min(g[i], 0.0);
+  }
+}
+}  // namespace
+
+MprgpResult mprgp(Operator& A, const Vec& b, const Vec& l, Vec& x, Vec& g, const Reducer& red,
+                  const MprgpOptions& opt, const MprgpStop& stop) {
+  if (!(opt.alpha > 0)) throw std::invalid_argument("MPRGP: the expansion step length must be > 0");
+  if (!(opt.gamma > 0)) throw std::invalid_argument("MPRGP: Gamma must be > 0");
+  const Eigen::Index n = b.size();
+  const double inf = std::numeric_limits<double>::infinity();
+  MprgpResult res;
+  Vec phi(n), beta(n), p(n), Ap(n), tmp(n);
+  x = x.cwiseMax(l);
+  A.apply(x, g);
+  g -= b;
+  split_gradient(x, g, l, phi, beta);
+  p = phi;
+  for (int it = 0;; ++it) {
+    res.iterations = it;
+    res.projected_gradient = std::sqrt(red.sum(phi.squaredNorm() + beta.squaredNorm()));
+    if (stop(x, g, res.projected_gradient)) {
+      res.reason = StopReason::converged;
+      return res;
+    }
+    if (it >= opt.max_iterations) {
+      res.reason = StopReason::max_iterations;
+      return res;
+    }
+    // Proportionality test ||beta||^2 <= Gamma^2 phi~'phi.
+    double phi_red_phi = 0;
+    for (Eigen::Index i = 0; i < n; ++i)
+      if (phi[i] != 0.0) phi_red_phi += std::min((x[i] - l[i]) / opt.alpha, phi[i]) * phi[i];
+    const double beta2 = red.sum(beta.squaredNorm());
+    phi_red_phi = red.sum(phi_red_phi);
+    if (beta2 <= opt.gamma * opt.gamma * phi_red_phi) {
+      A.apply(p, Ap);
+      const double pAp = red.dot(p, Ap);
+      if (!(pAp > 0)) {
+        res.reason = StopReason::breakdown;
+        return res;
+      }
+      const double a_cg = red.dot(g, p) / pAp;
+      double a_f = inf;  // largest feasible step along -p
+      for (Eigen::Index i = 0; i < n; ++i)
+        if (p[i] > 0 && l[i] > -inf) a_f = std::min(a_f, (x[i] - l[i]) / p[i]);
+      a_f = red.min(a_f);
+      if (a_cg <= a_f) {  // conjugate gradient step
+        ++res.cg_steps;
+        x -= a_cg * p;
+        x = x.cwiseMax(l);
+        g -= a_cg * Ap;
+        split_gradient(x, g, l, phi, beta);
+        const double gamma_cg = red.dot(phi, Ap) / pAp;
+        p = phi - gamma_cg * p;
+      } else {  // expansion step: feasible half step, then fixed-length projected gradient step
+        ++res.expansion_steps;
+        x -= a_f * p;
+        x = x.cwiseMax(l);
+        g -= a_f * Ap;
+        split_gradient(x, g, l, phi, beta);
+        x = (x - opt.alpha * phi).cwiseMax(l);
+        A.apply(x, g);
+        g -= b;
+        split_gradient(x, g, l, phi, beta);
+        p = phi;
+      }
+    } else {  // proportioning step along the chopped gradient
+      ++res.proportioning_steps;
+      A.apply(beta, Ap);
+      const double dAd = red.dot(beta, Ap);
+      if (!(dAd > 0)) {
+        res.reason = StopReason::breakdown;
+        return res;
+      }
+      const double a_cg = red.dot(g, beta) / dAd;
+      x -= a_cg * beta;
+      g -= a_cg * Ap;
+      split_gradient(x, g, l, phi, beta);
+      p = phi;
+    }
+  }
+}
+
+}  // namespace htfeti::qp

@@ -1,0 +1,46 @@
+#include "htfeti/qp/pcg.hpp"
+
+namespace htfeti::qp {
+
+PcgResult projected_cg(Operator& A, Operator& P, const Vec& b, Vec& x, const Reducer& red,
+                       const PcgOptions& opt, const Progress& progress) {
+  PcgResult res;
+  const Eigen::Index n = b.size();
+  Vec r(n), w(n), p(n), q(n);
+  P.apply(b, w);
+  res.projected_rhs = red.norm(w);
+  const double tol = opt.rtol * (res.projected_rhs > 0 ? res.projected_rhs : 1.0);
+  A.apply(x, q);
+  r = b - q;                    // residual
+  P.apply(r, w);                // projected residual (the gradient in Ker G)
+  double ww = red.dot(w, w);
+  p = w;
+  for (int it = 0;; ++it) {
+    res.iterations = it;
+    res.projected_residual = std::sqrt(ww);
+    if (progress) progress(it, res.projected_residual, 0.0);
+    if (res.projected_residual <= tol) {
+      res.reason = StopReason::converged;
+      return res;
+    }
+    if (it >= opt.max_iterations) {
+      res.reason = StopReason::max_iterations;
+      return res;
+    }
+    A.apply(p, q);              // the bottleneck: one dual operator application
+    const double pq = red.dot(p, q);
+    if (!(pq > 0)) {
+      res.reason = StopReason::breakdown;
+      return res;
+    }
+    const double alpha = ww / pq;
+    x += alpha * p;
+    r -= alpha * q;
+    P.apply(r, w);
+    const double ww_new = red.dot(w, w);
+    p = w + (ww_new / ww) * p;  // new conjugate direction, still in Ker G
+    ww = ww_new;
+  }
+}
+
+}  // namespace htfeti::qp

@@ -1,0 +1,197 @@
+#include "htfeti/solver.hpp"
+
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <omp.h>
+#include <stdexcept>
+
+#include "htfeti/qp/pcg.hpp"
+#include "htfeti/qp/power_norm.hpp"
+
+namespace htfeti {
+
+namespace {
+
+double now() {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
+}
+
+class CommReducer final : public qp::Reducer {
+ public:
+  explicit CommReducer(const Comm& c) : c_(c) {}
+  double sum(double v) const override { return c_.sum(v); }
+  double max(double v) const override { return c_.max(v); }
+  double min(double v) const override { return c_.min(v); }
+
+ private:
+  const Comm& c_;
+};
+
+}  // namespace
+
+void validate(const SolveOptions& o) {
+  if (!(o.rtol > 0 && o.rtol < 1)) throw std::invalid_argument("--rtol must lie in (0, 1)");
+  if (o.max_iterations < 0) throw std::invalid_argument("--max-it must be positive");
+  Decomposition check(o.decomposition);  // throws for bad sizes
+}
+
+SolveOutput solve(const SolveOptions& options, const Comm& comm) {
+  validate(options);
+  SolveOutput out;
+  out.decomposition = std::make_unique<Decomposition>(options.decomposition);
+  const Decomposition& dec = *out.decomposition;
+  const CommReducer red(comm);
+  const bool verbose = options.progress && comm.rank() == 0;
+
+  double t0 = now();
+  out.dual = std::make_unique<DualProblem>(dec, comm, options.feti);
+  DualProblem& dual = *out.dual;
+  const double t_setup = now() - t0;
+  const int n = dual.n_owned();
+  using Vec = Eigen::VectorXd;
+
+  qp::FunctionOperator F([&](const Vec& x, Vec& y) { dual.apply_F(x, y); });
+  qp::FunctionOperator P([&](const Vec& x, Vec& y) { dual.project(x, y); });
+  Vec lambda = dual.lambda_tilde();
+  nlohmann::json solver;
+  int outer = 0, inner = 0;
+  long matvecs = 0;
+  bool converged = false;
+  std::string reason;
+  double t_solve = now();
+  auto progress = [&](int it, double gp, double gx) {
+    if (verbose)
+      std::fprintf(stderr, "  it %5d  ||g^P|| %.3e  ||G lambda|| %.3e  %.2f s\n", it, gp, gx,
+                   now() - t_solve);
+  };
+
+  if (!dual.has_inequalities()) {
+    qp::PcgOptions po;
+    po.rtol = options.rtol;
+    po.max_iterations = options.max_iterations > 0 ? options.max_iterations : 1000;
+    const auto r = qp::projected_cg(F, P, dual.d(), lambda, red, po, progress);
+    outer = r.iterations;
+    matvecs = F.count();
+    converged = r.reason == qp::StopReason::converged;
+    reason = to_string(r.reason);
+    solver = {{"algorithm", "pcg"},
+              {"projected_residual", r.projected_residual},
+              {"projected_rhs", r.projected_rhs}};
+  } else {
+    // Homogenize (paper, (12)): lambda = lambda~ + x, G x = 0, x_I >= -lambda~_I.
+    Vec tmp(n), b(n), lower = dual.lower_bounds() - dual.lambda_tilde();
+    F.apply(dual.lambda_tilde(), tmp);
+    P.apply(dual.d() - tmp, b);
+    qp::FunctionOperator A([&](const Vec& x, Vec& y) {  // P F P
+      dual.project(x, tmp);
+      dual.apply_F(tmp, y);
+      dual.project(y, y);
+    });
+    qp::FunctionOperator Q([&](const Vec& x, Vec& y) {  // Q = I - P
+      dual.project(x, y);
+      y = x - y;
+    });
+    Vec start(n);
+    for (int i = 0; i < n; ++i)  // depends on global indices only, not on the rank count
+      start[i] = 1.0 + 0.5 * std::sin(0.7 * static_cast<double>(dual.global_index(i)) + 0.3);
+    P.apply(start, start);
+    const double normA = qp::estimate_norm(A, start, red);
+    const long norm_matvecs = A.count();
+    qp::SmalbeOptions so = options.smalbe;
+    so.rtol = options.rtol;
+    if (options.max_iterations > 0) so.max_outer = options.max_iterations;
+    Vec x = Vec::Zero(n);
+    long H_count = 0;
+    const auto r = qp::smalbe(A, Q, b, lower, x, normA, red, so, progress, &H_count);
+    lambda += x;
+    outer = r.outer_iterations;
+    inner = r.inner_iterations;
+    matvecs = H_count;
+    converged = r.reason == qp::StopReason::converged;
+    reason = to_string(r.reason);
+    solver = {{"algorithm", "smalbe-m+mprgp"},
+              {"projected_gradient", r.projected_gradient},
+              {"equality_residual", r.equality_residual},
+              {"rhs_norm", r.rhs_norm},
+              {"norm_estimate", normA},
+              {"norm_estimate_matvecs", norm_matvecs},
+              {"rho", r.rho},
+              {"M_final", r.M},
+              {"alpha", r.alpha},
+              {"cg_steps", r.cg_steps},
+              {"expansion_steps", r.expansion_steps},
+              {"proportioning_steps", r.proportioning_steps}};
+  }
+  t_solve = now() - t_solve;
+
+  double t_rec = now();
+  out.u = dual.reconstruct(lambda);
+  t_rec = now() - t_rec;
+  const auto kkt = dual.kkt(out.u, lambda);
+  const double energy = dual.energy(out.u);
+
+  const auto& st = dual.setup_timings();
+  auto tmax = [&](double v) { return comm.max(v); };
+  nlohmann::json& rep = out.report;
+  const auto& o = options.decomposition;
+  rep["problem"] = to_string(o.problem);
+  rep["element"] = to_string(o.element);
+  rep["elements"] = o.elements;
+  rep["subdomains"] = dec.num_subdomains();
+  rep["subdomains_per_side"] = o.subdomains;
+  rep["clusters"] = dec.num_clusters();
+  rep["cluster_size"] = o.cluster_size;
+  rep["glue"] = o.cluster_size > 1 ? to_string(o.glue) : "none";
+  rep["H_over_h"] = dec.H();
+  rep["primal_dimension"] = dec.primal_dimension();
+  rep["dual_dimension"] = dual.dual_dimension();
+  rep["equalities"] = dual.equalities();
+  rep["inequalities"] = dual.inequalities();
+  rep["coarse_dimension"] = dual.coarse_dimension();
+  rep["ranks"] = comm.size();
+  rep["threads"] = omp_get_max_threads();
+  rep["rtol"] = options.rtol;
+  rep["ordering"] = to_string(options.feti.ordering);
+  rep["converged"] = converged;
+  rep["stop_reason"] = reason;
+  rep["outer_iterations"] = outer;
+  rep["inner_iterations"] = inner;
+  rep["matvecs"] = matvecs;
+  rep["F_applications"] = F.count();
+  rep["objective"] = energy;
+  rep["kkt"] = {{"equality_residual", kkt.equality_residual},
+                {"max_violation", kkt.max_violation},
+                {"min_multiplier", kkt.min_multiplier},
+                {"complementarity", kkt.complementarity}};
+  rep["solver"] = solver;
+  rep["timings"] = {{"setup", tmax(st.assembly + st.constraints)},
+                    {"assembly", tmax(st.assembly)},
+                    {"factorization", tmax(st.factorization)},
+                    {"constraints", tmax(st.constraints)},
+                    {"coarse_problem", tmax(st.coarse)},
+                    {"solve", tmax(t_solve)},
+                    {"F", tmax(F.seconds())},
+                    {"projector", tmax(P.seconds())},
+                    {"reconstruction", tmax(t_rec)},
+                    {"total", tmax(t_setup + t_solve + t_rec)}};
+  rep["memory"] = {{"factor_nonzeros", comm.sum(static_cast<long long>(dual.factor_nonzeros()))},
+                   {"coarse_factor_nonzeros", dual.coarse_factor_nonzeros()}};
+  if (dec.problem().has_contact()) {
+    const auto c = dual.contact_data(out.u, lambda);
+    nlohmann::json cj = {{"y", c.y}, {"u_left", c.u_left}, {"u_right", c.u_right},
+                         {"multiplier", c.multiplier}};
+    // Rank 0 holds the gathered arrays; share them so the report is the same everywhere.
+    std::string s = comm.rank() == 0 ? cj.dump() : std::string();
+    long long len = static_cast<long long>(s.size());
+    MPI_Bcast(&len, 1, MPI_LONG_LONG, 0, comm.raw());
+    s.resize(static_cast<size_t>(len));
+    MPI_Bcast(s.data(), static_cast<int>(len), MPI_CHAR, 0, comm.raw());
+    rep["contact"] = nlohmann::json::parse(s);
+  }
+  out.lambda = std::move(lambda);
+  out.converged = converged;
+  return out;
+}
+
+}  // namespace htfeti

@@ -24,16 +24,18 @@ void split_gradient(const Vec& x, const Vec& g, const Vec& l, Vec& phi, Vec& bet
 }  // namespace
 
 MprgpResult mprgp(Operator& A, const Vec& b, const Vec& l, Vec& x, Vec& g, const Reducer& red,
-                  const MprgpOptions& opt, const MprgpStop& stop) {
+                  const MprgpOptions& opt, const MprgpStop& stop, bool gradient_given) {
   if (!(opt.alpha > 0)) throw std::invalid_argument("MPRGP: the expansion step length must be > 0");
   if (!(opt.gamma > 0)) throw std::invalid_argument("MPRGP: Gamma must be > 0");
   const Eigen::Index n = b.size();
   const double inf = std::numeric_limits<double>::infinity();
   MprgpResult res;
   Vec phi(n), beta(n), p(n), Ap(n), tmp(n);
-  x = x.cwiseMax(l);
-  A.apply(x, g);
-  g -= b;
+  if (!gradient_given) {
+    x = x.cwiseMax(l);
+    A.apply(x, g);
+    g -= b;
+  }
   split_gradient(x, g, l, phi, beta);
   p = phi;
   for (int it = 0;; ++it) {

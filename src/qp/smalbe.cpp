@@ -42,7 +42,8 @@ SmalbeResult smalbe(Operator& A, Operator& Q, const Vec& b, const Vec& l, Vec& x
       global_stop = gp <= tol && qnorm <= tol;
       return global_stop || gp <= std::min(M * qnorm, eta);
     };
-    const MprgpResult inner = mprgp(H, rhs, l, x, g, red, mo, stop);
+    // After the first outer iteration g = H x - (b - nu) is kept up to date below.
+    const MprgpResult inner = mprgp(H, rhs, l, x, g, red, mo, stop, k > 0);
     res.inner_iterations += inner.iterations;
     res.cg_steps += inner.cg_steps;
     res.expansion_steps += inner.expansion_steps;
@@ -67,6 +68,7 @@ SmalbeResult smalbe(Operator& A, Operator& Q, const Vec& b, const Vec& l, Vec& x
     // L(x^k, mu^k) = 1/2 x'(g - b + nu) with g = H x - b + nu.
     const double L = 0.5 * red.dot(x, g - b + nu);
     nu += rho * qx;  // mu^{k+1} = mu^k + rho G x^k, kept as nu = G' mu
+    g += rho * qx;   // the gradient of L moves with nu; x does not change
     if (k > 0 && L < L_prev + 0.5 * rho * qnorm * qnorm) M /= opt.beta;
     L_prev = L;
   }

@@ -1,0 +1,57 @@
+// TFETI and H-TFETI-DP for the membranes variational inequality against the undecomposed
+// problem solved by a primal-dual active set method; runs under mpiexec -n 1, 2, 4.
+#include <gtest/gtest.h>
+
+#include "helpers.hpp"
+#include "htfeti/solver.hpp"
+
+using namespace htfeti;
+
+namespace {
+
+struct Case {
+  ProblemKind problem;
+  int n, ns, m;
+  const char* glue;
+};
+
+class ContactAgainstUndecomposed : public ::testing::TestWithParam<Case> {};
+
+TEST_P(ContactAgainstUndecomposed, EnergyAndContactDisplacements) {
+  const Case c = GetParam();
+  Comm comm;
+  SolveOptions opt;
+  opt.decomposition = {c.problem, ElementKind::q1, c.n, c.ns, c.m, parse_glue(c.glue)};
+  opt.rtol = 1e-10;
+  auto out = solve(opt, comm);
+  ASSERT_TRUE(out.converged) << out.report["stop_reason"];
+  const auto ref = solve_undecomposed(c.problem, ElementKind::q1, c.n);
+  const double energy = out.report["objective"];
+  EXPECT_NEAR(energy, ref.energy, 1e-6 * std::abs(ref.energy));
+  EXPECT_LT(test::relative_error(*out.dual, out.u, ref.u), 1e-5);
+  const auto& contact = out.report["contact"];
+  ASSERT_EQ(contact["y"].size(), ref.contact_y.size());
+  double umax = 0, fmax = 0;
+  for (size_t j = 0; j < ref.contact_y.size(); ++j) {
+    umax = std::max({umax, std::abs(ref.u_left[j]), std::abs(ref.u_right[j])});
+    fmax = std::max(fmax, std::abs(ref.multiplier[j]));
+  }
+  for (size_t j = 0; j < ref.contact_y.size(); ++j) {
+    EXPECT_NEAR(contact["y"][j].get<double>(), ref.contact_y[j], 1e-14);
+    EXPECT_NEAR(contact["u_left"][j].get<double>(), ref.u_left[j], 1e-5 * umax) << "node " << j;
+    EXPECT_NEAR(contact["u_right"][j].get<double>(), ref.u_right[j], 1e-5 * umax) << "node " << j;
+    EXPECT_NEAR(contact["multiplier"][j].get<double>(), ref.multiplier[j], 1e-4 * fmax) << "node " << j;
+  }
+  const auto& kkt = out.report["kkt"];
+  EXPECT_GE(kkt["min_multiplier"].get<double>(), 0.0);
+  EXPECT_LT(kkt["max_violation"].get<double>(), 1e-6 * umax);
+}
+
+INSTANTIATE_TEST_SUITE_P(
+    Tfeti, ContactAgainstUndecomposed,
+    ::testing::Values(Case{ProblemKind::membranes, 8, 2, 1, "averages"},
+                      Case{ProblemKind::membranes, 24, 4, 1, "averages"},
+                      Case{ProblemKind::membranes, 30, 5, 1, "averages"},
+                      Case{ProblemKind::membranes_coercive, 16, 4, 1, "averages"}));
+
+}  // namespace

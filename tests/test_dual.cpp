@@ -1,0 +1,112 @@
+// The dual operators on small cases, TFETI and H-TFETI-DP: the coarse factor inverts G~ G~^T
+// (so G = L^{-1} G~ has orthonormal rows), P is a symmetric idempotent projector onto Ker G~,
+// F is symmetric positive semidefinite. Runs under mpiexec -n 1, 2, 4.
+#include <gtest/gtest.h>
+
+#include "helpers.hpp"
+
+using namespace htfeti;
+
+namespace {
+
+struct Case {
+  ProblemKind problem;
+  int n, ns, m;
+  Glue glue;
+};
+
+class DualOperators : public ::testing::TestWithParam<Case> {
+ protected:
+  void SetUp() override {
+    const Case c = GetParam();
+    dec = std::make_unique<Decomposition>(
+        DecompositionOptions{c.problem, ElementKind::q1, c.n, c.ns, c.m, c.glue});
+    dual = std::make_unique<DualProblem>(*dec, comm);
+  }
+  double dot(const Eigen::VectorXd& a, const Eigen::VectorXd& b) { return comm.sum(a.dot(b)); }
+  Comm comm;
+  std::unique_ptr<Decomposition> dec;
+  std::unique_ptr<DualProblem> dual;
+};
+
+TEST_P(DualOperators, CoarseFactorInvertsGGt) {
+  // Columns of G~^T from unit coarse vectors; the dense G~ G~^T from their dot products.
+  const int nc = dual->coarse_dimension();
+  std::vector<Eigen::VectorXd> cols(nc);
+  for (int c = 0; c < nc; ++c) {
+    Eigen::VectorXd e = Eigen::VectorXd::Zero(nc);
+    e[c] = 1;
+    dual->apply_Gt(e, cols[c]);
+  }
+  Eigen::MatrixXd GGt(nc, nc);
+  for (int a = 0; a < nc; ++a)
+    for (int b = 0; b < nc; ++b) GGt(a, b) = dot(cols[a], cols[b]);
+  Eigen::VectorXd z = Eigen::VectorXd::LinSpaced(nc, 1.0, 2.0), w = GGt * z;
+  dual->coarse_solve(w);
+  EXPECT_LT((w - z).norm(), 1e-10 * z.norm());
+  // G = L^{-1} G~ has orthonormal rows: with the dense L, L^{-1} (G~ G~^T) L^{-T} = I.
+  Eigen::LLT<Eigen::MatrixXd> llt(GGt);
+  ASSERT_EQ(llt.info(), Eigen::Success);
+  const Eigen::MatrixXd L = llt.matrixL();
+  const Eigen::MatrixXd Linv = L.inverse();
+  EXPECT_LT((Linv * GGt * Linv.transpose() - Eigen::MatrixXd::Identity(nc, nc)).norm(), 1e-10);
+  // apply_G is the transpose of apply_Gt.
+  const Eigen::VectorXd x = test::pseudo_random(*dual, 1.0);
+  Eigen::VectorXd gx;
+  dual->apply_G(x, gx);
+  for (int c = 0; c < nc; ++c) EXPECT_NEAR(gx[c], dot(cols[c], x), 1e-12);
+}
+
+TEST_P(DualOperators, ProjectorIsSymmetricIdempotentOntoKerG) {
+  const Eigen::VectorXd x = test::pseudo_random(*dual, 1.0), y = test::pseudo_random(*dual, 2.0);
+  Eigen::VectorXd px, ppx, py, gpx;
+  dual->project(x, px);
+  dual->project(px, ppx);
+  dual->project(y, py);
+  const double nx = std::sqrt(dot(x, x));
+  EXPECT_LT(std::sqrt(dot(ppx - px, ppx - px)), 1e-12 * nx);
+  EXPECT_NEAR(dot(px, y), dot(x, py), 1e-12 * nx * std::sqrt(dot(y, y)));
+  dual->apply_G(px, gpx);
+  EXPECT_LT(gpx.norm(), 1e-12 * nx);
+  // lambda~ satisfies G~ lambda = e~.
+  Eigen::VectorXd gl;
+  dual->apply_G(dual->lambda_tilde(), gl);
+  EXPECT_LT((gl - dual->e()).norm(), 1e-12 * (1 + dual->e().norm()));
+}
+
+TEST_P(DualOperators, FIsSymmetricPositiveSemidefinite) {
+  Eigen::VectorXd fx, fy;
+  for (double seed : {1.0, 2.0, 3.0}) {
+    const Eigen::VectorXd x = test::pseudo_random(*dual, seed),
+                          y = test::pseudo_random(*dual, seed + 10);
+    dual->apply_F(x, fx);
+    dual->apply_F(y, fy);
+    const double scale = std::sqrt(dot(fx, fx) * dot(y, y));
+    EXPECT_NEAR(dot(fx, y), dot(x, fy), 1e-12 * scale);
+    EXPECT_GE(dot(fx, x), 0.0);
+  }
+  if (comm.size() == 1) {  // all eigenvalues of the dense F are >= 0
+    const int n = dual->n_owned();
+    Eigen::MatrixXd F(n, n);
+    Eigen::VectorXd e, col;
+    for (int j = 0; j < n; ++j) {
+      e = Eigen::VectorXd::Zero(n);
+      e[j] = 1;
+      dual->apply_F(e, col);
+      F.col(j) = col;
+    }
+    EXPECT_LT((F - F.transpose()).norm(), 1e-12 * F.norm());
+    Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(0.5 * (F + F.transpose()));
+    EXPECT_GT(eig.eigenvalues().minCoeff(), -1e-12 * eig.eigenvalues().maxCoeff());
+  }
+}
+
+INSTANTIATE_TEST_SUITE_P(
+    SmallCases, DualOperators,
+    ::testing::Values(Case{ProblemKind::poisson2d, 8, 4, 1, Glue::averages},
+                      Case{ProblemKind::membranes, 12, 3, 1, Glue::averages},
+                      Case{ProblemKind::membranes, 16, 4, 2, Glue::averages},
+                      Case{ProblemKind::poisson2d, 12, 4, 2, Glue::corners},
+                      Case{ProblemKind::membranes, 16, 4, 4, Glue::corners_averages}));
+
+}  // namespace

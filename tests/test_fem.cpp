@@ -1,0 +1,216 @@
+// Tiny hand-checkable cases: element matrices, loads, subdomain generalized inverses, B~ and the
+// cluster generalized inverse.
+#include <gtest/gtest.h>
+
+#include <Eigen/Dense>
+#include <numeric>
+
+#include "htfeti/feti/cluster.hpp"
+#include "htfeti/feti/constraints.hpp"
+
+using namespace htfeti;
+
+TEST(Element, Q1StiffnessIsTheTextbookMatrix) {
+  const auto k = square_stiffness(ElementKind::q1);
+  for (int i = 0; i < 4; ++i) {
+    EXPECT_NEAR(k[i][i], 2.0 / 3.0, 1e-15);
+    EXPECT_NEAR(k[i][(i + 1) % 4], -1.0 / 6.0, 1e-15);
+    EXPECT_NEAR(k[i][(i + 2) % 4], -1.0 / 3.0, 1e-15);
+  }
+}
+
+TEST(Element, P1StiffnessOfTwoRightTriangles) {
+  // Diagonal 0-2: edges of the square get -1/2, the diagonal 0-2 gets 0 (right angles at 1 and 3)
+  // and 1-3 are not connected.
+  const auto k = square_stiffness(ElementKind::p1);
+  for (int i = 0; i < 4; ++i) {
+    EXPECT_NEAR(k[i][i], 1.0, 1e-15);
+    EXPECT_NEAR(k[i][(i + 1) % 4], -0.5, 1e-15);
+    EXPECT_NEAR(k[i][(i + 2) % 4], 0.0, 1e-15);
+  }
+}
+
+TEST(Load, TotalLoadIsTheIntegralOfF) {
+  for (auto element : {ElementKind::q1, ElementKind::p1}) {
+    Decomposition dec({ProblemKind::membranes, element, 8, 2, 1, Glue::averages});
+    double total = 0;
+    for (int s = 0; s < dec.num_subdomains(); ++s) total += Subdomain(dec, s).f().sum();
+    EXPECT_NEAR(total, -3.0 * 0.25 - 1.0 * 0.25, 1e-14);
+    Decomposition p({ProblemKind::poisson2d, element, 6, 3, 1, Glue::averages});
+    total = 0;
+    for (int s = 0; s < p.num_subdomains(); ++s) total += Subdomain(p, s).f().sum();
+    EXPECT_NEAR(total, 1.0, 1e-14);
+  }
+}
+
+TEST(Subdomain, GeneralizedInverseAndKernel) {
+  for (auto element : {ElementKind::q1, ElementKind::p1}) {
+    Decomposition dec({ProblemKind::poisson2d, element, 10, 2, 1, Glue::averages});
+    Subdomain sd(dec, 3);
+    sd.factorize(Ordering::amd);
+    const Eigen::MatrixXd K = Eigen::MatrixXd(sd.K());
+    Eigen::MatrixXd KpK(K.rows(), K.cols());
+    for (int j = 0; j < K.cols(); ++j) {
+      Eigen::VectorXd col = K.col(j);
+      sd.apply_pinv(col.data(), KpK.col(j).data());
+    }
+    EXPECT_LT((K * KpK - K).norm(), 1e-12 * K.norm());  // K K^+ K = K
+    EXPECT_LT((K * sd.kernel()).norm(), 1e-13);         // K R = 0
+    EXPECT_NEAR(sd.kernel().norm(), 1.0, 1e-14);
+  }
+}
+
+TEST(Subdomain, NotPositiveDefiniteIsAnError) {
+  SparseCholesky chol;
+  Eigen::SparseMatrix<double> A(2, 2);
+  A.insert(0, 0) = 1.0;
+  A.insert(0, 1) = 2.0;
+  A.insert(1, 0) = 2.0;
+  A.insert(1, 1) = 1.0;
+  EXPECT_THROW(chol.factorize(A), std::runtime_error);
+}
+
+namespace {
+
+// Dense B~ (rows: multipliers, columns: all subdomain dofs stacked) and C (all clusters).
+struct Dense {
+  Eigen::MatrixXd B, C;
+  int gluing_rows = 0;
+};
+
+Dense dense_constraints(const Decomposition& dec, bool gluing_only) {
+  const int per = dec.nodes_per_subdomain(), N = dec.num_subdomains() * per;
+  std::vector<Multiplier> rows;
+  for_each_multiplier(dec, [&](const Multiplier& m) {
+    if (!gluing_only || m.kind == MultiplierKind::gluing) rows.push_back(m);
+  });
+  Dense d;
+  d.B = Eigen::MatrixXd::Zero(static_cast<int>(rows.size()), N);
+  for (size_t r = 0; r < rows.size(); ++r)
+    for (const auto& e : rows[r].entries) d.B(static_cast<int>(r), e.subdomain * per + e.dof) += e.value;
+  std::vector<std::vector<ConstraintEntry>> c;
+  for (int cl = 0; cl < dec.num_clusters(); ++cl)
+    for (auto& row : cluster_primal_constraints(dec, cl)) c.push_back(row);
+  d.C = Eigen::MatrixXd::Zero(static_cast<int>(c.size()), N);
+  for (size_t r = 0; r < c.size(); ++r)
+    for (const auto& e : c[r]) d.C(static_cast<int>(r), e.subdomain * per + e.dof) += e.value;
+  return d;
+}
+
+}  // namespace
+
+class Constraints : public ::testing::TestWithParam<std::tuple<int, int, int, Glue, ProblemKind>> {};
+
+TEST_P(Constraints, OrthonormalRowsAndTheRightKernel) {
+  const auto [n, ns, m, glue, problem] = GetParam();
+  Decomposition dec({problem, ElementKind::q1, n, ns, m, glue});
+  const Dense all = dense_constraints(dec, false);
+  const int rows = static_cast<int>(all.B.rows());
+  EXPECT_LT((all.B * all.B.transpose() - Eigen::MatrixXd::Identity(rows, rows)).norm(), 1e-13);
+  // Rows of B~ lie in Ker C (they are rows of B Z in the cluster variables): B~ C' = 0.
+  if (all.C.rows() > 0) EXPECT_LT((all.B * all.C.transpose()).norm(), 1e-13);
+  // Ker [B~_gluing; C] is exactly the continuous functions: one dimension per global node.
+  const Dense glue_only = dense_constraints(dec, true);
+  Eigen::MatrixXd stacked(glue_only.B.rows() + glue_only.C.rows(), glue_only.B.cols());
+  stacked << glue_only.B, glue_only.C;
+  Eigen::FullPivLU<Eigen::MatrixXd> lu(stacked);
+  const int global_nodes = dec.squares() * (n + 1) * (n + 1);
+  EXPECT_EQ(stacked.cols() - lu.rank(), global_nodes);
+}
+
+INSTANTIATE_TEST_SUITE_P(
+    AllGlues, Constraints,
+    ::testing::Values(std::make_tuple(4, 2, 1, Glue::averages, ProblemKind::poisson2d),
+                      std::make_tuple(6, 3, 1, Glue::averages, ProblemKind::membranes),
+                      std::make_tuple(8, 4, 2, Glue::averages, ProblemKind::membranes),
+                      std::make_tuple(8, 4, 2, Glue::corners, ProblemKind::membranes),
+                      std::make_tuple(8, 4, 2, Glue::corners_averages, ProblemKind::poisson2d),
+                      std::make_tuple(12, 4, 4, Glue::averages, ProblemKind::poisson2d),
+                      std::make_tuple(12, 4, 4, Glue::corners, ProblemKind::membranes_coercive)));
+
+class ClusterInverse : public ::testing::TestWithParam<std::tuple<int, int, Glue>> {};
+
+TEST_P(ClusterInverse, IsAGeneralizedInverseOfTheClusterStiffness) {
+  // K~ = Z' K Z with Z an orthonormal basis of Ker C; the cluster solve returns Z K~^+ Z' x.
+  const auto [H, m, glue] = GetParam();
+  Decomposition dec({ProblemKind::poisson2d, ElementKind::q1, H * m, m, m, glue});
+  std::vector<std::unique_ptr<Subdomain>> subs;
+  std::vector<Subdomain*> ptrs;
+  for (int s = 0; s < m * m; ++s) {
+    subs.push_back(std::make_unique<Subdomain>(dec, s));
+    ptrs.push_back(subs.back().get());
+  }
+  Cluster cluster(dec, 0, ptrs, Ordering::amd);
+  const int per = dec.nodes_per_subdomain(), N = m * m * per;
+  Eigen::MatrixXd K = Eigen::MatrixXd::Zero(N, N), C;
+  for (int s = 0; s < m * m; ++s) K.block(s * per, s * per, per, per) = Eigen::MatrixXd(subs[s]->K());
+  const auto rows = cluster_primal_constraints(dec, 0);
+  C = Eigen::MatrixXd::Zero(static_cast<int>(rows.size()), N);
+  for (size_t r = 0; r < rows.size(); ++r)
+    for (const auto& e : rows[r]) C(static_cast<int>(r), e.subdomain * per + e.dof) += e.value;
+  // Z: orthonormal basis of Ker C from the SVD.
+  Eigen::MatrixXd Z = Eigen::MatrixXd::Identity(N, N);
+  if (C.rows() > 0) {
+    Eigen::JacobiSVD<Eigen::MatrixXd> svd(C, Eigen::ComputeFullV);
+    const int rank = static_cast<int>((svd.singularValues().array() > 1e-10).count());
+    Z = svd.matrixV().rightCols(N - rank);
+  }
+  const Eigen::MatrixXd Kt = Z.transpose() * K * Z;
+  // A = cluster solve applied to K Z (columns), then K~ K~^+ K~ = Z' K (A K Z).
+  Eigen::MatrixXd AKZ(N, Z.cols());
+  std::vector<Eigen::VectorXd> x(m * m);
+  for (int j = 0; j < Z.cols(); ++j) {
+    const Eigen::VectorXd kz = K * Z.col(j);
+    for (int s = 0; s < m * m; ++s) x[s] = kz.segment(s * per, per);
+    cluster.solve(x);
+    for (int s = 0; s < m * m; ++s) AKZ.col(j).segment(s * per, per) = x[s];
+  }
+  EXPECT_LT((Z.transpose() * K * AKZ - Kt).norm(), 1e-10 * Kt.norm());
+  // The result satisfies the primal constraints, and the cluster kernel is the constant.
+  EXPECT_LT((C * AKZ).norm(), 1e-10 * AKZ.norm());
+  const Eigen::VectorXd R = Eigen::VectorXd::Constant(N, cluster.kernel_value());
+  EXPECT_NEAR(R.norm(), 1.0, 1e-14);
+  EXPECT_LT((Kt * (Z.transpose() * R)).norm(), 1e-12);
+  EXPECT_LT((Z * (Z.transpose() * R) - R).norm(), 1e-12);  // R~ lies in the cluster space
+  // The kernel of K~ is one-dimensional: the subdomains are really joined.
+  Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(Kt);
+  EXPECT_LT(std::abs(eig.eigenvalues()[0]), 1e-10);
+  EXPECT_GT(eig.eigenvalues()[1], 1e-6);
+}
+
+INSTANTIATE_TEST_SUITE_P(AllGlues, ClusterInverse,
+                         ::testing::Values(std::make_tuple(4, 1, Glue::averages),
+                                           std::make_tuple(4, 2, Glue::averages),
+                                           std::make_tuple(3, 2, Glue::corners),
+                                           std::make_tuple(4, 2, Glue::corners_averages),
+                                           std::make_tuple(3, 3, Glue::averages),
+                                           std::make_tuple(2, 3, Glue::corners)));
+
+TEST(Decomposition, BadSizesAreClearErrors) {
+  auto make = [](int n, int ns, int m, Glue g) {
+    return Decomposition({ProblemKind::poisson2d, ElementKind::q1, n, ns, m, g});
+  };
+  EXPECT_THROW(make(10, 3, 1, Glue::averages), std::invalid_argument);
+  EXPECT_THROW(make(12, 4, 3, Glue::averages), std::invalid_argument);
+  EXPECT_THROW(make(0, 1, 1, Glue::averages), std::invalid_argument);
+  EXPECT_THROW(make(8, 8, 2, Glue::averages), std::invalid_argument);  // H = 1: empty edge interiors
+  EXPECT_THROW(parse_problem("plate"), std::invalid_argument);
+  EXPECT_THROW(parse_glue("faces"), std::invalid_argument);
+}
+
+TEST(Decomposition, ClusterMajorNumberingRoundTrips) {
+  Decomposition dec({ProblemKind::membranes, ElementKind::q1, 24, 6, 3, Glue::averages});
+  for (int s = 0; s < dec.num_subdomains(); ++s) {
+    const auto p = dec.position(s);
+    EXPECT_EQ(dec.subdomain_id(p.q, p.sx, p.sy), s);
+  }
+  for (int P : {1, 2, 3, 5}) {
+    int covered = 0;
+    for (int r = 0; r < P; ++r) {
+      const auto [a, b] = dec.cluster_range(r, P);
+      for (int c = a; c < b; ++c) EXPECT_EQ(dec.rank_of_cluster(c, P), r);
+      covered += b - a;
+    }
+    EXPECT_EQ(covered, dec.num_clusters());
+  }
+}

@@ -1,0 +1,218 @@
+// Conformance suite for the QP solvers: on small random problems the result must match the exact
+// solution found by enumerating active sets, and satisfy KKT (feasibility, non-negative bound
+// multipliers, complementarity, small projected gradient). Failure paths are results, not throws.
+#include <gtest/gtest.h>
+
+#include <limits>
+#include <random>
+
+#include "htfeti/qp/mprgp.hpp"
+#include "htfeti/qp/pcg.hpp"
+#include "htfeti/qp/power_norm.hpp"
+#include "htfeti/qp/smalbe.hpp"
+
+using namespace htfeti;
+using namespace htfeti::qp;
+
+namespace {
+
+const double inf = std::numeric_limits<double>::infinity();
+
+class DenseOperator final : public Operator {
+ public:
+  explicit DenseOperator(Eigen::MatrixXd A) : A_(std::move(A)) {}
+
+ protected:
+  void do_apply(const Vec& x, Vec& y) override { y.noalias() = A_ * x; }
+
+ private:
+  Eigen::MatrixXd A_;
+};
+
+struct Qp {
+  Eigen::MatrixXd A, G;  // G: orthonormal rows (may be empty)
+  Vec b, l;
+};
+
+// Random QP: A = M'M + shift (or P M P + ... for the singular FETI-like case).
+Qp random_qp(int n, int bounded, int equalities, unsigned seed, bool singular_off_kernel) {
+  std::mt19937 gen(seed);
+  std::normal_distribution<double> N01;
+  Qp q;
+  Eigen::MatrixXd M(n, n);
+  for (int i = 0; i < n; ++i)
+    for (int j = 0; j < n; ++j) M(i, j) = N01(gen);
+  q.A = M.transpose() * M / n + 0.1 * Eigen::MatrixXd::Identity(n, n);
+  q.G.resize(equalities, n);
+  for (int i = 0; i < equalities; ++i)
+    for (int j = 0; j < n; ++j) q.G(i, j) = N01(gen);
+  if (equalities > 0) {
+    Eigen::HouseholderQR<Eigen::MatrixXd> qr(q.G.transpose());
+    q.G = Eigen::MatrixXd(qr.householderQ()).leftCols(equalities).transpose();
+    if (singular_off_kernel) {  // A = P A P: singular, positive definite on Ker G only
+      const Eigen::MatrixXd P = Eigen::MatrixXd::Identity(n, n) - q.G.transpose() * q.G;
+      q.A = P * q.A * P;
+    }
+  }
+  q.b.resize(n);
+  q.l.resize(n);
+  for (int i = 0; i < n; ++i) {
+    q.b[i] = N01(gen);
+    q.l[i] = i < bounded ? N01(gen) * 0.3 : -inf;
+  }
+  return q;
+}
+
+// Exact solution by enumerating the active sets of the bounded components.
+Vec exact_solution(const Qp& q, int bounded) {
+  const int n = static_cast<int>(q.b.size()), me = static_cast<int>(q.G.rows());
+  for (int mask = 0; mask < (1 << bounded); ++mask) {
+    std::vector<int> fr;
+    for (int i = 0; i < n; ++i)
+      if (!(i < bounded && (mask >> i & 1))) fr.push_back(i);
+    const int nf = static_cast<int>(fr.size());
+    Vec x = Vec::Zero(n);
+    for (int i = 0; i < bounded; ++i)
+      if (mask >> i & 1) x[i] = q.l[i];
+    // KKT on the free set: [A_FF G_F'; G_F 0] [x_F; mu] = [b_F - A_FS x_S; -G_S x_S].
+    Eigen::MatrixXd K = Eigen::MatrixXd::Zero(nf + me, nf + me);
+    Vec rhs(nf + me);
+    const Vec Ax = q.A * x, Gx = me ? Vec(q.G * x) : Vec();
+    for (int a = 0; a < nf; ++a) {
+      for (int c = 0; c < nf; ++c) K(a, c) = q.A(fr[a], fr[c]);
+      for (int e = 0; e < me; ++e) K(a, nf + e) = K(nf + e, a) = q.G(e, fr[a]);
+      rhs[a] = q.b[fr[a]] - Ax[fr[a]];
+    }
+    for (int e = 0; e < me; ++e) rhs[nf + e] = -Gx[e];
+    Eigen::FullPivLU<Eigen::MatrixXd> lu(K);
+    if (!lu.isInvertible()) continue;
+    const Vec sol = lu.solve(rhs);
+    for (int a = 0; a < nf; ++a) x[fr[a]] = sol[a];
+    Vec g = q.A * x - q.b;
+    if (me) g += q.G.transpose() * sol.tail(me);
+    bool ok = true;
+    for (int i = 0; i < n; ++i) {
+      if (x[i] < q.l[i] - 1e-12) ok = false;
+      if (i < bounded && (mask >> i & 1) && g[i] < -1e-12) ok = false;  // multiplier >= 0
+    }
+    if (ok) return x;
+  }
+  ADD_FAILURE() << "no active set satisfies KKT";
+  return Vec::Zero(n);
+}
+
+void expect_kkt(const Qp& q, const Vec& x, double tol) {
+  const int me = static_cast<int>(q.G.rows());
+  // Multipliers of the equalities by least squares on the free components.
+  Vec g = q.A * x - q.b;
+  if (me) {
+    const Vec mu = q.G.transpose().colPivHouseholderQr().solve(-g);
+    // only free components must vanish; use them to refit mu
+    std::vector<int> fr;
+    for (int i = 0; i < x.size(); ++i)
+      if (x[i] > q.l[i] + 1e-9) fr.push_back(i);
+    Eigen::MatrixXd Gf(fr.size(), me);
+    Vec gf(fr.size());
+    for (size_t a = 0; a < fr.size(); ++a) Gf.row(a) = q.G.col(fr[a]).transpose(), gf[a] = g[fr[a]];
+    const Vec mu_f = Gf.colPivHouseholderQr().solve(-gf);
+    g += q.G.transpose() * (fr.size() >= static_cast<size_t>(me) ? mu_f : mu);
+    EXPECT_LT((q.G * x).norm(), tol);
+  }
+  for (int i = 0; i < x.size(); ++i) {
+    EXPECT_GE(x[i], q.l[i] - 1e-14);                            // feasibility
+    if (q.l[i] > -inf) {
+      EXPECT_GE(g[i], -tol);                                    // multiplier >= 0
+      EXPECT_LT(std::abs(g[i] * (x[i] - q.l[i])), tol);         // complementarity
+    } else {
+      EXPECT_LT(std::abs(g[i]), tol);                           // stationarity
+    }
+  }
+}
+
+}  // namespace
+
+class MprgpConformance : public ::testing::TestWithParam<unsigned> {};
+
+TEST_P(MprgpConformance, MatchesEnumeratedActiveSets) {
+  const int n = 10, bounded = 7;
+  const Qp q = random_qp(n, bounded, 0, GetParam(), false);
+  DenseOperator A(q.A);
+  SerialReducer red;
+  MprgpOptions opt;
+  const double normA = estimate_norm(A, Vec::Ones(n), red, 200, 1e-10);
+  opt.alpha = 1.9 / normA;
+  Vec x = Vec::Zero(n), g(n);
+  const double tol = 1e-11 * q.b.norm();
+  const auto r = mprgp(A, q.b, q.l, x, g, red, opt,
+                       [&](const Vec&, const Vec&, double gp) { return gp <= tol; });
+  ASSERT_EQ(r.reason, StopReason::converged);
+  EXPECT_LT((x - exact_solution(q, bounded)).norm(), 1e-8);
+  expect_kkt(q, x, 1e-9);
+  EXPECT_EQ(r.cg_steps + r.expansion_steps + r.proportioning_steps, r.iterations);
+}
+
+INSTANTIATE_TEST_SUITE_P(Random, MprgpConformance, ::testing::Range(1u, 9u));
+
+class SmalbeConformance : public ::testing::TestWithParam<std::tuple<unsigned, bool>> {};
+
+TEST_P(SmalbeConformance, MatchesEnumeratedActiveSets) {
+  const auto [seed, singular] = GetParam();
+  const int n = 10, bounded = 6, me = 2;
+  const Qp q = random_qp(n, bounded, me, seed, singular);
+  DenseOperator A(q.A);
+  const Eigen::MatrixXd Qm = q.G.transpose() * q.G;
+  DenseOperator Q(Qm);
+  SerialReducer red;
+  SmalbeOptions opt;
+  opt.rtol = 1e-11;
+  const double normA = estimate_norm(A, Vec::Ones(n), red, 200, 1e-10);
+  Vec x = Vec::Zero(n);
+  const auto r = smalbe(A, Q, q.b, q.l, x, normA, red, opt);
+  ASSERT_EQ(r.reason, StopReason::converged);
+  EXPECT_LT((x - exact_solution(q, bounded)).norm(), 1e-7);
+  expect_kkt(q, x, 1e-8);
+}
+
+INSTANTIATE_TEST_SUITE_P(Random, SmalbeConformance,
+                         ::testing::Combine(::testing::Range(1u, 7u), ::testing::Bool()));
+
+TEST(Pcg, EqualityConstrainedMatchesKkt) {
+  const int n = 12, me = 3;
+  const Qp q = random_qp(n, 0, me, 42, true);
+  DenseOperator A(q.A);
+  const Eigen::MatrixXd Pm = Eigen::MatrixXd::Identity(n, n) - q.G.transpose() * q.G;
+  DenseOperator P(Pm);
+  SerialReducer red;
+  // G x = e with e = G x0 for a feasible start x0 = G' e.
+  const Vec e = Vec::LinSpaced(me, 0.5, 1.5);
+  Vec x = q.G.transpose() * e;
+  PcgOptions opt;
+  opt.rtol = 1e-12;
+  const auto r = projected_cg(A, P, q.b, x, red, opt);
+  ASSERT_EQ(r.reason, StopReason::converged);
+  EXPECT_LT((q.G * x - e).norm(), 1e-12);
+  EXPECT_LT((Pm * (q.A * x - q.b)).norm(), 1e-10);
+  EXPECT_EQ(A.count(), r.iterations + 1);  // one product per iteration plus the initial residual
+}
+
+TEST(Failures, NonConvergenceIsAResult) {
+  const Qp q = random_qp(10, 5, 0, 3, false);
+  DenseOperator A(q.A);
+  SerialReducer red;
+  MprgpOptions opt;
+  opt.alpha = 1.0 / q.A.norm();
+  opt.max_iterations = 1;
+  Vec x = Vec::Zero(10), g(10);
+  const auto r = mprgp(A, q.b, q.l, x, g, red, opt, [](const Vec&, const Vec&, double) { return false; });
+  EXPECT_EQ(r.reason, StopReason::max_iterations);
+  opt.alpha = 0;
+  EXPECT_THROW(mprgp(A, q.b, q.l, x, g, red, opt, [](const Vec&, const Vec&, double) { return false; }),
+               std::invalid_argument);
+  // An indefinite operator is a breakdown, not a crash.
+  DenseOperator negative(-Eigen::MatrixXd::Identity(4, 4));
+  DenseOperator identity(Eigen::MatrixXd::Identity(4, 4));
+  Vec y = Vec::Zero(4);
+  PcgOptions po;
+  const auto rp = projected_cg(negative, identity, Vec::Ones(4), y, red, po);
+  EXPECT_EQ(rp.reason, StopReason::breakdown);
+}

@@ -54,4 +54,35 @@ INSTANTIATE_TEST_SUITE_P(
                       Case{ProblemKind::membranes, 30, 5, 1, "averages"},
                       Case{ProblemKind::membranes_coercive, 16, 4, 1, "averages"}));
 
+INSTANTIATE_TEST_SUITE_P(
+    HTfetiDp, ContactAgainstUndecomposed,
+    ::testing::Values(Case{ProblemKind::membranes, 16, 4, 2, "averages"},
+                      Case{ProblemKind::membranes, 24, 6, 3, "corners"},
+                      Case{ProblemKind::membranes, 32, 8, 4, "corners+averages"},
+                      Case{ProblemKind::membranes_coercive, 24, 4, 2, "averages"}));
+
+TEST(HTfetiDpEqualsTfeti, MembranesAndPoisson) {
+  Comm comm;
+  for (ProblemKind problem : {ProblemKind::poisson2d, ProblemKind::membranes}) {
+    SolveOptions opt;
+    opt.rtol = 1e-10;
+    opt.decomposition = {problem, ElementKind::q1, 32, 8, 1, Glue::averages};
+    const auto tfeti = solve(opt, comm);
+    for (int m : {2, 4}) {
+      opt.decomposition.cluster_size = m;
+      const auto hybrid = solve(opt, comm);
+      ASSERT_TRUE(hybrid.converged);
+      const double e0 = tfeti.report["objective"], e1 = hybrid.report["objective"];
+      EXPECT_NEAR(e1, e0, 1e-8 * std::abs(e0)) << "m = " << m;
+      EXPECT_LT(hybrid.report["coarse_dimension"].get<int>(), tfeti.report["coarse_dimension"].get<int>());
+      if (problem != ProblemKind::membranes) continue;
+      const auto &c0 = tfeti.report["contact"], &c1 = hybrid.report["contact"];
+      for (size_t j = 0; j < c0["y"].size(); ++j) {
+        EXPECT_NEAR(c1["u_left"][j].get<double>(), c0["u_left"][j].get<double>(), 1e-6);
+        EXPECT_NEAR(c1["u_right"][j].get<double>(), c0["u_right"][j].get<double>(), 1e-6);
+      }
+    }
+  }
+}
+
 }  // namespace

@@ -37,4 +37,10 @@ INSTANTIATE_TEST_SUITE_P(
                       Case{24, 4, 1, "averages", ElementKind::q1}, Case{16, 8, 1, "averages", ElementKind::p1},
                       Case{20, 5, 1, "averages", ElementKind::q1}));
 
+INSTANTIATE_TEST_SUITE_P(
+    HTfetiDp, LinearAgainstUndecomposed,
+    ::testing::Values(Case{16, 4, 2, "averages", ElementKind::q1}, Case{24, 6, 3, "averages", ElementKind::q1},
+                      Case{16, 4, 2, "corners", ElementKind::q1}, Case{24, 4, 2, "corners+averages", ElementKind::p1},
+                      Case{32, 8, 4, "averages", ElementKind::q1}, Case{32, 8, 8, "corners", ElementKind::q1}));
+
 }  // namespace

@@ -1,0 +1,58 @@
+"""Shared helpers of the benchmark scripts: run `htfeti solve` and collect its report."""
+import json
+import os
+import platform
+import subprocess
+import sys
+import tempfile
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+BIN = os.path.join(ROOT, "build", "htfeti")
+RESULTS = os.path.join(ROOT, "bench", "results")
+
+
+def env(threads=1):
+    e = dict(os.environ)
+    e.update(OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1",
+             OMP_NUM_THREADS=str(threads))
+    return e
+
+
+def solve(args, ranks=1, threads=1, extra_env=None):
+    """Runs htfeti solve with the given argument list; returns the report as a dict."""
+    if not os.path.exists(BIN):
+        sys.exit("build/htfeti is missing: run scripts/setup.sh first")
+    with tempfile.TemporaryDirectory() as d:
+        report = os.path.join(d, "r.json")
+        cmd = [BIN, "solve", *map(str, args), "--report", report, "--no-vtu"]
+        if ranks > 1:
+            cmd = ["mpiexec", "-n", str(ranks), "--oversubscribe", "--bind-to", "none"] + cmd
+        e = env(threads)
+        if extra_env:
+            e.update(extra_env)
+        subprocess.run(cmd, check=True, env=e, stdout=subprocess.DEVNULL)
+        with open(report) as f:
+            return json.load(f)
+
+
+def machine():
+    cpu = "unknown"
+    try:
+        with open("/proc/cpuinfo") as f:
+            for line in f:
+                if line.startswith("model name"):
+                    cpu = line.split(":", 1)[1].strip()
+                    break
+    except OSError:
+        pass
+    return {"cpu": cpu, "cores": os.cpu_count(), "system": platform.platform()}
+
+
+def save(name, payload):
+    os.makedirs(RESULTS, exist_ok=True)
+    path = os.path.join(RESULTS, name)
+    payload = dict(payload, machine=machine())
+    with open(path + ".tmp", "w") as f:
+        json.dump(payload, f, indent=1)
+    os.replace(path + ".tmp", path)
+    return path

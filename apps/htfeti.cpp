@@ -7,8 +7,10 @@
 #include <fstream>
 #include <iostream>
 #include <mpi.h>
+#include <omp.h>
 
 #include "htfeti/io/vtu.hpp"
+#include "htfeti/parallel/threads.hpp"
 #include "htfeti/solver.hpp"
 
 namespace htfeti {
@@ -171,6 +173,7 @@ int run(int argc, char** argv, const Comm& comm) {
 
 int main(int argc, char** argv) {
   MPI_Init(&argc, &argv);
+  init_threads();
   int code = 0;
   {
     const Comm comm(MPI_COMM_WORLD);

@@ -6,7 +6,7 @@ here=$(cd "$(dirname "$0")/.." && pwd)
 build=${1:-$here/build}
 
 pkgs=(cmake g++ make pkg-config libeigen3-dev libsuitesparse-dev libmetis-dev
-      libopenblas0-serial libopenmpi-dev openmpi-bin libcli11-dev nlohmann-json3-dev
+      libopenblas0-openmp libopenmpi-dev openmpi-bin libcli11-dev nlohmann-json3-dev
       libgtest-dev libfmt-dev)
 missing=()
 for p in "${pkgs[@]}"; do
@@ -20,11 +20,14 @@ if [ ${#missing[@]} -gt 0 ]; then
   DEBIAN_FRONTEND=noninteractive $sudo_cmd apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null
 fi
 
-# CHOLMOD calls the system BLAS/LAPACK; make sure the alternative points at serial OpenBLAS
-# (threads run over subdomains, so BLAS itself must stay single-threaded).
+# CHOLMOD calls the system BLAS/LAPACK; make sure the alternative points at OpenBLAS, OpenMP
+# flavour: threads run over subdomains and call BLAS concurrently. Inside an OpenMP parallel
+# region this flavour runs single-threaded, and unlike Debian's serial flavour it is safe to call
+# from several threads at once (the serial one made CHOLMOD report non-positive-definite
+# matrices with 2 threads; docs/performance.md).
 arch=$(dpkg-architecture -qDEB_HOST_MULTIARCH 2>/dev/null || echo x86_64-linux-gnu)
 for lib in libblas.so.3 liblapack.so.3; do
-  alt=/usr/lib/$arch/openblas-serial/$lib
+  alt=/usr/lib/$arch/openblas-openmp/$lib
   if [ -e "$alt" ] && command -v update-alternatives >/dev/null; then
     cur=$(readlink -f /usr/lib/$arch/$lib || true)
     if [ "$cur" != "$(readlink -f "$alt")" ]; then

@@ -95,3 +95,22 @@ TEST_F(Cli, ReportsDoNotDependOnTheNumberOfRanks) {
   for (const char* key : {"setup", "factorization", "coarse_problem", "solve", "reconstruction"})
     EXPECT_TRUE(reports[0]["timings"].contains(key)) << key;
 }
+
+TEST_F(Cli, ReportsDoNotDependOnTheNumberOfThreads) {
+  nlohmann::json reports[2];
+  for (int t = 1; t <= 2; ++t) {
+    const std::string out = "t" + std::to_string(t) + ".json";
+    ASSERT_EQ(run("OMP_NUM_THREADS=" + std::to_string(t) + " " + mpiexec + " -n 2 " + bin +
+                  " solve --problem membranes -n 48 --subdomains 6 -m 3 --rtol 1e-8 --no-vtu --report " + out),
+              0);
+    std::ifstream f(out);
+    reports[t - 1] = nlohmann::json::parse(f);
+  }
+  EXPECT_EQ(reports[0]["threads"].get<int>(), 1);
+  EXPECT_EQ(reports[1]["threads"].get<int>(), 2);
+  const double e1 = reports[0]["objective"], e2 = reports[1]["objective"];
+  EXPECT_NEAR(e2, e1, 1e-12 * std::abs(e1));
+  // Sums are formed in a fixed order: the iteration history is the same, not only close.
+  EXPECT_EQ(reports[0]["matvecs"], reports[1]["matvecs"]);
+  EXPECT_EQ(reports[0]["outer_iterations"], reports[1]["outer_iterations"]);
+}

@@ -6,6 +6,9 @@
 #include <cmath>
 #include <limits>
 #include <stdexcept>
+#include <string>
+
+#include <omp.h>
 
 namespace htfeti {
 
@@ -23,17 +26,26 @@ DualProblem::DualProblem(const Decomposition& dec, const Comm& comm, const FetiO
   const int nsub = (c1 - c0) * mm;
 
   double t = now();
-  for (int s = first_sub_; s < first_sub_ + nsub; ++s)
-    subs_.push_back(std::make_unique<Subdomain>(dec, s));
+  subs_.resize(nsub);
+#pragma omp parallel for schedule(dynamic) if (omp_get_max_threads() > 1)
+  for (int s = 0; s < nsub; ++s) subs_[s] = std::make_unique<Subdomain>(dec, first_sub_ + s);
   setup_.assembly = now() - t;
 
   t = now();
-  clusters_.reserve(c1 - c0);
+  clusters_.resize(c1 - c0);
+  std::string error;
+#pragma omp parallel for schedule(dynamic) if (omp_get_max_threads() > 1)
   for (int c = c0; c < c1; ++c) {
     std::vector<Subdomain*> members;
     for (int i = 0; i < mm; ++i) members.push_back(subs_[(c - c0) * mm + i].get());
-    clusters_.emplace_back(dec, c, std::move(members), options.ordering);
+    try {
+      clusters_[c - c0] = std::make_unique<Cluster>(dec, c, std::move(members), options.ordering);
+    } catch (const std::exception& e) {
+#pragma omp critical
+      error = e.what();
+    }
   }
+  if (!error.empty()) throw std::runtime_error(error);
   setup_.factorization = now() - t;
 
   // Rows of B~ touching this rank's subdomains.
@@ -94,7 +106,7 @@ DualProblem::DualProblem(const Decomposition& dec, const Comm& comm, const FetiO
     for (int i = 0; i < mm; ++i)
       for (const auto& r : rows_[c * mm + i]) {
         if (acc[r.k] == 0.0) hit.push_back(r.k);
-        acc[r.k] += r.value * clusters_[c].kernel_value();
+        acc[r.k] += r.value * clusters_[c]->kernel_value();
       }
     std::sort(hit.begin(), hit.end());
     hit.erase(std::unique(hit.begin(), hit.end()), hit.end());
@@ -109,24 +121,26 @@ DualProblem::DualProblem(const Decomposition& dec, const Comm& comm, const FetiO
   x_.resize(clusters_.size());
   for (size_t c = 0; c < clusters_.size(); ++c)
     for (int i = 0; i < mm; ++i) x_[c].push_back(Vec::Zero(subs_[c * mm + i]->size()));
+  contrib_.resize(nsub);
+  for (int s = 0; s < nsub; ++s) contrib_[s].assign(rows_[s].size(), 0.0);
 
   assemble_coarse(std::vector<double>(n_own, 1.0), coarse_factor_);
 
   // d = B~ K~^+ f, e~ = R~^T f, lambda~ = G~^T (G~G~^T)^{-1} e~.
   ext_in_.setZero();
-  ext_out_.setZero();
-  for (size_t c = 0; c < clusters_.size(); ++c) {
-    cluster_rhs_from_ext(static_cast<int>(c), true, 0.0);
-    clusters_[c].solve(x_[c]);
-    add_B_of_x(static_cast<int>(c));
-  }
+  for_each_cluster([&](int c) {
+    cluster_rhs_from_ext(c, true, 0.0);  // x = f
+    clusters_[c]->solve(x_[c]);
+    b_of_x(c);
+  });
+  scatter_contrib();
   layout_.reverse_add(ext_out_.data());
   d_ = ext_out_.head(n_own);
   e_ = Vec::Zero(coarse_dimension());
   for (size_t c = 0; c < clusters_.size(); ++c) {
     double sum = 0;
     for (int i = 0; i < mm; ++i) sum += subs_[c * mm + i]->f().sum();
-    e_[clusters_[c].id()] = clusters_[c].kernel_value() * sum;
+    e_[clusters_[c]->id()] = clusters_[c]->kernel_value() * sum;
   }
   comm_.sum_in_place(e_.data(), static_cast<int>(e_.size()));
   coarse_work_ = e_;
@@ -155,22 +169,40 @@ void DualProblem::cluster_rhs_from_ext(int c, bool add_f, double sign) {
   }
 }
 
-void DualProblem::add_B_of_x(int c) {
+void DualProblem::b_of_x(int c) {
   const int mm = dec_.m() * dec_.m();
   for (int i = 0; i < mm; ++i) {
     const Vec& x = x_[c][i];
-    for (const auto& r : rows_[c * mm + i]) ext_out_[r.k] += r.value * x[r.dof];
+    const auto& rows = rows_[c * mm + i];
+    double* out = contrib_[c * mm + i].data();
+    for (size_t j = 0; j < rows.size(); ++j) out[j] = rows[j].value * x[rows[j].dof];
   }
+}
+
+void DualProblem::scatter_contrib() {
+  ext_out_.setZero();
+  for (size_t s = 0; s < subs_.size(); ++s) {
+    const auto& rows = rows_[s];
+    const double* in = contrib_[s].data();
+    for (size_t j = 0; j < rows.size(); ++j) ext_out_[rows[j].k] += in[j];
+  }
+}
+
+template <class Body>
+void DualProblem::for_each_cluster(Body body) {
+  const int nc = static_cast<int>(clusters_.size());
+#pragma omp parallel for schedule(dynamic) if (omp_get_max_threads() > 1)
+  for (int c = 0; c < nc; ++c) body(c);
 }
 
 void DualProblem::apply_F(const Vec& lambda, Vec& y) {
   gather_to_ext(lambda);
-  ext_out_.setZero();
-  for (size_t c = 0; c < clusters_.size(); ++c) {
-    cluster_rhs_from_ext(static_cast<int>(c), false, 1.0);  // x = B~^T lambda
-    clusters_[c].solve(x_[c]);                              // x = K~^+ B~^T lambda
-    add_B_of_x(static_cast<int>(c));                        // F lambda = B~ x
-  }
+  for_each_cluster([&](int c) {
+    cluster_rhs_from_ext(c, false, 1.0);  // x = B~^T lambda
+    clusters_[c]->solve(x_[c]);           // x = K~^+ B~^T lambda  (the bottleneck)
+    b_of_x(c);                            // B~ x, into the cluster's own buffers
+  });
+  scatter_contrib();                      // F lambda, summed in a fixed order
   layout_.reverse_add(ext_out_.data());
   y = ext_out_.head(layout_.n_owned());
 }
@@ -181,7 +213,7 @@ void DualProblem::apply_G(const Vec& lambda, Vec& coarse) {
   for (size_t c = 0; c < clusters_.size(); ++c) {
     double s = 0;
     for (const auto& [k, g] : g_rows_[c]) s += g * ext_in_[k];
-    coarse[clusters_[c].id()] = s;
+    coarse[clusters_[c]->id()] = s;
   }
   comm_.sum_in_place(coarse.data(), static_cast<int>(coarse.size()));
 }
@@ -189,7 +221,7 @@ void DualProblem::apply_G(const Vec& lambda, Vec& coarse) {
 void DualProblem::gt_into_ext(const Vec& coarse) {
   ext_out_.setZero();
   for (size_t c = 0; c < clusters_.size(); ++c) {
-    const double z = coarse[clusters_[c].id()];
+    const double z = coarse[clusters_[c]->id()];
     for (const auto& [k, g] : g_rows_[c]) ext_out_[k] += g * z;
   }
   layout_.reverse_add(ext_out_.data());
@@ -222,7 +254,7 @@ void DualProblem::assemble_coarse(const std::vector<double>& weight, SparseChole
   const int P = comm_.size();
   std::vector<std::vector<Item>> out(P);
   for (size_t c = 0; c < clusters_.size(); ++c)
-    for (const auto& [k, g] : g_rows_[c]) out[owner_[k]].push_back({layout_.global(k), clusters_[c].id(), g});
+    for (const auto& [k, g] : g_rows_[c]) out[owner_[k]].push_back({layout_.global(k), clusters_[c]->id(), g});
   std::vector<int> scount(P), rcount(P), sdisp(P + 1, 0), rdisp(P + 1, 0);
   for (int r = 0; r < P; ++r) scount[r] = static_cast<int>(out[r].size() * sizeof(Item));
   MPI_Alltoall(scount.data(), 1, MPI_INT, rcount.data(), 1, MPI_INT, comm_.raw());
@@ -277,11 +309,11 @@ std::vector<DualProblem::Vec> DualProblem::reconstruct(const Vec& lambda) {
   const int mm = dec_.m() * dec_.m(), n_own = layout_.n_owned();
   gather_to_ext(lambda);
   std::vector<Vec> u(subs_.size());
-  for (size_t c = 0; c < clusters_.size(); ++c) {
-    cluster_rhs_from_ext(static_cast<int>(c), true, -1.0);  // f - B~^T lambda
-    clusters_[c].solve(x_[c]);
+  for_each_cluster([&](int c) {
+    cluster_rhs_from_ext(c, true, -1.0);  // f - B~^T lambda
+    clusters_[c]->solve(x_[c]);
     for (int i = 0; i < mm; ++i) u[c * mm + i] = x_[c][i];
-  }
+  });
   // B u0 = d - F lambda; alpha solves G~ D G~^T alpha = G~ D (F lambda - d), D masking the
   // contact rows with lambda_i = 0 (paper, (10)).
   Vec r;
@@ -305,7 +337,7 @@ std::vector<DualProblem::Vec> DualProblem::reconstruct(const Vec& lambda) {
     coarse_solve(alpha);
   }
   for (size_t c = 0; c < clusters_.size(); ++c) {
-    const double shift = alpha[clusters_[c].id()] * clusters_[c].kernel_value();
+    const double shift = alpha[clusters_[c]->id()] * clusters_[c]->kernel_value();
     for (int i = 0; i < mm; ++i) u[c * mm + i].array() += shift;
   }
   return u;

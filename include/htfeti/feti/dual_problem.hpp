@@ -8,7 +8,9 @@
 //
 // Vectors passed in and out are the rank's owned part of a dual vector (DualLayout).
 // Cost of one F: one forward and one reverse neighbour exchange, per cluster one K~^+ (see
-// cluster.hpp) and 2 nnz(B~) flops. Cost of one P: one exchange each way, an allreduce of the
+// cluster.hpp) and 2 nnz(B~) flops. Clusters run in parallel over OpenMP threads; each writes
+// its B~ x into its own buffer and the buffers are summed in a fixed order afterwards, so the
+// result does not depend on the number of threads. Cost of one P: one exchange each way, an allreduce of the
 // coarse vector and one sparse coarse solve.
 #pragma once
 
@@ -73,7 +75,6 @@ class DualProblem {
   std::vector<Vec> reconstruct(const Vec& lambda);
 
   const std::vector<std::unique_ptr<Subdomain>>& subdomains() const { return subs_; }
-  const std::vector<Cluster>& clusters() const { return clusters_; }
 
   /// Checks of a primal solution (global, on every rank).
   struct Kkt {
@@ -103,7 +104,10 @@ class DualProblem {
   };
   void gather_to_ext(const Vec& owned);           // ext_in_ = [owned, ghosts]
   void cluster_rhs_from_ext(int c, bool add_f, double sign);  // x_i = (f_i) + sign B_i^T ext_in_
-  void add_B_of_x(int c);                         // ext_out_ += B_i x_i
+  void b_of_x(int c);                             // contrib_ = B_i x_i, per row entry
+  void scatter_contrib();                         // ext_out_ += contrib_, fixed order
+  template <class Body>
+  void for_each_cluster(Body body);               // OpenMP over local clusters
   void gt_into_ext(const Vec& coarse);            // ext_out_ = G~^T coarse (owners summed)
   void assemble_coarse(const std::vector<double>& weight, SparseCholesky& factor);
   // B~ applied to per-subdomain vectors; sums are on owners afterwards (reverse_add done).
@@ -115,7 +119,7 @@ class DualProblem {
   long long n_dual_ = 0, n_inequalities_ = 0;
   int first_sub_ = 0;
   std::vector<std::unique_ptr<Subdomain>> subs_;
-  std::vector<Cluster> clusters_;
+  std::vector<std::unique_ptr<Cluster>> clusters_;
   std::vector<std::vector<Row>> rows_;  // B~ rows per local subdomain
   DualLayout layout_;
   std::vector<int> owner_;  // owner rank of each extended entry
@@ -127,6 +131,7 @@ class DualProblem {
   // work arrays (allocated once)
   Vec ext_in_, ext_out_, coarse_work_;
   std::vector<std::vector<Vec>> x_;  // per cluster, per subdomain
+  std::vector<std::vector<double>> contrib_;  // per subdomain, per row entry
 };
 
 }  // namespace htfeti

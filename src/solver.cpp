@@ -84,12 +84,12 @@ SolveOutput solve(const SolveOptions& options, const Comm& comm) {
     F.apply(dual.lambda_tilde(), tmp);
     P.apply(dual.d() - tmp, b);
     qp::FunctionOperator A([&](const Vec& x, Vec& y) {  // P F P
-      dual.project(x, tmp);
-      dual.apply_F(tmp, y);
-      dual.project(y, y);
+      P.apply(x, tmp);
+      F.apply(tmp, y);
+      P.apply(y, y);
     });
     qp::FunctionOperator Q([&](const Vec& x, Vec& y) {  // Q = I - P
-      dual.project(x, y);
+      P.apply(x, y);
       y = x - y;
     });
     Vec start(n);
@@ -159,6 +159,7 @@ SolveOutput solve(const SolveOptions& options, const Comm& comm) {
   rep["inner_iterations"] = inner;
   rep["matvecs"] = matvecs;
   rep["F_applications"] = F.count();
+  rep["projector_applications"] = P.count();
   rep["objective"] = energy;
   rep["kkt"] = {{"equality_residual", kkt.equality_residual},
                 {"max_violation", kkt.max_violation},

@@ -5,6 +5,7 @@
 #include <cstdio>
 #include <omp.h>
 #include <stdexcept>
+#include <sys/resource.h>
 
 #include "htfeti/qp/pcg.hpp"
 #include "htfeti/qp/power_norm.hpp"
@@ -176,8 +177,13 @@ SolveOutput solve(const SolveOptions& options, const Comm& comm) {
                     {"projector", tmax(P.seconds())},
                     {"reconstruction", tmax(t_rec)},
                     {"total", tmax(t_setup + t_solve + t_rec)}};
+  struct rusage usage {};
+  getrusage(RUSAGE_SELF, &usage);
+  const double rss_mb = usage.ru_maxrss / 1024.0;  // ru_maxrss is in KiB on Linux
   rep["memory"] = {{"factor_nonzeros", comm.sum(static_cast<long long>(dual.factor_nonzeros()))},
-                   {"coarse_factor_nonzeros", dual.coarse_factor_nonzeros()}};
+                   {"coarse_factor_nonzeros", dual.coarse_factor_nonzeros()},
+                   {"peak_rss_mb_max_rank", comm.max(rss_mb)},
+                   {"peak_rss_mb_total", comm.sum(rss_mb)}};
   if (dec.problem().has_contact()) {
     const auto c = dual.contact_data(out.u, lambda);
     nlohmann::json cj = {{"y", c.y}, {"u_left", c.u_left}, {"u_right", c.u_right},

@@ -71,6 +71,7 @@ int run(int argc, char** argv, const Comm& comm) {
   app.require_subcommand(1);
   auto* solve_cmd = app.add_subcommand("solve", "solve a built-in problem");
   std::string problem = "membranes", element = "q1", glue = "averages", ordering = "amd";
+  std::string dual_operator = "auto";
   std::string report = "htfeti-report.json", vtu = "htfeti-solution.vtu";
   bool no_report = false, no_vtu = false;
   SolveOptions opt;
@@ -97,6 +98,10 @@ int run(int argc, char** argv, const Comm& comm) {
                         "iteration limit: PCG iterations, or SMALBE-M outer iterations (0: 1000 / 200)")
       ->capture_default_str();
   solve_cmd->add_option("--ordering", ordering, "fill-reducing ordering of subdomain factors: amd | metis")
+      ->capture_default_str();
+  solve_cmd->add_option("--dual-operator", dual_operator,
+                        "how F is applied: implicit (sparse solves), explicit (dense local blocks "
+                        "from Schur complements), auto (explicit from 400 nodes per subdomain)")
       ->capture_default_str();
   solve_cmd->add_option("--rho-factor", opt.smalbe.rho_factor, "SMALBE-M penalty rho = factor * ||PFP||")
       ->capture_default_str();
@@ -151,6 +156,7 @@ int run(int argc, char** argv, const Comm& comm) {
     opt.decomposition.element = parse_element(element);
     opt.decomposition.glue = parse_glue(glue);
     opt.feti.ordering = parse_ordering(ordering);
+    opt.feti.dual_operator = parse_dual_operator(dual_operator);
     validate(opt);
   } catch (const std::invalid_argument& e) {
     return fail(comm, e.what(), 2);

@@ -154,6 +154,7 @@ SolveOutput solve(const SolveOptions& options, const Comm& comm) {
   rep["threads"] = omp_get_max_threads();
   rep["rtol"] = options.rtol;
   rep["ordering"] = to_string(options.feti.ordering);
+  rep["dual_operator"] = dual.explicit_operator() ? "explicit" : "implicit";
   rep["converged"] = converged;
   rep["stop_reason"] = reason;
   rep["outer_iterations"] = outer;
@@ -182,6 +183,8 @@ SolveOutput solve(const SolveOptions& options, const Comm& comm) {
   const double rss_mb = usage.ru_maxrss / 1024.0;  // ru_maxrss is in KiB on Linux
   rep["memory"] = {{"factor_nonzeros", comm.sum(static_cast<long long>(dual.factor_nonzeros()))},
                    {"coarse_factor_nonzeros", dual.coarse_factor_nonzeros()},
+                   {"explicit_mb", comm.sum(8.0 * dual.explicit_doubles()) / 1048576.0},
+                   {"cluster_dense_mb", comm.sum(8.0 * dual.cluster_dense_doubles()) / 1048576.0},
                    {"peak_rss_mb_max_rank", comm.max(rss_mb)},
                    {"peak_rss_mb_total", comm.sum(rss_mb)}};
   if (dec.problem().has_contact()) {

@@ -101,6 +101,23 @@ TEST_P(DualOperators, FIsSymmetricPositiveSemidefinite) {
   }
 }
 
+TEST_P(DualOperators, ExplicitEqualsImplicit) {
+  FetiOptions imp, exp;
+  imp.dual_operator = DualOperator::implicit;
+  exp.dual_operator = DualOperator::explicit_;
+  DualProblem a(*dec, comm, imp), b(*dec, comm, exp);
+  ASSERT_FALSE(a.explicit_operator());
+  ASSERT_TRUE(b.explicit_operator());
+  Eigen::VectorXd fa, fb;
+  for (double seed : {1.0, 5.0}) {
+    const Eigen::VectorXd x = test::pseudo_random(a, seed);
+    a.apply_F(x, fa);
+    b.apply_F(x, fb);
+    EXPECT_LT(std::sqrt(dot(fa - fb, fa - fb)), 1e-11 * std::sqrt(dot(fa, fa)));
+  }
+  EXPECT_LT((a.d() - b.d()).norm(), 1e-11 * (1 + a.d().norm()));
+}
+
 INSTANTIATE_TEST_SUITE_P(
     SmallCases, DualOperators,
     ::testing::Values(Case{ProblemKind::poisson2d, 8, 4, 1, Glue::averages},

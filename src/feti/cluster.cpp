@@ -8,18 +8,53 @@
 
 namespace htfeti {
 
-Cluster::Cluster(const Decomposition& dec, int id, std::vector<Subdomain*> subs, Ordering ordering)
-    : id_(id), subs_(std::move(subs)) {
+DualOperator parse_dual_operator(const std::string& name) {
+  if (name == "implicit") return DualOperator::implicit;
+  if (name == "explicit") return DualOperator::explicit_;
+  if (name == "auto") return DualOperator::automatic;
+  throw std::invalid_argument("unknown dual operator '" + name +
+                              "' (expected implicit, explicit or auto)");
+}
+
+std::string to_string(DualOperator kind) {
+  switch (kind) {
+    case DualOperator::implicit: return "implicit";
+    case DualOperator::explicit_: return "explicit";
+    case DualOperator::automatic: return "auto";
+  }
+  return "?";
+}
+
+Cluster::Cluster(const Decomposition& dec, int id, std::vector<Subdomain*> subs, Ordering ordering,
+                 std::vector<std::vector<Subdomain::BEntry>> b, std::vector<int> nmult,
+                 bool explicit_F)
+    : id_(id), subs_(std::move(subs)), b_(std::move(b)), explicit_(explicit_F) {
   const int s = static_cast<int>(subs_.size());
   long total = 0;
-  for (auto* sd : subs_) {
-    sd->factorize(ordering);
-    total += sd->size();
+  for (int i = 0; i < s; ++i) {
+    if (explicit_) {
+      std::vector<int> dofs;
+      for (const auto& e : b_[i]) dofs.push_back(e.dof);
+      std::sort(dofs.begin(), dofs.end());
+      dofs.erase(std::unique(dofs.begin(), dofs.end()), dofs.end());
+      subs_[i]->factorize_with_interface_last(dofs);
+      F_.push_back(subs_[i]->dual_block(b_[i], nmult[i]));
+      V_.push_back(Eigen::VectorXd::Zero(nmult[i]));
+      for (const auto& e : b_[i]) V_[i][e.mult] += e.value * subs_[i]->kernel()[e.dof];
+    } else {
+      subs_[i]->factorize(ordering);
+      xw_.push_back(Eigen::VectorXd::Zero(subs_[i]->size()));
+    }
+    total += subs_[i]->size();
   }
   kernel_value_ = 1.0 / std::sqrt(static_cast<double>(total));
   const auto rows = cluster_primal_constraints(dec, id);
   nc_ = static_cast<int>(rows.size());
-  if (nc_ == 0) return;
+  if (nc_ == 0) {
+    rhs_.resize(0);
+    sol_.resize(0);
+    return;
+  }
 
   const int first = subs_.front()->id();
   c_of_sub_.assign(s, {});
@@ -56,6 +91,12 @@ Cluster::Cluster(const Decomposition& dec, int id, std::vector<Subdomain*> subs,
       }
     }
   }
+  if (explicit_) {  // U_i = B_i W_i
+    for (int i = 0; i < s; ++i) {
+      U_.push_back(Eigen::MatrixXd::Zero(nmult[i], W_[i].cols()));
+      for (const auto& e : b_[i]) U_[i].row(e.mult) += e.value * W_[i].row(e.dof);
+    }
+  }
   lu_.compute(S);
   const double rcond = lu_.rcond();
   if (!(rcond > 1e-14))
@@ -64,6 +105,47 @@ Cluster::Cluster(const Decomposition& dec, int id, std::vector<Subdomain*> subs,
                              "(singular cluster system)");
   rhs_.resize(dim);
   sol_.resize(dim);
+}
+
+long Cluster::explicit_doubles() const {
+  long n = 0;
+  for (const auto& f : F_) n += f.size();
+  for (const auto& u : U_) n += u.size();
+  for (const auto& v : V_) n += v.size();
+  return n;
+}
+
+void Cluster::apply_dual(const std::vector<Eigen::VectorXd>& lam, std::vector<Eigen::VectorXd>& out) {
+  const int s = static_cast<int>(subs_.size());
+  if (!explicit_) {
+    for (int i = 0; i < s; ++i) {
+      xw_[i].setZero();
+      for (const auto& e : b_[i]) xw_[i][e.dof] += e.value * lam[i][e.mult];  // B_i^T lam_i
+    }
+    solve(xw_);  // K~^+ B~^T lam
+    for (int i = 0; i < s; ++i) {
+      out[i].setZero();
+      for (const auto& e : b_[i]) out[i][e.mult] += e.value * xw_[i][e.dof];  // B_i x_i
+    }
+    return;
+  }
+  for (int i = 0; i < s; ++i)
+    out[i].noalias() = F_[i].selfadjointView<Eigen::Lower>() * lam[i];  // the bottleneck
+  if (nc_ == 0) return;
+  rhs_.setZero();
+  for (int i = 0; i < s; ++i) {
+    const auto& cols = cols_of_sub_[i];
+    for (int col = 0; col < static_cast<int>(cols.size()); ++col)
+      rhs_[cols[col]] += U_[i].col(col).dot(lam[i]);  // C K^+ B^T lam
+    if (i > 0) rhs_[nc_ + i - 1] = -V_[i].dot(lam[i]);  // -R'^T B^T lam
+  }
+  sol_.noalias() = lu_.solve(rhs_);
+  for (int i = 0; i < s; ++i) {
+    const auto& cols = cols_of_sub_[i];
+    for (int col = 0; col < static_cast<int>(cols.size()); ++col)
+      out[i].noalias() -= sol_[cols[col]] * U_[i].col(col);
+    if (i > 0) out[i].noalias() += sol_[nc_ + i - 1] * V_[i];
+  }
 }
 
 long Cluster::dense_doubles() const {

@@ -31,23 +31,6 @@ DualProblem::DualProblem(const Decomposition& dec, const Comm& comm, const FetiO
   for (int s = 0; s < nsub; ++s) subs_[s] = std::make_unique<Subdomain>(dec, first_sub_ + s);
   setup_.assembly = now() - t;
 
-  t = now();
-  clusters_.resize(c1 - c0);
-  std::string error;
-#pragma omp parallel for schedule(dynamic) if (omp_get_max_threads() > 1)
-  for (int c = c0; c < c1; ++c) {
-    std::vector<Subdomain*> members;
-    for (int i = 0; i < mm; ++i) members.push_back(subs_[(c - c0) * mm + i].get());
-    try {
-      clusters_[c - c0] = std::make_unique<Cluster>(dec, c, std::move(members), options.ordering);
-    } catch (const std::exception& e) {
-#pragma omp critical
-      error = e.what();
-    }
-  }
-  if (!error.empty()) throw std::runtime_error(error);
-  setup_.factorization = now() - t;
-
   // Rows of B~ touching this rank's subdomains.
   t = now();
   std::vector<long long> touched;
@@ -95,6 +78,54 @@ DualProblem::DualProblem(const Decomposition& dec, const Comm& comm, const FetiO
     for (const auto& [g, dv] : grows[s]) rows_[s].push_back({layout_.ext_index(g), dv.first, dv.second});
   }
   setup_.constraints = now() - t;
+  // Local numbering of the rows of B~ on each subdomain (distinct multipliers in extended order).
+  mult_.resize(nsub);
+  std::vector<std::vector<Subdomain::BEntry>> local_b(nsub);
+  {
+    std::vector<int> local_of(n_ext, -1);
+    for (int s = 0; s < nsub; ++s) {
+      for (const auto& r : rows_[s]) mult_[s].push_back(r.k);
+      std::sort(mult_[s].begin(), mult_[s].end());
+      mult_[s].erase(std::unique(mult_[s].begin(), mult_[s].end()), mult_[s].end());
+      for (size_t j = 0; j < mult_[s].size(); ++j) local_of[mult_[s][j]] = static_cast<int>(j);
+      for (const auto& r : rows_[s]) local_b[s].push_back({local_of[r.k], r.dof, r.value});
+    }
+  }
+  explicit_ = options.dual_operator == DualOperator::explicit_ ||
+              (options.dual_operator == DualOperator::automatic &&
+               dec.nodes_per_subdomain() >= kExplicitMinNodes);
+
+  t = now();
+  clusters_.resize(c1 - c0);
+  std::string error;
+#pragma omp parallel for schedule(dynamic) if (omp_get_max_threads() > 1)
+  for (int c = c0; c < c1; ++c) {
+    std::vector<Subdomain*> members;
+    std::vector<std::vector<Subdomain::BEntry>> b;
+    std::vector<int> nmult;
+    for (int i = 0; i < mm; ++i) {
+      const int s = (c - c0) * mm + i;
+      members.push_back(subs_[s].get());
+      b.push_back(std::move(local_b[s]));
+      nmult.push_back(static_cast<int>(mult_[s].size()));
+    }
+    try {
+      clusters_[c - c0] = std::make_unique<Cluster>(dec, c, std::move(members), options.ordering,
+                                                    std::move(b), std::move(nmult), explicit_);
+    } catch (const std::exception& e) {
+#pragma omp critical
+      error = e.what();
+    }
+  }
+  if (!error.empty()) throw std::runtime_error(error);
+  setup_.factorization = now() - t;
+  lam_.resize(clusters_.size());
+  out_.resize(clusters_.size());
+  for (size_t c = 0; c < clusters_.size(); ++c)
+    for (int i = 0; i < mm; ++i) {
+      lam_[c].push_back(Vec::Zero(mult_[c * mm + i].size()));
+      out_[c].push_back(Vec::Zero(mult_[c * mm + i].size()));
+    }
 
   // G~ rows: (G~)_{c,k} = R~_c . b_k = kernel value * sum of row k's coefficients on cluster c.
   t = now();
@@ -197,12 +228,22 @@ void DualProblem::for_each_cluster(Body body) {
 
 void DualProblem::apply_F(const Vec& lambda, Vec& y) {
   gather_to_ext(lambda);
+  const int mm = dec_.m() * dec_.m();
   for_each_cluster([&](int c) {
-    cluster_rhs_from_ext(c, false, 1.0);  // x = B~^T lambda
-    clusters_[c]->solve(x_[c]);           // x = K~^+ B~^T lambda  (the bottleneck)
-    b_of_x(c);                            // B~ x, into the cluster's own buffers
+    for (int i = 0; i < mm; ++i) {  // the cluster's part of lambda
+      const auto& mult = mult_[c * mm + i];
+      Vec& l = lam_[c][i];
+      for (size_t j = 0; j < mult.size(); ++j) l[j] = ext_in_[mult[j]];
+    }
+    clusters_[c]->apply_dual(lam_[c], out_[c]);  // the bottleneck
   });
-  scatter_contrib();                      // F lambda, summed in a fixed order
+  ext_out_.setZero();  // F lambda, summed in a fixed order
+  for (size_t c = 0; c < clusters_.size(); ++c)
+    for (int i = 0; i < mm; ++i) {
+      const auto& mult = mult_[c * mm + i];
+      const Vec& o = out_[c][i];
+      for (size_t j = 0; j < mult.size(); ++j) ext_out_[mult[j]] += o[j];
+    }
   layout_.reverse_add(ext_out_.data());
   y = ext_out_.head(layout_.n_owned());
 }
@@ -424,6 +465,22 @@ DualProblem::ContactData DualProblem::contact_data(const std::vector<Vec>& u, co
 long DualProblem::factor_nonzeros() const {
   long n = 0;
   for (const auto& s : subs_) n += s->factor_nonzeros();
+  return n;
+}
+
+}  // namespace htfeti
+
+namespace htfeti {
+
+long DualProblem::explicit_doubles() const {
+  long n = 0;
+  for (const auto& c : clusters_) n += c->explicit_doubles();
+  return n;
+}
+
+long DualProblem::cluster_dense_doubles() const {
+  long n = 0;
+  for (const auto& c : clusters_) n += c->dense_doubles();
   return n;
 }
 

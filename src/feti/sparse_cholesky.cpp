@@ -2,6 +2,7 @@
 
 #include <cholmod.h>
 
+#include <algorithm>
 #include <cstring>
 #include <stdexcept>
 
@@ -22,6 +23,7 @@ struct SparseCholesky::Impl {
   cholmod_dense* y = nullptr;
   cholmod_dense* e = nullptr;
   int n = 0;
+  int nlast = 0;  // rows ordered last by factorize(A, last)
 
   explicit Impl(Ordering ordering) {
     cholmod_start(&common);
@@ -46,7 +48,14 @@ SparseCholesky::~SparseCholesky() = default;
 SparseCholesky::SparseCholesky(SparseCholesky&&) noexcept = default;
 SparseCholesky& SparseCholesky::operator=(SparseCholesky&&) noexcept = default;
 
-void SparseCholesky::factorize(const Eigen::SparseMatrix<double>& A) {
+void SparseCholesky::factorize(const Eigen::SparseMatrix<double>& A) { factorize_impl(A, nullptr); }
+
+void SparseCholesky::factorize(const Eigen::SparseMatrix<double>& A, const std::vector<int>& last) {
+  factorize_impl(A, &last);
+}
+
+void SparseCholesky::factorize_impl(const Eigen::SparseMatrix<double>& A,
+                                    const std::vector<int>* last) {
   if (A.rows() != A.cols()) throw std::invalid_argument("SparseCholesky: matrix is not square");
   auto& c = impl_->common;
   Eigen::SparseMatrix<double> upper = A.triangularView<Eigen::Upper>();
@@ -64,7 +73,27 @@ void SparseCholesky::factorize(const Eigen::SparseMatrix<double>& A) {
   view.sorted = 1;
   view.packed = 1;
   cholmod_free_factor(&impl_->factor, &c);
-  impl_->factor = cholmod_analyze(&view, &c);
+  impl_->nlast = 0;
+  if (last) {
+    // Constrained AMD: set 0 first, then set 1 (`last`); keep that order (no postordering).
+    const int n = static_cast<int>(A.rows());
+    std::vector<int> cmember(n, 0), perm(n);
+    for (int r : *last) cmember[r] = 1;
+    if (!cholmod_camd(&view, nullptr, 0, cmember.data(), perm.data(), &c))
+      throw std::runtime_error("CHOLMOD: constrained ordering failed");
+    const int saved_nmethods = c.nmethods, saved_ordering = c.method[0].ordering;
+    const int saved_postorder = c.postorder;
+    c.nmethods = 1;
+    c.method[0].ordering = CHOLMOD_GIVEN;
+    c.postorder = 0;
+    impl_->factor = cholmod_analyze_p(&view, perm.data(), nullptr, 0, &c);
+    c.nmethods = saved_nmethods;
+    c.method[0].ordering = saved_ordering;
+    c.postorder = saved_postorder;
+    impl_->nlast = static_cast<int>(last->size());
+  } else {
+    impl_->factor = cholmod_analyze(&view, &c);
+  }
   if (!impl_->factor) throw std::runtime_error("CHOLMOD analysis failed");
   cholmod_factorize(&view, impl_->factor, &c);
   if (c.status == CHOLMOD_NOT_POSDEF || impl_->factor->minor < impl_->factor->n)
@@ -89,6 +118,40 @@ void SparseCholesky::solve(const double* b, double* out) {
 }
 
 int SparseCholesky::rows() const { return impl_->n; }
+
+void SparseCholesky::schur_factor(Eigen::MatrixXd& Ls, std::vector<int>& order) const {
+  const cholmod_factor* L = impl_->factor;
+  const int n = impl_->n, nb = impl_->nlast, p0 = n - nb;
+  if (!L || nb == 0) throw std::logic_error("schur_factor: factorize(A, last) was not called");
+  const int* perm = static_cast<const int*>(L->Perm);
+  order.resize(nb);
+  for (int i = 0; i < nb; ++i) order[i] = perm[p0 + i];
+  Ls = Eigen::MatrixXd::Zero(nb, nb);
+  if (!L->is_super) {  // simplicial LL^T: columns p0..n-1 hold only rows >= p0
+    const int* Lp = static_cast<const int*>(L->p);
+    const int* Li = static_cast<const int*>(L->i);
+    const int* Lnz = static_cast<const int*>(L->nz);
+    const double* Lx = static_cast<const double*>(L->x);
+    for (int j = p0; j < n; ++j)
+      for (int q = Lp[j]; q < Lp[j] + Lnz[j]; ++q) Ls(Li[q] - p0, j - p0) = Lx[q];
+    return;
+  }
+  const int* super = static_cast<const int*>(L->super);
+  const int* pi = static_cast<const int*>(L->pi);
+  const int* px = static_cast<const int*>(L->px);
+  const int* Ls_rows = static_cast<const int*>(L->s);
+  const double* Lx = static_cast<const double*>(L->x);
+  for (size_t s = 0; s < L->nsuper; ++s) {
+    const int k1 = super[s], k2 = super[s + 1];
+    if (k2 <= p0) continue;
+    const int nsrow = pi[s + 1] - pi[s];
+    for (int j = std::max(k1, p0); j < k2; ++j)
+      for (int i = j - k1; i < nsrow; ++i) {
+        const int row = Ls_rows[pi[s] + i];
+        Ls(row - p0, j - p0) = Lx[px[s] + static_cast<long>(j - k1) * nsrow + i];
+      }
+  }
+}
 
 long SparseCholesky::factor_nonzeros() const {
   const cholmod_factor* L = impl_->factor;

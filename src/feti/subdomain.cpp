@@ -1,5 +1,6 @@
 #include "htfeti/feti/subdomain.hpp"
 
+#include <stdexcept>
 #include <vector>
 
 namespace htfeti {
@@ -33,7 +34,31 @@ Subdomain::Subdomain(const Decomposition& dec, int id)
 double Subdomain::x_of(int k) const { return pos_.q + (pos_.sx * H_ + k % (H_ + 1)) * h_; }
 double Subdomain::y_of(int k) const { return (pos_.sy * H_ + k / (H_ + 1)) * h_; }
 
-void Subdomain::factorize(Ordering ordering) {
+void Subdomain::factorize(Ordering ordering) { factorize_impl(ordering, nullptr); }
+
+void Subdomain::factorize_with_interface_last(const std::vector<int>& interface_dofs) {
+  factorize_impl(Ordering::amd, &interface_dofs);
+}
+
+Eigen::MatrixXd Subdomain::dual_block(const std::vector<BEntry>& b, int nmult) const {
+  Eigen::MatrixXd L;
+  std::vector<int> order;
+  chol_.schur_factor(L, order);
+  std::vector<int> pos(size(), -1);
+  for (size_t i = 0; i < order.size(); ++i) pos[order[i] + (order[i] >= fixed_)] = static_cast<int>(i);
+  Eigen::MatrixXd T = Eigen::MatrixXd::Zero(L.rows(), nmult);  // B_i^T on the interface
+  for (const auto& e : b) {
+    if (pos[e.dof] < 0) throw std::logic_error("dual_block: a row of B touches a non-interface dof");
+    T(pos[e.dof], e.mult) += e.value;
+  }
+  L.triangularView<Eigen::Lower>().solveInPlace(T);  // T = L_s^{-1} B_i^T
+  Eigen::MatrixXd F(nmult, nmult);
+  F.setZero();
+  F.selfadjointView<Eigen::Lower>().rankUpdate(T.transpose());  // F = T^T T (lower half)
+  return F.selfadjointView<Eigen::Lower>();
+}
+
+void Subdomain::factorize_impl(Ordering ordering, const std::vector<int>* interface_dofs) {
   const int nn = size();
   // K_rr: drop the fixed node's row and column (indices above it shift down by one).
   std::vector<Eigen::Triplet<double>> trip;
@@ -47,7 +72,16 @@ void Subdomain::factorize(Ordering ordering) {
   Eigen::SparseMatrix<double> Krr(nn - 1, nn - 1);
   Krr.setFromTriplets(trip.begin(), trip.end());
   chol_ = SparseCholesky(ordering);
-  chol_.factorize(Krr);
+  if (interface_dofs) {
+    std::vector<int> last;
+    for (int d : *interface_dofs) {
+      if (d == fixed_) throw std::logic_error("the fixed node lies on the interface");
+      last.push_back(d - (d > fixed_));
+    }
+    chol_.factorize(Krr, last);
+  } else {
+    chol_.factorize(Krr);
+  }
   work_.resize(nn - 1);
 }
 

@@ -20,16 +20,32 @@
 #pragma once
 
 #include <Eigen/Dense>
+#include <string>
 #include <vector>
 
 #include "htfeti/feti/subdomain.hpp"
 
 namespace htfeti {
 
+/// How F = B~ K~^+ B~^T is applied on a cluster: by sparse triangular solves every time
+/// (implicit), or by dense local blocks F_i = B_i K_i^+ B_i^T built once from the Schur complement
+/// of each subdomain onto its interface (explicit), plus the low-rank cluster correction
+/// B_i K_i^+ C_i^T and B_i R_i (see apply_dual).
+enum class DualOperator { implicit, explicit_, automatic };
+DualOperator parse_dual_operator(const std::string& name);
+std::string to_string(DualOperator kind);
+
 class Cluster {
  public:
-  /// subs: the cluster's m*m subdomains in cluster-local order (already assembled). Factors them.
-  Cluster(const Decomposition& dec, int id, std::vector<Subdomain*> subs, Ordering ordering);
+  /// subs: the cluster's m*m subdomains in cluster-local order (already assembled); b[i]: the
+  /// rows of B~ on subdomain i, numbered 0..nmult[i]-1 locally. Factors the subdomains.
+  /// explicit_F: build the dense local blocks (implicit or explicit_, not automatic).
+  Cluster(const Decomposition& dec, int id, std::vector<Subdomain*> subs, Ordering ordering,
+          std::vector<std::vector<Subdomain::BEntry>> b, std::vector<int> nmult, bool explicit_F);
+  /// Without dual rows: for tests of the generalized inverse alone.
+  Cluster(const Decomposition& dec, int id, std::vector<Subdomain*> subs, Ordering ordering)
+      : Cluster(dec, id, subs, ordering, std::vector<std::vector<Subdomain::BEntry>>(subs.size()),
+                std::vector<int>(subs.size(), 0), false) {}
 
   int id() const { return id_; }
   const std::vector<Subdomain*>& subdomains() const { return subs_; }
@@ -41,6 +57,17 @@ class Cluster {
 
   /// x[i] -> K~^+ x[i] in place (physical vectors of the cluster's subdomains). Allocates nothing.
   void solve(std::vector<Eigen::VectorXd>& x);
+  /// out[i] = (B~ K~^+ B~^T lam) restricted to subdomain i's local rows; lam[i], out[i] have
+  /// nmult[i] entries. Implicit: x = B^T lam, solve(x), B x. Explicit, with the same dense
+  /// saddle-point system as solve():
+  ///   out_i = F_i lam_i - U_i mu + V_i beta_i,  U_i = B_i K_i^+ C_i^T,  V_i = B_i R_i,
+  ///   [mu; beta] = S^{-1} [sum_i U_i^T lam_i; -V_i^T lam_i].
+  /// Cost: implicit, one K_i^+ per subdomain; explicit, one dense n_i x n_i symmetric
+  /// matrix-vector product per subdomain (memory-bound: 8 n_i^2 bytes). Allocates nothing.
+  void apply_dual(const std::vector<Eigen::VectorXd>& lam, std::vector<Eigen::VectorXd>& out);
+  bool is_explicit() const { return explicit_; }
+  /// Doubles held by the explicit blocks F_i, U_i, V_i.
+  long explicit_doubles() const;
 
  private:
   struct LocalRow {
@@ -56,6 +83,11 @@ class Cluster {
   std::vector<Eigen::MatrixXd> W_;                // K_i^+ C_i^T (columns: cols_of_sub_[i])
   Eigen::PartialPivLU<Eigen::MatrixXd> lu_;
   Eigen::VectorXd rhs_, sol_;
+  std::vector<std::vector<Subdomain::BEntry>> b_;  // rows of B~ per subdomain (local numbering)
+  std::vector<Eigen::VectorXd> xw_;               // implicit apply_dual: physical work vectors
+  bool explicit_ = false;
+  std::vector<Eigen::MatrixXd> F_, U_;             // explicit: F_i, B_i K_i^+ C_i^T
+  std::vector<Eigen::VectorXd> V_;                 // explicit: B_i R_i
   double kernel_value_ = 0;
 };
 

@@ -27,7 +27,12 @@ namespace htfeti {
 
 struct FetiOptions {
   Ordering ordering = Ordering::amd;  ///< fill-reducing ordering of the subdomain factors
+  /// implicit, explicit, or automatic: explicit when a subdomain has at least kExplicitMinNodes
+  /// nodes (docs/performance.md: measured break-even).
+  DualOperator dual_operator = DualOperator::automatic;
 };
+
+constexpr int kExplicitMinNodes = 400;
 
 /// Seconds spent in each setup phase (wall clock on this rank).
 struct SetupTimings {
@@ -94,6 +99,9 @@ class DualProblem {
   ContactData contact_data(const std::vector<Vec>& u, const Vec& lambda);
 
   long factor_nonzeros() const;  ///< summed over this rank's subdomains
+  bool explicit_operator() const { return explicit_; }
+  long explicit_doubles() const;  ///< doubles in the explicit blocks on this rank
+  long cluster_dense_doubles() const;  ///< doubles in the clusters' K^+ C^T blocks and LUs
   long coarse_factor_nonzeros() const { return coarse_factor_.factor_nonzeros(); }
 
  private:
@@ -132,6 +140,9 @@ class DualProblem {
   Vec ext_in_, ext_out_, coarse_work_;
   std::vector<std::vector<Vec>> x_;  // per cluster, per subdomain
   std::vector<std::vector<double>> contrib_;  // per subdomain, per row entry
+  std::vector<std::vector<int>> mult_;        // per subdomain: its multipliers (extended indices)
+  std::vector<std::vector<Vec>> lam_, out_;   // per cluster, per subdomain: local dual vectors
+  bool explicit_ = false;
 };
 
 }  // namespace htfeti

@@ -5,6 +5,7 @@
 #include <Eigen/Sparse>
 #include <memory>
 #include <string>
+#include <vector>
 
 namespace htfeti {
 
@@ -24,6 +25,13 @@ class SparseCholesky {
   /// Factors A (only its upper triangle is read). Throws std::runtime_error if A is not
   /// positive definite.
   void factorize(const Eigen::SparseMatrix<double>& A);
+  /// Factors A with the rows in `last` ordered after all others (constrained AMD, no
+  /// postordering), so that the trailing block of the factor is the Cholesky factor of the Schur
+  /// complement of A onto `last`. The ordering option of the constructor is not used.
+  void factorize(const Eigen::SparseMatrix<double>& A, const std::vector<int>& last);
+  /// After factorize(A, last): lower-triangular L_s (|last| x |last|) with L_s L_s^T the Schur
+  /// complement, and order[i] = the row of A that row i of L_s stands for.
+  void schur_factor(Eigen::MatrixXd& L, std::vector<int>& order) const;
   /// x = A^{-1} b; x and b may alias. Work arrays are kept between calls, so a solve allocates
   /// nothing once the first one has run. Not safe to call concurrently on one object.
   void solve(const double* b, double* x);
@@ -32,6 +40,7 @@ class SparseCholesky {
   long factor_nonzeros() const;
 
  private:
+  void factorize_impl(const Eigen::SparseMatrix<double>& A, const std::vector<int>* last);
   struct Impl;
   std::unique_ptr<Impl> impl_;
 };

@@ -9,6 +9,7 @@
 
 #include <Eigen/Dense>
 #include <Eigen/Sparse>
+#include <vector>
 
 #include "htfeti/decomposition/decomposition.hpp"
 #include "htfeti/feti/sparse_cholesky.hpp"
@@ -30,6 +31,21 @@ class Subdomain {
   int fixed_node() const { return fixed_; }
 
   void factorize(Ordering ordering);
+  /// Factors with the given dofs (the interface) ordered last, so that the Schur complement of
+  /// K_rr onto them is available for dual_block() (explicit dual operator).
+  void factorize_with_interface_last(const std::vector<int>& interface_dofs);
+  /// One entry of the subdomain's part of B~: row `mult` (subdomain-local numbering), column `dof`.
+  struct BEntry {
+    int mult;
+    int dof;
+    double value;
+  };
+  /// The dense local dual operator F_i = B_i K_i^+ B_i^T (nmult x nmult). Needs
+  /// factorize_with_interface_last() with every dof that b touches. With L_s L_s^T the Schur
+  /// complement of K_rr onto the interface, (K_rr^{-1}) restricted to it is (L_s L_s^T)^{-1}, so
+  /// F_i = T^T T with T = L_s^{-1} B_i^T: one triangular solve with nmult right-hand sides and
+  /// one product, about 2 n_b^2 nmult flops, instead of nmult sparse solves.
+  Eigen::MatrixXd dual_block(const std::vector<BEntry>& b, int nmult) const;
   /// y = K^+ x (x and y of length size(); they may alias). Allocates nothing.
   void apply_pinv(const double* x, double* y);
   long factor_nonzeros() const { return chol_.factor_nonzeros(); }
@@ -39,6 +55,7 @@ class Subdomain {
   double y_of(int k) const;
 
  private:
+  void factorize_impl(Ordering ordering, const std::vector<int>* interface_dofs);
   int id_;
   SubdomainPosition pos_;
   int H_;

@@ -101,7 +101,7 @@ int run(int argc, char** argv, const Comm& comm) {
       ->capture_default_str();
   solve_cmd->add_option("--dual-operator", dual_operator,
                         "how F is applied: implicit (sparse solves), explicit (dense local blocks "
-                        "from Schur complements), auto (explicit from 400 nodes per subdomain)")
+                        "from Schur complements), auto (explicit from 25 nodes per subdomain)")
       ->capture_default_str();
   solve_cmd->add_option("--rho-factor", opt.smalbe.rho_factor, "SMALBE-M penalty rho = factor * ||PFP||")
       ->capture_default_str();

@@ -38,6 +38,7 @@ for m in a.ms:
     r = solve(["--problem", "membranes", "-n", n, "--subdomains", a.ns, "-m", m, "--glue", a.glue,
                *a.extra.split()], ranks=a.ranks, threads=a.threads)
     runs.append(r)
+    save(f"table3_hh{hh}.json", {"command": "(partial)", "paper": PAPER, "runs": runs})
     pp = PAPER.get(m, ("-", "-", "-"))
     print(f"| {m} | {r['outer_iterations']} | {r['matvecs']} | {r['coarse_dimension']} | "
           f"{pp[0]} / {pp[1]} / {pp[2]} | {r['primal_dimension']} | {r['inequalities']} | "

@@ -57,6 +57,8 @@ TEST(Subdomain, GeneralizedInverseAndKernel) {
     EXPECT_LT((K * KpK - K).norm(), 1e-12 * K.norm());  // K K^+ K = K
     EXPECT_LT((K * sd.kernel()).norm(), 1e-13);         // K R = 0
     EXPECT_NEAR(sd.kernel().norm(), 1.0, 1e-14);
+    const Eigen::VectorXd u = Eigen::VectorXd::LinSpaced(K.rows(), -1.0, 2.0);
+    EXPECT_NEAR(sd.energy(u), 0.5 * u.dot(K * u) - sd.f().dot(u), 1e-12);  // element-wise energy
   }
 }
 

@@ -118,6 +118,7 @@ DualProblem::DualProblem(const Decomposition& dec, const Comm& comm, const FetiO
     }
   }
   if (!error.empty()) throw std::runtime_error(error);
+  for (auto& sd : subs_) sd->release_matrix();  // factored: K_i is no longer needed
   setup_.factorization = now() - t;
   lam_.resize(clusters_.size());
   out_.resize(clusters_.size());
@@ -387,7 +388,7 @@ std::vector<DualProblem::Vec> DualProblem::reconstruct(const Vec& lambda) {
 double DualProblem::energy(const std::vector<Vec>& u) const {
   double q = 0;
   for (size_t s = 0; s < subs_.size(); ++s)
-    q += 0.5 * u[s].dot(subs_[s]->K() * u[s]) - subs_[s]->f().dot(u[s]);
+    q += subs_[s]->energy(u[s]);
   return comm_.sum(q);
 }
 

@@ -85,11 +85,22 @@ void SparseCholesky::factorize_impl(const Eigen::SparseMatrix<double>& A,
     const int saved_postorder = c.postorder;
     c.nmethods = 1;
     c.method[0].ordering = CHOLMOD_GIVEN;
-    c.postorder = 0;
-    impl_->factor = cholmod_analyze_p(&view, perm.data(), nullptr, 0, &c);
+    // Postordering gives larger supernodes (less padding, faster solves) and usually keeps the
+    // trailing set last; if it does not, analyze again without it.
+    for (int post = 1; post >= 0; --post) {
+      c.postorder = post;
+      impl_->factor = cholmod_analyze_p(&view, perm.data(), nullptr, 0, &c);
+      if (!impl_->factor) break;
+      const int* fp = static_cast<const int*>(impl_->factor->Perm);
+      bool tail_ok = true;
+      for (int p = n - static_cast<int>(last->size()); p < n && tail_ok; ++p) tail_ok = cmember[fp[p]] == 1;
+      if (tail_ok) break;
+      cholmod_free_factor(&impl_->factor, &c);
+    }
     c.nmethods = saved_nmethods;
     c.method[0].ordering = saved_ordering;
     c.postorder = saved_postorder;
+    if (!impl_->factor) throw std::runtime_error("CHOLMOD analysis failed");
     impl_->nlast = static_cast<int>(last->size());
   } else {
     impl_->factor = cholmod_analyze(&view, &c);

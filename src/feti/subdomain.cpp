@@ -8,7 +8,7 @@ namespace htfeti {
 Subdomain::Subdomain(const Decomposition& dec, int id)
     : id_(id), pos_(dec.position(id)), H_(dec.H()), h_(1.0 / dec.n()) {
   const int np = H_ + 1, nn = np * np;
-  const auto ke = square_stiffness(dec.options().element);
+  const auto& ke = ke_ = square_stiffness(dec.options().element);
   const Problem problem = dec.problem();
   std::vector<Eigen::Triplet<double>> trip;
   trip.reserve(16 * H_ * H_);
@@ -29,6 +29,19 @@ Subdomain::Subdomain(const Decomposition& dec, int id)
   K_.setFromTriplets(trip.begin(), trip.end());
   R_ = Eigen::VectorXd::Constant(nn, 1.0 / std::sqrt(static_cast<double>(nn)));
   fixed_ = dec.local_node(H_ / 2, H_ / 2);
+}
+
+double Subdomain::energy(const Eigen::VectorXd& u) const {
+  const int np = H_ + 1;
+  double q = 0;
+  for (int b = 0; b < H_; ++b)
+    for (int a = 0; a < H_; ++a) {
+      const int n0 = b * np + a;
+      const double ue[4] = {u[n0], u[n0 + 1], u[n0 + np + 1], u[n0 + np]};
+      for (int i = 0; i < 4; ++i)
+        for (int j = 0; j < 4; ++j) q += 0.5 * ue[i] * ke_[i][j] * ue[j];
+    }
+  return q - f_.dot(u);
 }
 
 double Subdomain::x_of(int k) const { return pos_.q + (pos_.sx * H_ + k % (H_ + 1)) * h_; }

@@ -32,7 +32,7 @@ struct FetiOptions {
   DualOperator dual_operator = DualOperator::automatic;
 };
 
-constexpr int kExplicitMinNodes = 400;
+constexpr int kExplicitMinNodes = 25;
 
 /// Seconds spent in each setup phase (wall clock on this rank).
 struct SetupTimings {

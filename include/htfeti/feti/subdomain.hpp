@@ -9,6 +9,7 @@
 
 #include <Eigen/Dense>
 #include <Eigen/Sparse>
+#include <array>
 #include <vector>
 
 #include "htfeti/decomposition/decomposition.hpp"
@@ -24,7 +25,13 @@ class Subdomain {
   int id() const { return id_; }
   const SubdomainPosition& position() const { return pos_; }
   int size() const { return static_cast<int>(f_.size()); }
+  /// The assembled K_i; empty after release_matrix().
   const Eigen::SparseMatrix<double>& K() const { return K_; }
+  /// Frees K_i once it is factored (the factor and the element matrices remain): about
+  /// 12 bytes x 9 nonzeros per node.
+  void release_matrix() { K_ = Eigen::SparseMatrix<double>(); }
+  /// q_i(u) = 1/2 u'K_i u - f_i'u, element by element (works after release_matrix()).
+  double energy(const Eigen::VectorXd& u) const;
   const Eigen::VectorXd& f() const { return f_; }
   /// The orthonormal kernel basis (one column for the Laplacian).
   const Eigen::VectorXd& kernel() const { return R_; }
@@ -60,6 +67,7 @@ class Subdomain {
   SubdomainPosition pos_;
   int H_;
   double h_;
+  std::array<std::array<double, 4>, 4> ke_;
   Eigen::SparseMatrix<double> K_;
   Eigen::VectorXd f_, R_;
   int fixed_ = 0;

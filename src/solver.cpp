@@ -155,6 +155,7 @@ SolveOutput solve(const SolveOptions& options, const Comm& comm) {
   rep["rtol"] = options.rtol;
   rep["ordering"] = to_string(options.feti.ordering);
   rep["dual_operator"] = dual.explicit_operator() ? "explicit" : "implicit";
+  rep["keep_factors"] = !dual.explicit_operator() || options.feti.keep_factors;
   rep["converged"] = converged;
   rep["stop_reason"] = reason;
   rep["outer_iterations"] = outer;

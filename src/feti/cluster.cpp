@@ -107,6 +107,20 @@ Cluster::Cluster(const Decomposition& dec, int id, std::vector<Subdomain*> subs,
   sol_.resize(dim);
 }
 
+void Cluster::release_factors() {
+  for (auto* sd : subs_) {
+    sd->release_factor();
+    sd->release_matrix();
+  }
+}
+
+void Cluster::refactor(Ordering ordering) {
+  for (auto* sd : subs_) {
+    sd->factorize(ordering);
+    sd->release_matrix();
+  }
+}
+
 long Cluster::explicit_doubles() const {
   long n = 0;
   for (const auto& f : F_) n += f.size();

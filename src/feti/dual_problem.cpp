@@ -95,6 +95,14 @@ DualProblem::DualProblem(const Decomposition& dec, const Comm& comm, const FetiO
               (options.dual_operator == DualOperator::automatic &&
                dec.nodes_per_subdomain() >= kExplicitMinNodes);
 
+  ordering_ = options.ordering;
+  factors_released_ = explicit_ && !options.keep_factors;
+  contrib_.resize(nsub);
+  for (int s = 0; s < nsub; ++s) contrib_[s].assign(rows_[s].size(), 0.0);
+  x_.resize(c1 - c0);
+  for (int c = 0; c < c1 - c0; ++c)
+    for (int i = 0; i < mm; ++i) x_[c].push_back(Vec::Zero(subs_[c * mm + i]->size()));
+
   t = now();
   clusters_.resize(c1 - c0);
   std::string error;
@@ -112,6 +120,11 @@ DualProblem::DualProblem(const Decomposition& dec, const Comm& comm, const FetiO
     try {
       clusters_[c - c0] = std::make_unique<Cluster>(dec, c, std::move(members), options.ordering,
                                                     std::move(b), std::move(nmult), explicit_);
+      // The cluster's part of d = B~ K~^+ f, while its factors are at hand.
+      cluster_rhs_from_ext(c - c0, true, 0.0);
+      clusters_[c - c0]->solve(x_[c - c0]);
+      b_of_x(c - c0);
+      if (factors_released_) clusters_[c - c0]->release_factors();
     } catch (const std::exception& e) {
 #pragma omp critical
       error = e.what();
@@ -150,22 +163,11 @@ DualProblem::DualProblem(const Decomposition& dec, const Comm& comm, const FetiO
   ext_in_ = Vec::Zero(n_ext);
   ext_out_ = Vec::Zero(n_ext);
   coarse_work_ = Vec::Zero(coarse_dimension());
-  x_.resize(clusters_.size());
-  for (size_t c = 0; c < clusters_.size(); ++c)
-    for (int i = 0; i < mm; ++i) x_[c].push_back(Vec::Zero(subs_[c * mm + i]->size()));
-  contrib_.resize(nsub);
-  for (int s = 0; s < nsub; ++s) contrib_[s].assign(rows_[s].size(), 0.0);
 
   assemble_coarse(std::vector<double>(n_own, 1.0), coarse_factor_);
 
   // d = B~ K~^+ f, e~ = R~^T f, lambda~ = G~^T (G~G~^T)^{-1} e~.
-  ext_in_.setZero();
-  for_each_cluster([&](int c) {
-    cluster_rhs_from_ext(c, true, 0.0);  // x = f
-    clusters_[c]->solve(x_[c]);
-    b_of_x(c);
-  });
-  scatter_contrib();
+  scatter_contrib();  // d: the clusters' parts were computed with their setup
   layout_.reverse_add(ext_out_.data());
   d_ = ext_out_.head(n_own);
   e_ = Vec::Zero(coarse_dimension());
@@ -352,9 +354,11 @@ std::vector<DualProblem::Vec> DualProblem::reconstruct(const Vec& lambda) {
   gather_to_ext(lambda);
   std::vector<Vec> u(subs_.size());
   for_each_cluster([&](int c) {
+    if (factors_released_) clusters_[c]->refactor(ordering_);
     cluster_rhs_from_ext(c, true, -1.0);  // f - B~^T lambda
     clusters_[c]->solve(x_[c]);
     for (int i = 0; i < mm; ++i) u[c * mm + i] = x_[c][i];
+    if (factors_released_) clusters_[c]->release_factors();
   });
   // B u0 = d - F lambda; alpha solves G~ D G~^T alpha = G~ D (F lambda - d), D masking the
   // contact rows with lambda_i = 0 (paper, (10)).

@@ -8,27 +8,39 @@ namespace htfeti {
 Subdomain::Subdomain(const Decomposition& dec, int id)
     : id_(id), pos_(dec.position(id)), H_(dec.H()), h_(1.0 / dec.n()) {
   const int np = H_ + 1, nn = np * np;
-  const auto& ke = ke_ = square_stiffness(dec.options().element);
+  ke_ = square_stiffness(dec.options().element);
   const Problem problem = dec.problem();
-  std::vector<Eigen::Triplet<double>> trip;
-  trip.reserve(16 * H_ * H_);
   f_ = Eigen::VectorXd::Zero(nn);
   for (int b = 0; b < H_; ++b)
     for (int a = 0; a < H_; ++a) {
-      const int nodes[4] = {dec.local_node(a, b), dec.local_node(a + 1, b),
-                            dec.local_node(a + 1, b + 1), dec.local_node(a, b + 1)};
+      const int n0 = b * np + a, nodes[4] = {n0, n0 + 1, n0 + np + 1, n0 + np};
       const double x0 = pos_.q + (pos_.sx * H_ + a) * h_, y0 = (pos_.sy * H_ + b) * h_;
       const auto fe = square_load(problem, dec.options().element, x0, y0, h_);
-      for (int i = 0; i < 4; ++i) {
-        f_[nodes[i]] += fe[i];
+      for (int i = 0; i < 4; ++i) f_[nodes[i]] += fe[i];
+    }
+  assemble();
+  R_ = Eigen::VectorXd::Constant(nn, 1.0 / std::sqrt(static_cast<double>(nn)));
+  fixed_ = dec.local_node(H_ / 2, H_ / 2);
+}
+
+void Subdomain::assemble() {
+  const int np = H_ + 1, nn = np * np;
+  std::vector<Eigen::Triplet<double>> trip;
+  trip.reserve(16 * H_ * H_);
+  for (int b = 0; b < H_; ++b)
+    for (int a = 0; a < H_; ++a) {
+      const int n0 = b * np + a, nodes[4] = {n0, n0 + 1, n0 + np + 1, n0 + np};
+      for (int i = 0; i < 4; ++i)
         for (int j = 0; j < 4; ++j)
-          if (ke[i][j] != 0.0) trip.emplace_back(nodes[i], nodes[j], ke[i][j]);
-      }
+          if (ke_[i][j] != 0.0) trip.emplace_back(nodes[i], nodes[j], ke_[i][j]);
     }
   K_.resize(nn, nn);
   K_.setFromTriplets(trip.begin(), trip.end());
-  R_ = Eigen::VectorXd::Constant(nn, 1.0 / std::sqrt(static_cast<double>(nn)));
-  fixed_ = dec.local_node(H_ / 2, H_ / 2);
+}
+
+void Subdomain::release_factor() {
+  chol_ = SparseCholesky();
+  work_ = Eigen::VectorXd();
 }
 
 double Subdomain::energy(const Eigen::VectorXd& u) const {
@@ -73,6 +85,7 @@ Eigen::MatrixXd Subdomain::dual_block(const std::vector<BEntry>& b, int nmult) c
 
 void Subdomain::factorize_impl(Ordering ordering, const std::vector<int>* interface_dofs) {
   const int nn = size();
+  if (K_.rows() != nn) assemble();  // released earlier
   // K_rr: drop the fixed node's row and column (indices above it shift down by one).
   std::vector<Eigen::Triplet<double>> trip;
   trip.reserve(K_.nonZeros());
@@ -95,6 +108,7 @@ void Subdomain::factorize_impl(Ordering ordering, const std::vector<int>* interf
   } else {
     chol_.factorize(Krr);
   }
+  factor_nonzeros_ = chol_.factor_nonzeros();
   work_.resize(nn - 1);
 }
 

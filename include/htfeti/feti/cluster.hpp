@@ -66,6 +66,11 @@ class Cluster {
   /// matrix-vector product per subdomain (memory-bound: 8 n_i^2 bytes). Allocates nothing.
   void apply_dual(const std::vector<Eigen::VectorXd>& lam, std::vector<Eigen::VectorXd>& out);
   bool is_explicit() const { return explicit_; }
+  /// Frees the subdomain factorizations and matrices (the explicit blocks stay); solve() then
+  /// needs refactor() first.
+  void release_factors();
+  /// Factors the subdomains again (plain fill-reducing ordering) so that solve() works.
+  void refactor(Ordering ordering);
   /// Doubles held by the explicit blocks F_i, U_i, V_i.
   long explicit_doubles() const;
 

@@ -30,6 +30,11 @@ struct FetiOptions {
   /// implicit, explicit, or automatic: explicit when a subdomain has at least kExplicitMinNodes
   /// nodes (docs/performance.md: measured break-even).
   DualOperator dual_operator = DualOperator::automatic;
+  /// With the explicit operator the subdomain factors are needed only for d (setup) and the
+  /// primal reconstruction: unless kept, each cluster frees them right after its setup and
+  /// factors again for the reconstruction (the memory of the iterations is then the explicit
+  /// blocks; docs/performance.md).
+  bool keep_factors = false;
 };
 
 constexpr int kExplicitMinNodes = 25;
@@ -143,6 +148,8 @@ class DualProblem {
   std::vector<std::vector<int>> mult_;        // per subdomain: its multipliers (extended indices)
   std::vector<std::vector<Vec>> lam_, out_;   // per cluster, per subdomain: local dual vectors
   bool explicit_ = false;
+  bool factors_released_ = false;
+  Ordering ordering_ = Ordering::amd;
 };
 
 }  // namespace htfeti

@@ -29,7 +29,7 @@ class Subdomain {
   const Eigen::SparseMatrix<double>& K() const { return K_; }
   /// Frees K_i once it is factored (the factor and the element matrices remain): about
   /// 12 bytes x 9 nonzeros per node.
-  void release_matrix() { K_ = Eigen::SparseMatrix<double>(); }
+  void release_matrix() { K_ = Eigen::SparseMatrix<double>(); }  // factorize() reassembles it
   /// q_i(u) = 1/2 u'K_i u - f_i'u, element by element (works after release_matrix()).
   double energy(const Eigen::VectorXd& u) const;
   const Eigen::VectorXd& f() const { return f_; }
@@ -55,13 +55,17 @@ class Subdomain {
   Eigen::MatrixXd dual_block(const std::vector<BEntry>& b, int nmult) const;
   /// y = K^+ x (x and y of length size(); they may alias). Allocates nothing.
   void apply_pinv(const double* x, double* y);
-  long factor_nonzeros() const { return chol_.factor_nonzeros(); }
+  /// Nonzeros of the last factorization (also after release_factor()).
+  long factor_nonzeros() const { return factor_nonzeros_; }
+  /// Frees the factorization (apply_pinv needs factorize() again).
+  void release_factor();
 
   /// Coordinates of local node k.
   double x_of(int k) const;
   double y_of(int k) const;
 
  private:
+  void assemble();
   void factorize_impl(Ordering ordering, const std::vector<int>* interface_dofs);
   int id_;
   SubdomainPosition pos_;
@@ -71,6 +75,7 @@ class Subdomain {
   Eigen::SparseMatrix<double> K_;
   Eigen::VectorXd f_, R_;
   int fixed_ = 0;
+  long factor_nonzeros_ = 0;
   SparseCholesky chol_;
   Eigen::VectorXd work_;  // reduced vectors of length size() - 1
 };

@@ -177,6 +177,7 @@ SolveOutput solve(const SolveOptions& options, const Comm& comm) {
                     {"solve", tmax(t_solve)},
                     {"F", tmax(F.seconds())},
                     {"projector", tmax(P.seconds())},
+                    {"vector_work", tmax(t_solve - F.seconds() - P.seconds())},
                     {"reconstruction", tmax(t_rec)},
                     {"total", tmax(t_setup + t_solve + t_rec)}};
   struct rusage usage {};

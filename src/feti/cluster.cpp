@@ -53,6 +53,7 @@ Cluster::Cluster(const Decomposition& dec, int id, std::vector<Subdomain*> subs,
   if (nc_ == 0) {
     rhs_.resize(0);
     sol_.resize(0);
+    if (explicit_) b_ = {};  // the explicit blocks replace the rows of B~ here
     return;
   }
 
@@ -98,6 +99,7 @@ Cluster::Cluster(const Decomposition& dec, int id, std::vector<Subdomain*> subs,
     }
   }
   lu_.compute(S);
+  if (explicit_) b_ = {};  // the explicit blocks replace the rows of B~ here
   const double rcond = lu_.rcond();
   if (!(rcond > 1e-14))
     throw std::runtime_error("cluster " + std::to_string(id) +

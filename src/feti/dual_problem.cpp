@@ -168,6 +168,7 @@ DualProblem::DualProblem(const Decomposition& dec, const Comm& comm, const FetiO
 
   // d = B~ K~^+ f, e~ = R~^T f, lambda~ = G~^T (G~G~^T)^{-1} e~.
   scatter_contrib();  // d: the clusters' parts were computed with their setup
+  contrib_ = {};      // needed for nothing else
   layout_.reverse_add(ext_out_.data());
   d_ = ext_out_.head(n_own);
   e_ = Vec::Zero(coarse_dimension());

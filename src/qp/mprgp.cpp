@@ -24,13 +24,17 @@ void split_gradient(const Vec& x, const Vec& g, const Vec& l, Vec& phi, Vec& bet
 }  // namespace
 
 MprgpResult mprgp(Operator& A, const Vec& b, const Vec& l, Vec& x, Vec& g, const Reducer& red,
-                  const MprgpOptions& opt, const MprgpStop& stop, bool gradient_given) {
+                  const MprgpOptions& opt, const MprgpStop& stop, bool gradient_given,
+                  MprgpWorkspace* workspace) {
   if (!(opt.alpha > 0)) throw std::invalid_argument("MPRGP: the expansion step length must be > 0");
   if (!(opt.gamma > 0)) throw std::invalid_argument("MPRGP: Gamma must be > 0");
   const Eigen::Index n = b.size();
   const double inf = std::numeric_limits<double>::infinity();
   MprgpResult res;
-  Vec phi(n), beta(n), p(n), Ap(n), tmp(n);
+  MprgpWorkspace local;
+  MprgpWorkspace& w = workspace ? *workspace : local;
+  w.phi.resize(n), w.beta.resize(n), w.p.resize(n), w.Ap.resize(n);  // no-ops when reused
+  Vec &phi = w.phi, &beta = w.beta, &p = w.p, &Ap = w.Ap;
   if (!gradient_given) {
     x = x.cwiseMax(l);
     A.apply(x, g);

@@ -30,20 +30,21 @@ SmalbeResult smalbe(Operator& A, Operator& Q, const Vec& b, const Vec& l, Vec& x
   mo.gamma = opt.gamma;
   mo.alpha = res.alpha;
   Vec nu = Vec::Zero(n), rhs(n), g(n);
+  MprgpWorkspace work;  // shared by all inner solves: no allocation inside the outer loop
   double L_prev = 0;
+  double qnorm = 0;
+  bool global_stop = false;
+  const MprgpStop stop = [&](const Vec& xx, const Vec&, double gp) {
+    Q.apply(xx, qx);  // ||G x|| = ||Q x||
+    qnorm = red.norm(qx);
+    global_stop = gp <= tol && qnorm <= tol;
+    return global_stop || gp <= std::min(M * qnorm, eta);
+  };
   for (int k = 0;; ++k) {
     rhs = b - nu;
     mo.max_iterations = opt.max_inner - res.inner_iterations;
-    double qnorm = 0;
-    bool global_stop = false;
-    auto stop = [&](const Vec& xx, const Vec&, double gp) {
-      Q.apply(xx, qx);
-      qnorm = red.norm(qx);
-      global_stop = gp <= tol && qnorm <= tol;
-      return global_stop || gp <= std::min(M * qnorm, eta);
-    };
     // After the first outer iteration g = H x - (b - nu) is kept up to date below.
-    const MprgpResult inner = mprgp(H, rhs, l, x, g, red, mo, stop, k > 0);
+    const MprgpResult inner = mprgp(H, rhs, l, x, g, red, mo, stop, k > 0, &work);
     res.inner_iterations += inner.iterations;
     res.cg_steps += inner.cg_steps;
     res.expansion_steps += inner.expansion_steps;

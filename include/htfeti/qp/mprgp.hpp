@@ -31,12 +31,19 @@ struct MprgpResult {
   double projected_gradient = 0;  ///< ||g^P|| at exit
 };
 
+/// Work vectors of one MPRGP run; pass the same one to repeated runs (SMALBE-M's inner solves)
+/// so that nothing is allocated after the first.
+struct MprgpWorkspace {
+  Vec phi, beta, p, Ap;
+};
+
 /// stop(x, g, ||g^P||) decides convergence. x: start in (projected onto the bounds), solution out;
 /// g: the gradient A x - b at exit; if gradient_given, also on entry (x must then be feasible),
 /// which saves the first application of A (SMALBE-M updates g itself between outer iterations).
 using MprgpStop = std::function<bool(const Vec& x, const Vec& g, double gp_norm)>;
 MprgpResult mprgp(Operator& A, const Vec& b, const Vec& lower, Vec& x, Vec& g, const Reducer& red,
-                  const MprgpOptions& options, const MprgpStop& stop, bool gradient_given = false);
+                  const MprgpOptions& options, const MprgpStop& stop, bool gradient_given = false,
+                  MprgpWorkspace* workspace = nullptr);
 
 /// The projected gradient g^P of min 1/2 x'Ax - b'x, x >= l, for the gradient g at x.
 void projected_gradient(const Vec& x, const Vec& g, const Vec& lower, Vec& gp);

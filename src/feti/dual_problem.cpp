@@ -105,8 +105,10 @@ DualProblem::DualProblem(const Decomposition& dec, const Comm& comm, const FetiO
 
   t = now();
   clusters_.resize(c1 - c0);
+  // Threads run over clusters when there are enough of them, else inside each cluster.
+  outer_parallel_ = omp_get_max_threads() > 1 && c1 - c0 >= omp_get_max_threads();
   std::string error;
-#pragma omp parallel for schedule(dynamic) if (omp_get_max_threads() > 1)
+#pragma omp parallel for schedule(dynamic) if (outer_parallel_)
   for (int c = c0; c < c1; ++c) {
     std::vector<Subdomain*> members;
     std::vector<std::vector<Subdomain::BEntry>> b;
@@ -226,7 +228,7 @@ void DualProblem::scatter_contrib() {
 template <class Body>
 void DualProblem::for_each_cluster(Body body) {
   const int nc = static_cast<int>(clusters_.size());
-#pragma omp parallel for schedule(dynamic) if (omp_get_max_threads() > 1)
+#pragma omp parallel for schedule(dynamic) if (outer_parallel_)
   for (int c = 0; c < nc; ++c) body(c);
 }
 

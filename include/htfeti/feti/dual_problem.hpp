@@ -149,6 +149,7 @@ class DualProblem {
   std::vector<std::vector<Vec>> lam_, out_;   // per cluster, per subdomain: local dual vectors
   bool explicit_ = false;
   bool factors_released_ = false;
+  bool outer_parallel_ = false;  // threads over clusters (true) or inside each cluster
   Ordering ordering_ = Ordering::amd;
 };
 

@@ -104,8 +104,9 @@ int run(int argc, char** argv, const Comm& comm) {
                         "from Schur complements), auto (explicit from 25 nodes per subdomain)")
       ->capture_default_str();
   solve_cmd->add_flag("--keep-factors", opt.feti.keep_factors,
-                      "explicit operator: keep the subdomain factors during the iterations instead "
-                      "of factoring again for the reconstruction (faster, more memory)");
+                      "explicit operator: always keep the subdomain factors during the iterations "
+                      "(by default they are freed, and rebuilt for the reconstruction, when they "
+                      "would take more than 4 GiB per rank)");
   solve_cmd->add_option("--rho-factor", opt.smalbe.rho_factor, "SMALBE-M penalty rho = factor * ||PFP||")
       ->capture_default_str();
   solve_cmd->add_option("--M0-factor", opt.smalbe.M0_factor, "SMALBE-M initial M = factor * ||PFP||")

@@ -104,7 +104,14 @@ SolveOutput solve(const SolveOptions& options, const Comm& comm) {
     if (options.max_iterations > 0) so.max_outer = options.max_iterations;
     Vec x = Vec::Zero(n);
     long H_count = 0;
-    const auto r = qp::smalbe(A, Q, b, lower, x, normA, red, so, progress, &H_count);
+    Vec px(n);
+    const qp::PenalizedApply H = [&](const Vec& v, double rho, Vec& y) {  // PFP v + rho (v - P v)
+      P.apply(v, px);  // one projection of v serves both terms
+      F.apply(px, y);
+      P.apply(y, y);
+      y += rho * (v - px);
+    };
+    const auto r = qp::smalbe(A, Q, b, lower, x, normA, red, so, progress, &H_count, H);
     lambda += x;
     outer = r.outer_iterations;
     inner = r.inner_iterations;
@@ -155,7 +162,7 @@ SolveOutput solve(const SolveOptions& options, const Comm& comm) {
   rep["rtol"] = options.rtol;
   rep["ordering"] = to_string(options.feti.ordering);
   rep["dual_operator"] = dual.explicit_operator() ? "explicit" : "implicit";
-  rep["keep_factors"] = !dual.explicit_operator() || options.feti.keep_factors;
+  rep["factors_released"] = dual.factors_released();
   rep["converged"] = converged;
   rep["stop_reason"] = reason;
   rep["outer_iterations"] = outer;

@@ -61,6 +61,21 @@ INSTANTIATE_TEST_SUITE_P(
                       Case{ProblemKind::membranes, 32, 8, 4, "corners+averages"},
                       Case{ProblemKind::membranes_coercive, 24, 4, 2, "averages"}));
 
+TEST(FactorsReleased, SameSolutionWhenFactorsAreRebuiltForTheReconstruction) {
+  Comm comm;
+  SolveOptions opt;
+  opt.rtol = 1e-10;
+  opt.decomposition = {ProblemKind::membranes, ElementKind::q1, 32, 4, 2, Glue::averages};
+  const auto kept = solve(opt, comm);
+  opt.feti.factor_budget_bytes = 0;  // force: free after setup, refactor for u
+  const auto released = solve(opt, comm);
+  EXPECT_FALSE(kept.report["factors_released"].get<bool>());
+  EXPECT_TRUE(released.report["factors_released"].get<bool>());
+  const double e0 = kept.report["objective"], e1 = released.report["objective"];
+  EXPECT_NEAR(e1, e0, 1e-12 * std::abs(e0));
+  EXPECT_EQ(kept.report["matvecs"], released.report["matvecs"]);
+}
+
 TEST(HTfetiDpEqualsTfeti, MembranesAndPoisson) {
   Comm comm;
   for (ProblemKind problem : {ProblemKind::poisson2d, ProblemKind::membranes}) {

@@ -171,6 +171,13 @@ TEST_P(SmalbeConformance, MatchesEnumeratedActiveSets) {
   ASSERT_EQ(r.reason, StopReason::converged);
   EXPECT_LT((x - exact_solution(q, bounded)).norm(), 1e-7);
   expect_kkt(q, x, 1e-8);
+  // The combined penalized operator gives the same iterates.
+  Vec x2 = Vec::Zero(n);
+  const PenalizedApply combined = [&](const Vec& v, double rho, Vec& y) { y = q.A * v + rho * (Qm * v); };
+  const auto r2 = smalbe(A, Q, q.b, q.l, x2, normA, red, opt, {}, nullptr, combined);
+  ASSERT_EQ(r2.reason, StopReason::converged);
+  EXPECT_EQ(r2.inner_iterations, r.inner_iterations);
+  EXPECT_LT((x2 - x).norm(), 1e-10);
 }
 
 INSTANTIATE_TEST_SUITE_P(Random, SmalbeConformance,

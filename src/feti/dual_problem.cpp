@@ -96,7 +96,8 @@ DualProblem::DualProblem(const Decomposition& dec, const Comm& comm, const FetiO
                dec.nodes_per_subdomain() >= kExplicitMinNodes);
 
   ordering_ = options.ordering;
-  factors_released_ = explicit_ && !options.keep_factors;
+  const double factor_bytes_estimate = 8.0 * 100.0 * nsub * dec.nodes_per_subdomain();
+  factors_released_ = explicit_ && !options.keep_factors && factor_bytes_estimate > options.factor_budget_bytes;
   contrib_.resize(nsub);
   for (int s = 0; s < nsub; ++s) contrib_[s].assign(rows_[s].size(), 0.0);
   x_.resize(c1 - c0);

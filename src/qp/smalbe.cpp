@@ -7,13 +7,17 @@ namespace htfeti::qp {
 
 SmalbeResult smalbe(Operator& A, Operator& Q, const Vec& b, const Vec& l, Vec& x, double normA,
                     const Reducer& red, const SmalbeOptions& opt, const Progress& progress,
-                    long* H_applications) {
+                    long* H_applications, const PenalizedApply& penalized) {
   if (!(normA > 0)) throw std::invalid_argument("SMALBE-M: ||A|| estimate must be positive");
   SmalbeResult res;
   const Eigen::Index n = b.size();
   const double rho = opt.rho_factor * normA;
   Vec qx(n), tmp(n);
   FunctionOperator H([&](const Vec& v, Vec& y) {  // H_rho = A + rho Q
+    if (penalized) {
+      penalized(v, rho, y);
+      return;
+    }
     A.apply(v, y);
     Q.apply(v, tmp);
     y += rho * tmp;

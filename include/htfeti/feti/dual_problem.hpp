@@ -31,10 +31,12 @@ struct FetiOptions {
   /// nodes (docs/performance.md: measured break-even).
   DualOperator dual_operator = DualOperator::automatic;
   /// With the explicit operator the subdomain factors are needed only for d (setup) and the
-  /// primal reconstruction: unless kept, each cluster frees them right after its setup and
-  /// factors again for the reconstruction (the memory of the iterations is then the explicit
-  /// blocks; docs/performance.md).
+  /// primal reconstruction. When their estimated size on a rank (100 nonzeros per node) exceeds
+  /// factor_budget_bytes, each cluster frees them right after its setup and factors again for the
+  /// reconstruction (the iterations then hold only the explicit blocks; docs/performance.md).
+  /// keep_factors = true always keeps them.
   bool keep_factors = false;
+  double factor_budget_bytes = 4.0 * (1LL << 30);  ///< see keep_factors
 };
 
 constexpr int kExplicitMinNodes = 25;
@@ -105,6 +107,8 @@ class DualProblem {
 
   long factor_nonzeros() const;  ///< summed over this rank's subdomains
   bool explicit_operator() const { return explicit_; }
+  /// Whether the subdomain factors are freed after setup and rebuilt for the reconstruction.
+  bool factors_released() const { return factors_released_; }
   long explicit_doubles() const;  ///< doubles in the explicit blocks on this rank
   long cluster_dense_doubles() const;  ///< doubles in the clusters' K^+ C^T blocks and LUs
   long coarse_factor_nonzeros() const { return coarse_factor_.factor_nonzeros(); }

@@ -41,10 +41,15 @@ struct SmalbeResult {
   double rho = 0, M = 0, alpha = 0;
 };
 
+/// y = A x + rho Q x in one go, for callers that can share work between the two (with A = PFP
+/// and Q = I - P, one projection of x serves both). Without it SMALBE-M applies A and Q apart.
+using PenalizedApply = std::function<void(const Vec& x, double rho, Vec& y)>;
+
 /// normA: an estimate of ||A|| (estimate_norm). x: start in, solution out. H_rho applications are
 /// counted by the operator `counted_H` if given (so a caller can report them), else not at all.
 SmalbeResult smalbe(Operator& A, Operator& Q, const Vec& b, const Vec& lower, Vec& x,
                     double normA, const Reducer& red, const SmalbeOptions& options,
-                    const Progress& progress = {}, long* H_applications = nullptr);
+                    const Progress& progress = {}, long* H_applications = nullptr,
+                    const PenalizedApply& penalized = {});
 
 }  // namespace htfeti::qp

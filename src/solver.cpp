@@ -179,6 +179,7 @@ SolveOutput solve(const SolveOptions& options, const Comm& comm) {
   rep["timings"] = {{"setup", tmax(st.assembly + st.constraints)},
                     {"assembly", tmax(st.assembly)},
                     {"factorization", tmax(st.factorization)},
+                    {"cluster_setup", tmax(st.cluster_setup)},
                     {"constraints", tmax(st.constraints)},
                     {"coarse_problem", tmax(st.coarse)},
                     {"solve", tmax(t_solve)},

@@ -1,6 +1,7 @@
 #include "htfeti/feti/cluster.hpp"
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <stdexcept>
 #include <string>
@@ -72,6 +73,7 @@ Cluster::Cluster(const Decomposition& dec, int id, std::vector<Subdomain*> subs,
     return;
   }
 
+  const auto t0 = std::chrono::steady_clock::now();
   const int first = subs_.front()->id();
   c_of_sub_.assign(s, {});
   cols_of_sub_.assign(s, {});
@@ -118,6 +120,7 @@ Cluster::Cluster(const Decomposition& dec, int id, std::vector<Subdomain*> subs,
   }
   lu_.compute(S);
   if (explicit_) b_ = {};  // the explicit blocks replace the rows of B~ here
+  setup_seconds_ = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   const double rcond = lu_.rcond();
   if (!(rcond > 1e-14))
     throw std::runtime_error("cluster " + std::to_string(id) +

@@ -136,6 +136,7 @@ DualProblem::DualProblem(const Decomposition& dec, const Comm& comm, const FetiO
   if (!error.empty()) throw std::runtime_error(error);
   for (auto& sd : subs_) sd->release_matrix();  // factored: K_i is no longer needed
   setup_.factorization = now() - t;
+  for (const auto& c : clusters_) setup_.cluster_setup += c->setup_seconds();
   lam_.resize(clusters_.size());
   out_.resize(clusters_.size());
   for (size_t c = 0; c < clusters_.size(); ++c)

@@ -71,6 +71,9 @@ class Cluster {
   void release_factors();
   /// Factors the subdomains again (plain fill-reducing ordering) so that solve() works.
   void refactor(Ordering ordering);
+  /// Seconds this cluster spent on its primal-constraint setup (K_i^+ C_i^T, the saddle-point
+  /// matrix and its LU, U_i), beyond the subdomain factorizations and explicit blocks.
+  double setup_seconds() const { return setup_seconds_; }
   /// Doubles held by the explicit blocks F_i, U_i, V_i.
   long explicit_doubles() const;
 
@@ -94,6 +97,7 @@ class Cluster {
   std::vector<Eigen::MatrixXd> F_, U_;             // explicit: F_i, B_i K_i^+ C_i^T
   std::vector<Eigen::VectorXd> V_;                 // explicit: B_i R_i
   double kernel_value_ = 0;
+  double setup_seconds_ = 0;
 };
 
 }  // namespace htfeti

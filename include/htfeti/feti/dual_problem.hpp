@@ -44,6 +44,7 @@ constexpr int kExplicitMinNodes = 25;
 /// Seconds spent in each setup phase (wall clock on this rank).
 struct SetupTimings {
   double assembly = 0, factorization = 0, constraints = 0, coarse = 0;
+  double cluster_setup = 0;  ///< part of factorization: primal-constraint systems (summed over clusters)
 };
 
 class DualProblem {

@@ -34,6 +34,12 @@ class CommReducer final : public qp::Reducer {
 void validate(const SolveOptions& o) {
   if (!(o.rtol > 0 && o.rtol < 1)) throw std::invalid_argument("--rtol must lie in (0, 1)");
   if (o.max_iterations < 0) throw std::invalid_argument("--max-it must be positive");
+  const auto& sm = o.smalbe;
+  if (!(sm.rho_factor > 0)) throw std::invalid_argument("--rho-factor must be positive");
+  if (!(sm.M0_factor > 0)) throw std::invalid_argument("--M0-factor must be positive");
+  if (!(sm.eta_factor > 0)) throw std::invalid_argument("--eta-factor must be positive");
+  if (!(sm.beta > 1)) throw std::invalid_argument("--beta must be greater than 1");
+  if (!(sm.gamma > 0)) throw std::invalid_argument("--gamma must be positive");
   Decomposition check(o.decomposition);  // throws for bad sizes
 }
 

@@ -44,7 +44,8 @@ class Cli : public ::testing::Test {
 TEST_F(Cli, BadArgumentsExitWithCode2AndWriteNothing) {
   const char* bad[] = {"--problem plate", "-n 10 --subdomains 3", "-n -4", "--subdomains 0",
                        "--rtol 1.5", "--rtol 0", "-n 16 --subdomains 4 -m 3", "--glue faces",
-                       "--element q2", "--no-such-option", "-n abc"};
+                       "--element q2", "--no-such-option", "-n abc", "--beta 1", "--gamma 0",
+                       "--rho-factor -1", "--dual-operator dense", "--ordering nd"};
   for (const char* args : bad) {
     EXPECT_EQ(run(bin + " solve " + args + " --report r.json --vtu u.vtu"), 2) << args;
     EXPECT_NE(stderr_text().find("error"), std::string::npos) << args;

@@ -1,13 +1,14 @@
 // htfeti: the command-line program. `htfeti solve` runs the pipeline on a built-in problem;
 // `htfeti spectrum` prints the extreme eigenvalues of a cluster Schur complement (Table 1).
 // Every option is declared here with its default and help text; `htfeti solve --help` lists them.
+#include <mpi.h>
+#include <omp.h>
+
 #include <CLI/CLI.hpp>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <iostream>
-#include <mpi.h>
-#include <omp.h>
 
 #include "htfeti/io/vtu.hpp"
 #include "htfeti/parallel/threads.hpp"
@@ -38,36 +39,41 @@ void write_atomically(const std::string& path, const std::string& text) {
 }
 
 void print_summary(const nlohmann::json& r) {
-  std::printf("htfeti: %s, %s elements, n = %d, %d subdomains (H/h = %d), %d clusters of %dx%d (%s)\n",
-              r["problem"].get<std::string>().c_str(), r["element"].get<std::string>().c_str(),
-              r["elements"].get<int>(), r["subdomains"].get<int>(), r["H_over_h"].get<int>(),
-              r["clusters"].get<int>(), r["cluster_size"].get<int>(), r["cluster_size"].get<int>(),
-              r["glue"].get<std::string>().c_str());
-  std::printf("  primal %lld, dual %lld (%lld equalities, %lld inequalities), coarse %d, %d ranks x %d threads\n",
-              r["primal_dimension"].get<long long>(), r["dual_dimension"].get<long long>(),
-              r["equalities"].get<long long>(), r["inequalities"].get<long long>(),
-              r["coarse_dimension"].get<int>(), r["ranks"].get<int>(), r["threads"].get<int>());
+  std::printf(
+      "htfeti: %s, %s elements, n = %d, %d subdomains (H/h = %d), %d clusters of %dx%d (%s)\n",
+      r["problem"].get<std::string>().c_str(), r["element"].get<std::string>().c_str(),
+      r["elements"].get<int>(), r["subdomains"].get<int>(), r["H_over_h"].get<int>(),
+      r["clusters"].get<int>(), r["cluster_size"].get<int>(), r["cluster_size"].get<int>(),
+      r["glue"].get<std::string>().c_str());
+  std::printf(
+      "  primal %lld, dual %lld (%lld equalities, %lld inequalities), coarse %d, %d ranks x %d "
+      "threads\n",
+      r["primal_dimension"].get<long long>(), r["dual_dimension"].get<long long>(),
+      r["equalities"].get<long long>(), r["inequalities"].get<long long>(),
+      r["coarse_dimension"].get<int>(), r["ranks"].get<int>(), r["threads"].get<int>());
   std::printf("  %s (%s): %d outer, %d inner iterations, %ld matvecs\n",
               r["converged"].get<bool>() ? "converged" : "NOT converged",
               r["stop_reason"].get<std::string>().c_str(), r["outer_iterations"].get<int>(),
               r["inner_iterations"].get<int>(), r["matvecs"].get<long>());
   const auto& k = r["kkt"];
-  std::printf("  energy %.12e; ||B_E u|| %.2e, max violation %.2e, min multiplier %.2e, "
-              "complementarity %.2e\n",
-              r["objective"].get<double>(), k["equality_residual"].get<double>(),
-              k["max_violation"].get<double>(), k["min_multiplier"].get<double>(),
-              k["complementarity"].get<double>());
+  std::printf(
+      "  energy %.12e; ||B_E u|| %.2e, max violation %.2e, min multiplier %.2e, "
+      "complementarity %.2e\n",
+      r["objective"].get<double>(), k["equality_residual"].get<double>(),
+      k["max_violation"].get<double>(), k["min_multiplier"].get<double>(),
+      k["complementarity"].get<double>());
   const auto& t = r["timings"];
-  std::printf("  time: setup %.2f s, factorization %.2f s, coarse %.2f s, solve %.2f s, "
-              "reconstruction %.2f s\n",
-              t["setup"].get<double>(), t["factorization"].get<double>(),
-              t["coarse_problem"].get<double>(), t["solve"].get<double>(),
-              t["reconstruction"].get<double>());
+  std::printf(
+      "  time: setup %.2f s, factorization %.2f s, coarse %.2f s, solve %.2f s, "
+      "reconstruction %.2f s\n",
+      t["setup"].get<double>(), t["factorization"].get<double>(), t["coarse_problem"].get<double>(),
+      t["solve"].get<double>(), t["reconstruction"].get<double>());
 }
 
 int run(int argc, char** argv, const Comm& comm) {
-  CLI::App app{"htfeti: TFETI and H-TFETI-DP domain decomposition for elliptic problems and "
-               "contact (variational inequalities)"};
+  CLI::App app{
+      "htfeti: TFETI and H-TFETI-DP domain decomposition for elliptic problems and "
+      "contact (variational inequalities)"};
   app.require_subcommand(1);
   auto* solve_cmd = app.add_subcommand("solve", "solve a built-in problem");
   std::string problem = "membranes", element = "q1", glue = "averages", ordering = "amd";
@@ -79,61 +85,80 @@ int run(int argc, char** argv, const Comm& comm) {
   opt.decomposition.subdomains = 8;
   solve_cmd->add_option("--problem", problem, "poisson2d | membranes | membranes-coercive")
       ->capture_default_str();
-  solve_cmd->add_option("--elements,-n", opt.decomposition.elements,
-                        "n: elements per side of each unit square (h = 1/n)")
+  solve_cmd
+      ->add_option("--elements,-n", opt.decomposition.elements,
+                   "n: elements per side of each unit square (h = 1/n)")
       ->capture_default_str();
-  solve_cmd->add_option("--subdomains", opt.decomposition.subdomains,
-                        "N_s: subdomains per side of each unit square (n divisible by N_s)")
+  solve_cmd
+      ->add_option("--subdomains", opt.decomposition.subdomains,
+                   "N_s: subdomains per side of each unit square (n divisible by N_s)")
       ->capture_default_str();
-  solve_cmd->add_option("--cluster-size,-m", opt.decomposition.cluster_size,
-                        "m: clusters of m x m subdomains (1 = TFETI; N_s divisible by m)")
+  solve_cmd
+      ->add_option("--cluster-size,-m", opt.decomposition.cluster_size,
+                   "m: clusters of m x m subdomains (1 = TFETI; N_s divisible by m)")
       ->capture_default_str();
-  solve_cmd->add_option("--glue", glue, "primal gluing inside clusters: corners | averages | "
-                                        "corners+averages")
+  solve_cmd
+      ->add_option("--glue", glue,
+                   "primal gluing inside clusters: corners | averages | "
+                   "corners+averages")
       ->capture_default_str();
   solve_cmd->add_option("--element", element, "q1 (bilinear) | p1 (linear triangles)")
       ->capture_default_str();
-  solve_cmd->add_option("--rtol", opt.rtol, "relative precision eps, in (0, 1)")->capture_default_str();
-  solve_cmd->add_option("--max-it", opt.max_iterations,
-                        "iteration limit: PCG iterations, or SMALBE-M outer iterations (0: 1000 / 200)")
+  solve_cmd->add_option("--rtol", opt.rtol, "relative precision eps, in (0, 1)")
       ->capture_default_str();
-  solve_cmd->add_option("--ordering", ordering, "fill-reducing ordering of subdomain factors: amd | metis")
+  solve_cmd
+      ->add_option("--max-it", opt.max_iterations,
+                   "iteration limit: PCG iterations, or SMALBE-M outer iterations (0: 1000 / 200)")
       ->capture_default_str();
-  solve_cmd->add_option("--dual-operator", dual_operator,
-                        "how F is applied: implicit (sparse solves), explicit (dense local blocks "
-                        "from Schur complements), auto (explicit from 25 nodes per subdomain)")
+  solve_cmd
+      ->add_option("--ordering", ordering,
+                   "fill-reducing ordering of subdomain factors: amd | metis")
+      ->capture_default_str();
+  solve_cmd
+      ->add_option("--dual-operator", dual_operator,
+                   "how F is applied: implicit (sparse solves), explicit (dense local blocks "
+                   "from Schur complements), auto (explicit from 25 nodes per subdomain)")
       ->capture_default_str();
   solve_cmd->add_flag("--keep-factors", opt.feti.keep_factors,
                       "explicit operator: always keep the subdomain factors during the iterations "
                       "(by default they are freed, and rebuilt for the reconstruction, when they "
                       "would take more than 4 GiB per rank)");
-  solve_cmd->add_option("--rho-factor", opt.smalbe.rho_factor, "SMALBE-M penalty rho = factor * ||PFP||")
+  solve_cmd
+      ->add_option("--rho-factor", opt.smalbe.rho_factor, "SMALBE-M penalty rho = factor * ||PFP||")
       ->capture_default_str();
-  solve_cmd->add_option("--M0-factor", opt.smalbe.M0_factor, "SMALBE-M initial M = factor * ||PFP||")
+  solve_cmd
+      ->add_option("--M0-factor", opt.smalbe.M0_factor, "SMALBE-M initial M = factor * ||PFP||")
       ->capture_default_str();
   solve_cmd->add_option("--eta-factor", opt.smalbe.eta_factor, "SMALBE-M eta = factor * ||b||")
       ->capture_default_str();
-  solve_cmd->add_option("--beta", opt.smalbe.beta, "SMALBE-M: M is divided by beta on a failed test")
+  solve_cmd
+      ->add_option("--beta", opt.smalbe.beta, "SMALBE-M: M is divided by beta on a failed test")
       ->capture_default_str();
   solve_cmd->add_option("--gamma", opt.smalbe.gamma, "MPRGP proportioning parameter Gamma")
       ->capture_default_str();
   solve_cmd->add_option("--report", report, "write the report JSON here")->capture_default_str();
   solve_cmd->add_flag("--no-report", no_report, "do not write a report");
-  solve_cmd->add_option("--vtu", vtu, "write the solution for ParaView here (.vtu, or .pvtu with "
-                                      "several ranks)")
+  solve_cmd
+      ->add_option("--vtu", vtu,
+                   "write the solution for ParaView here (.vtu, or .pvtu with "
+                   "several ranks)")
       ->capture_default_str();
   solve_cmd->add_flag("--no-vtu", no_vtu, "do not write VTU output");
   solve_cmd->add_flag("--progress", opt.progress, "print one line per (outer) iteration");
 
   auto* spec_cmd = app.add_subcommand(
-      "spectrum", "extreme non-zero eigenvalues of the Schur complement of one floating cluster "
-                  "of m x m subdomains joined by edge averages, and the estimate (19) (Table 1)");
+      "spectrum",
+      "extreme non-zero eigenvalues of the Schur complement of one floating cluster "
+      "of m x m subdomains joined by edge averages, and the estimate (19) (Table 1)");
   int spec_m = 2, spec_n = 64;
   std::string spec_element = "p1";
   bool spec_json = false;
-  spec_cmd->add_option("--cluster-size,-m", spec_m, "m: subdomains per cluster side")->capture_default_str();
-  spec_cmd->add_option("--elements,-n", spec_n, "n: elements per cluster side (h = 1/n)")->capture_default_str();
-  spec_cmd->add_option("--element", spec_element, "q1 | p1 (Table 1 matches p1)")->capture_default_str();
+  spec_cmd->add_option("--cluster-size,-m", spec_m, "m: subdomains per cluster side")
+      ->capture_default_str();
+  spec_cmd->add_option("--elements,-n", spec_n, "n: elements per cluster side (h = 1/n)")
+      ->capture_default_str();
+  spec_cmd->add_option("--element", spec_element, "q1 | p1 (Table 1 matches p1)")
+      ->capture_default_str();
   spec_cmd->add_flag("--json", spec_json, "print one JSON object");
 
   try {

@@ -1,9 +1,9 @@
 // `htfeti spectrum`: prints the paper's Table 1 quantities for one cluster (see spectrum.hpp).
+#include "htfeti/spectrum.hpp"
+
 #include <cstdio>
 #include <nlohmann/json.hpp>
 #include <string>
-
-#include "htfeti/spectrum.hpp"
 
 namespace htfeti {
 

@@ -3,11 +3,11 @@
 // Usage: htfeti_stream [MB per array, default 512] [repetitions, default 10]. Prints JSON.
 #include <omp.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
 #include <vector>
-#include <algorithm>
 
 int main(int argc, char** argv) {
   const long mb = argc > 1 ? std::atol(argv[1]) : 512;
@@ -26,7 +26,9 @@ int main(int argc, char** argv) {
   std::sort(seconds.begin(), seconds.end());
   const double best = seconds.front(), median = seconds[seconds.size() / 2];
   const double bytes = 3.0 * 8.0 * n;  // two reads and one write per element
-  std::printf("{\"threads\": %d, \"array_mb\": %ld, \"triad_gb_s_best\": %.3f, \"triad_gb_s_median\": %.3f, \"check\": %.1f}\n",
-              omp_get_max_threads(), mb, bytes / best / 1e9, bytes / median / 1e9, a[n / 2]);
+  std::printf(
+      "{\"threads\": %d, \"array_mb\": %ld, \"triad_gb_s_best\": %.3f, \"triad_gb_s_median\": "
+      "%.3f, \"check\": %.1f}\n",
+      omp_get_max_threads(), mb, bytes / best / 1e9, bytes / median / 1e9, a[n / 2]);
   return 0;
 }

@@ -83,7 +83,8 @@ ReferenceSolution solve_undecomposed(ProblemKind kind, ElementKind element, int 
       rhs.head(nf) = ff;
       Eigen::SparseLU<Eigen::SparseMatrix<double>> lu;
       lu.compute(S);
-      if (lu.info() != Eigen::Success) throw std::runtime_error("reference: KKT system is singular");
+      if (lu.info() != Eigen::Success)
+        throw std::runtime_error("reference: KKT system is singular");
       const Eigen::VectorXd sol = lu.solve(rhs);
       uf = sol.head(nf);
       lam.setZero();

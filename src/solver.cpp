@@ -1,11 +1,12 @@
 #include "htfeti/solver.hpp"
 
+#include <omp.h>
+#include <sys/resource.h>
+
 #include <chrono>
 #include <cmath>
 #include <cstdio>
-#include <omp.h>
 #include <stdexcept>
-#include <sys/resource.h>
 
 #include "htfeti/qp/pcg.hpp"
 #include "htfeti/qp/power_norm.hpp"
@@ -205,8 +206,8 @@ SolveOutput solve(const SolveOptions& options, const Comm& comm) {
                    {"peak_rss_mb_total", comm.sum(rss_mb)}};
   if (dec.problem().has_contact()) {
     const auto c = dual.contact_data(out.u, lambda);
-    nlohmann::json cj = {{"y", c.y}, {"u_left", c.u_left}, {"u_right", c.u_right},
-                         {"multiplier", c.multiplier}};
+    nlohmann::json cj = {
+        {"y", c.y}, {"u_left", c.u_left}, {"u_right", c.u_right}, {"multiplier", c.multiplier}};
     // Rank 0 holds the gathered arrays; share them so the report is the same everywhere.
     std::string s = comm.rank() == 0 ? cj.dump() : std::string();
     long long len = static_cast<long long>(s.size());

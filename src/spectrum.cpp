@@ -82,10 +82,18 @@ ClusterSpectrum cluster_spectrum(int m, int n, ElementKind element) {
   auto edge_dof = [&](int sub, int side, int t) {  // t-th interior node (t = 1..H-1) of an edge
     int a = 0, b = 0;
     switch (side) {
-      case 0: a = t, b = 0; break;   // bottom
-      case 1: a = H, b = t; break;   // right
-      case 2: a = t, b = H; break;   // top
-      case 3: a = 0, b = t; break;   // left
+      case 0:
+        a = t, b = 0;
+        break;  // bottom
+      case 1:
+        a = H, b = t;
+        break;  // right
+      case 2:
+        a = t, b = H;
+        break;  // top
+      case 3:
+        a = 0, b = t;
+        break;  // left
     }
     return sub * nb + bindex[b * np + a];
   };

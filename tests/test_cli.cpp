@@ -42,10 +42,22 @@ class Cli : public ::testing::Test {
 }  // namespace
 
 TEST_F(Cli, BadArgumentsExitWithCode2AndWriteNothing) {
-  const char* bad[] = {"--problem plate", "-n 10 --subdomains 3", "-n -4", "--subdomains 0",
-                       "--rtol 1.5", "--rtol 0", "-n 16 --subdomains 4 -m 3", "--glue faces",
-                       "--element q2", "--no-such-option", "-n abc", "--beta 1", "--gamma 0",
-                       "--rho-factor -1", "--dual-operator dense", "--ordering nd"};
+  const char* bad[] = {"--problem plate",
+                       "-n 10 --subdomains 3",
+                       "-n -4",
+                       "--subdomains 0",
+                       "--rtol 1.5",
+                       "--rtol 0",
+                       "-n 16 --subdomains 4 -m 3",
+                       "--glue faces",
+                       "--element q2",
+                       "--no-such-option",
+                       "-n abc",
+                       "--beta 1",
+                       "--gamma 0",
+                       "--rho-factor -1",
+                       "--dual-operator dense",
+                       "--ordering nd"};
   for (const char* args : bad) {
     EXPECT_EQ(run(bin + " solve " + args + " --report r.json --vtu u.vtu"), 2) << args;
     EXPECT_NE(stderr_text().find("error"), std::string::npos) << args;
@@ -77,21 +89,39 @@ TEST_F(Cli, ReportsDoNotDependOnTheNumberOfRanks) {
     EXPECT_EQ(b["ranks"].get<int>(), ranks[i]);
     const double ea = a["objective"], eb = b["objective"];
     EXPECT_NEAR(eb, ea, 1e-10 * std::abs(ea));
-    for (const char* key : {"dual_dimension", "equalities", "inequalities", "coarse_dimension",
-                            "primal_dimension"})
+    for (const char* key :
+         {"dual_dimension", "equalities", "inequalities", "coarse_dimension", "primal_dimension"})
       EXPECT_EQ(a[key], b[key]) << key;
     for (size_t j = 0; j < a["contact"]["y"].size(); ++j) {
-      EXPECT_NEAR(b["contact"]["u_left"][j].get<double>(), a["contact"]["u_left"][j].get<double>(), 1e-9);
+      EXPECT_NEAR(b["contact"]["u_left"][j].get<double>(), a["contact"]["u_left"][j].get<double>(),
+                  1e-9);
       EXPECT_NEAR(b["contact"]["multiplier"][j].get<double>(),
                   a["contact"]["multiplier"][j].get<double>(), 1e-9);
     }
   }
-  for (const char* key : {"problem", "elements", "subdomains", "clusters", "cluster_size",
-                          "primal_dimension", "dual_dimension", "equalities", "inequalities",
-                          "coarse_dimension", "ranks", "threads", "converged", "outer_iterations",
-                          "inner_iterations", "matvecs", "objective", "kkt", "timings", "contact"})
+  for (const char* key : {"problem",
+                          "elements",
+                          "subdomains",
+                          "clusters",
+                          "cluster_size",
+                          "primal_dimension",
+                          "dual_dimension",
+                          "equalities",
+                          "inequalities",
+                          "coarse_dimension",
+                          "ranks",
+                          "threads",
+                          "converged",
+                          "outer_iterations",
+                          "inner_iterations",
+                          "matvecs",
+                          "objective",
+                          "kkt",
+                          "timings",
+                          "contact"})
     EXPECT_TRUE(reports[0].contains(key)) << key;
-  for (const char* key : {"equality_residual", "max_violation", "min_multiplier", "complementarity"})
+  for (const char* key :
+       {"equality_residual", "max_violation", "min_multiplier", "complementarity"})
     EXPECT_TRUE(reports[0]["kkt"].contains(key)) << key;
   for (const char* key : {"setup", "factorization", "coarse_problem", "solve", "reconstruction"})
     EXPECT_TRUE(reports[0]["timings"].contains(key)) << key;
@@ -100,13 +130,14 @@ TEST_F(Cli, ReportsDoNotDependOnTheNumberOfRanks) {
 TEST_F(Cli, ReportsDoNotDependOnTheNumberOfThreads) {
   // -m 3: four clusters per rank, threads run over clusters; -m 6: one cluster per rank, threads
   // run over the subdomains inside it. Both with the explicit and the implicit operator.
-  for (const char* config : {"-m 3", "-m 6", "-m 3 --dual-operator implicit", "-m 6 --dual-operator implicit"}) {
+  for (const char* config :
+       {"-m 3", "-m 6", "-m 3 --dual-operator implicit", "-m 6 --dual-operator implicit"}) {
     nlohmann::json reports[2];
     for (int t = 1; t <= 2; ++t) {
       const std::string out = "t" + std::to_string(t) + ".json";
       ASSERT_EQ(run("OMP_NUM_THREADS=" + std::to_string(t) + " " + mpiexec + " -n 2 " + bin +
-                    " solve --problem membranes -n 48 --subdomains 6 --rtol 1e-8 --no-vtu " + config +
-                    " --report " + out),
+                    " solve --problem membranes -n 48 --subdomains 6 --rtol 1e-8 --no-vtu " +
+                    config + " --report " + out),
                 0)
           << config;
       std::ifstream f(out);

@@ -40,19 +40,20 @@ TEST_P(ContactAgainstUndecomposed, EnergyAndContactDisplacements) {
     EXPECT_NEAR(contact["y"][j].get<double>(), ref.contact_y[j], 1e-14);
     EXPECT_NEAR(contact["u_left"][j].get<double>(), ref.u_left[j], 1e-5 * umax) << "node " << j;
     EXPECT_NEAR(contact["u_right"][j].get<double>(), ref.u_right[j], 1e-5 * umax) << "node " << j;
-    EXPECT_NEAR(contact["multiplier"][j].get<double>(), ref.multiplier[j], 1e-4 * fmax) << "node " << j;
+    EXPECT_NEAR(contact["multiplier"][j].get<double>(), ref.multiplier[j], 1e-4 * fmax)
+        << "node " << j;
   }
   const auto& kkt = out.report["kkt"];
   EXPECT_GE(kkt["min_multiplier"].get<double>(), 0.0);
   EXPECT_LT(kkt["max_violation"].get<double>(), 1e-6 * umax);
 }
 
-INSTANTIATE_TEST_SUITE_P(
-    Tfeti, ContactAgainstUndecomposed,
-    ::testing::Values(Case{ProblemKind::membranes, 8, 2, 1, "averages"},
-                      Case{ProblemKind::membranes, 24, 4, 1, "averages"},
-                      Case{ProblemKind::membranes, 30, 5, 1, "averages"},
-                      Case{ProblemKind::membranes_coercive, 16, 4, 1, "averages"}));
+INSTANTIATE_TEST_SUITE_P(Tfeti, ContactAgainstUndecomposed,
+                         ::testing::Values(Case{ProblemKind::membranes, 8, 2, 1, "averages"},
+                                           Case{ProblemKind::membranes, 24, 4, 1, "averages"},
+                                           Case{ProblemKind::membranes, 30, 5, 1, "averages"},
+                                           Case{ProblemKind::membranes_coercive, 16, 4, 1,
+                                                "averages"}));
 
 INSTANTIATE_TEST_SUITE_P(
     HTfetiDp, ContactAgainstUndecomposed,
@@ -89,7 +90,8 @@ TEST(HTfetiDpEqualsTfeti, MembranesAndPoisson) {
       ASSERT_TRUE(hybrid.converged);
       const double e0 = tfeti.report["objective"], e1 = hybrid.report["objective"];
       EXPECT_NEAR(e1, e0, 1e-8 * std::abs(e0)) << "m = " << m;
-      EXPECT_LT(hybrid.report["coarse_dimension"].get<int>(), tfeti.report["coarse_dimension"].get<int>());
+      EXPECT_LT(hybrid.report["coarse_dimension"].get<int>(),
+                tfeti.report["coarse_dimension"].get<int>());
       if (problem != ProblemKind::membranes) continue;
       const auto &c0 = tfeti.report["contact"], &c1 = hybrid.report["contact"];
       for (size_t j = 0; j < c0["y"].size(); ++j) {

@@ -118,12 +118,12 @@ TEST_P(DualOperators, ExplicitEqualsImplicit) {
   EXPECT_LT((a.d() - b.d()).norm(), 1e-11 * (1 + a.d().norm()));
 }
 
-INSTANTIATE_TEST_SUITE_P(
-    SmallCases, DualOperators,
-    ::testing::Values(Case{ProblemKind::poisson2d, 8, 4, 1, Glue::averages},
-                      Case{ProblemKind::membranes, 12, 3, 1, Glue::averages},
-                      Case{ProblemKind::membranes, 16, 4, 2, Glue::averages},
-                      Case{ProblemKind::poisson2d, 12, 4, 2, Glue::corners},
-                      Case{ProblemKind::membranes, 16, 4, 4, Glue::corners_averages}));
+INSTANTIATE_TEST_SUITE_P(SmallCases, DualOperators,
+                         ::testing::Values(Case{ProblemKind::poisson2d, 8, 4, 1, Glue::averages},
+                                           Case{ProblemKind::membranes, 12, 3, 1, Glue::averages},
+                                           Case{ProblemKind::membranes, 16, 4, 2, Glue::averages},
+                                           Case{ProblemKind::poisson2d, 12, 4, 2, Glue::corners},
+                                           Case{ProblemKind::membranes, 16, 4, 4,
+                                                Glue::corners_averages}));
 
 }  // namespace

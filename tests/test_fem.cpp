@@ -89,7 +89,8 @@ Dense dense_constraints(const Decomposition& dec, bool gluing_only) {
   Dense d;
   d.B = Eigen::MatrixXd::Zero(static_cast<int>(rows.size()), N);
   for (size_t r = 0; r < rows.size(); ++r)
-    for (const auto& e : rows[r].entries) d.B(static_cast<int>(r), e.subdomain * per + e.dof) += e.value;
+    for (const auto& e : rows[r].entries)
+      d.B(static_cast<int>(r), e.subdomain * per + e.dof) += e.value;
   std::vector<std::vector<ConstraintEntry>> c;
   for (int cl = 0; cl < dec.num_clusters(); ++cl)
     for (auto& row : cluster_primal_constraints(dec, cl)) c.push_back(row);
@@ -101,7 +102,8 @@ Dense dense_constraints(const Decomposition& dec, bool gluing_only) {
 
 }  // namespace
 
-class Constraints : public ::testing::TestWithParam<std::tuple<int, int, int, Glue, ProblemKind>> {};
+class Constraints : public ::testing::TestWithParam<std::tuple<int, int, int, Glue, ProblemKind>> {
+};
 
 TEST_P(Constraints, OrthonormalRowsAndTheRightKernel) {
   const auto [n, ns, m, glue, problem] = GetParam();
@@ -145,7 +147,8 @@ TEST_P(ClusterInverse, IsAGeneralizedInverseOfTheClusterStiffness) {
   Cluster cluster(dec, 0, ptrs, Ordering::amd);
   const int per = dec.nodes_per_subdomain(), N = m * m * per;
   Eigen::MatrixXd K = Eigen::MatrixXd::Zero(N, N), C;
-  for (int s = 0; s < m * m; ++s) K.block(s * per, s * per, per, per) = Eigen::MatrixXd(subs[s]->K());
+  for (int s = 0; s < m * m; ++s)
+    K.block(s * per, s * per, per, per) = Eigen::MatrixXd(subs[s]->K());
   const auto rows = cluster_primal_constraints(dec, 0);
   C = Eigen::MatrixXd::Zero(static_cast<int>(rows.size()), N);
   for (size_t r = 0; r < rows.size(); ++r)
@@ -195,7 +198,8 @@ TEST(Decomposition, BadSizesAreClearErrors) {
   EXPECT_THROW(make(10, 3, 1, Glue::averages), std::invalid_argument);
   EXPECT_THROW(make(12, 4, 3, Glue::averages), std::invalid_argument);
   EXPECT_THROW(make(0, 1, 1, Glue::averages), std::invalid_argument);
-  EXPECT_THROW(make(8, 8, 2, Glue::averages), std::invalid_argument);  // H = 1: empty edge interiors
+  EXPECT_THROW(make(8, 8, 2, Glue::averages),
+               std::invalid_argument);  // H = 1: empty edge interiors
   EXPECT_THROW(parse_problem("plate"), std::invalid_argument);
   EXPECT_THROW(parse_glue("faces"), std::invalid_argument);
 }

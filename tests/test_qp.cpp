@@ -119,12 +119,12 @@ void expect_kkt(const Qp& q, const Vec& x, double tol) {
     EXPECT_LT((q.G * x).norm(), tol);
   }
   for (int i = 0; i < x.size(); ++i) {
-    EXPECT_GE(x[i], q.l[i] - 1e-14);                            // feasibility
+    EXPECT_GE(x[i], q.l[i] - 1e-14);  // feasibility
     if (q.l[i] > -inf) {
-      EXPECT_GE(g[i], -tol);                                    // multiplier >= 0
-      EXPECT_LT(std::abs(g[i] * (x[i] - q.l[i])), tol);         // complementarity
+      EXPECT_GE(g[i], -tol);                             // multiplier >= 0
+      EXPECT_LT(std::abs(g[i] * (x[i] - q.l[i])), tol);  // complementarity
     } else {
-      EXPECT_LT(std::abs(g[i]), tol);                           // stationarity
+      EXPECT_LT(std::abs(g[i]), tol);  // stationarity
     }
   }
 }
@@ -173,7 +173,9 @@ TEST_P(SmalbeConformance, MatchesEnumeratedActiveSets) {
   expect_kkt(q, x, 1e-8);
   // The combined penalized operator gives the same iterates.
   Vec x2 = Vec::Zero(n);
-  const PenalizedApply combined = [&](const Vec& v, double rho, Vec& y) { y = q.A * v + rho * (Qm * v); };
+  const PenalizedApply combined = [&](const Vec& v, double rho, Vec& y) {
+    y = q.A * v + rho * (Qm * v);
+  };
   const auto r2 = smalbe(A, Q, q.b, q.l, x2, normA, red, opt, {}, nullptr, combined);
   ASSERT_EQ(r2.reason, StopReason::converged);
   EXPECT_EQ(r2.inner_iterations, r.inner_iterations);
@@ -210,11 +212,13 @@ TEST(Failures, NonConvergenceIsAResult) {
   opt.alpha = 1.0 / q.A.norm();
   opt.max_iterations = 1;
   Vec x = Vec::Zero(10), g(10);
-  const auto r = mprgp(A, q.b, q.l, x, g, red, opt, [](const Vec&, const Vec&, double) { return false; });
+  const auto r =
+      mprgp(A, q.b, q.l, x, g, red, opt, [](const Vec&, const Vec&, double) { return false; });
   EXPECT_EQ(r.reason, StopReason::max_iterations);
   opt.alpha = 0;
-  EXPECT_THROW(mprgp(A, q.b, q.l, x, g, red, opt, [](const Vec&, const Vec&, double) { return false; }),
-               std::invalid_argument);
+  EXPECT_THROW(
+      mprgp(A, q.b, q.l, x, g, red, opt, [](const Vec&, const Vec&, double) { return false; }),
+      std::invalid_argument);
   // An indefinite operator is a breakdown, not a crash.
   DenseOperator negative(-Eigen::MatrixXd::Identity(4, 4));
   DenseOperator identity(Eigen::MatrixXd::Identity(4, 4));

@@ -31,16 +31,19 @@ TEST_P(LinearAgainstUndecomposed, Poisson2d) {
   EXPECT_LT(out.report["kkt"]["equality_residual"].get<double>(), 1e-8);
 }
 
-INSTANTIATE_TEST_SUITE_P(
-    Tfeti, LinearAgainstUndecomposed,
-    ::testing::Values(Case{8, 2, 1, "averages", ElementKind::q1}, Case{12, 3, 1, "averages", ElementKind::q1},
-                      Case{24, 4, 1, "averages", ElementKind::q1}, Case{16, 8, 1, "averages", ElementKind::p1},
-                      Case{20, 5, 1, "averages", ElementKind::q1}));
+INSTANTIATE_TEST_SUITE_P(Tfeti, LinearAgainstUndecomposed,
+                         ::testing::Values(Case{8, 2, 1, "averages", ElementKind::q1},
+                                           Case{12, 3, 1, "averages", ElementKind::q1},
+                                           Case{24, 4, 1, "averages", ElementKind::q1},
+                                           Case{16, 8, 1, "averages", ElementKind::p1},
+                                           Case{20, 5, 1, "averages", ElementKind::q1}));
 
-INSTANTIATE_TEST_SUITE_P(
-    HTfetiDp, LinearAgainstUndecomposed,
-    ::testing::Values(Case{16, 4, 2, "averages", ElementKind::q1}, Case{24, 6, 3, "averages", ElementKind::q1},
-                      Case{16, 4, 2, "corners", ElementKind::q1}, Case{24, 4, 2, "corners+averages", ElementKind::p1},
-                      Case{32, 8, 4, "averages", ElementKind::q1}, Case{32, 8, 8, "corners", ElementKind::q1}));
+INSTANTIATE_TEST_SUITE_P(HTfetiDp, LinearAgainstUndecomposed,
+                         ::testing::Values(Case{16, 4, 2, "averages", ElementKind::q1},
+                                           Case{24, 6, 3, "averages", ElementKind::q1},
+                                           Case{16, 4, 2, "corners", ElementKind::q1},
+                                           Case{24, 4, 2, "corners+averages", ElementKind::p1},
+                                           Case{32, 8, 4, "averages", ElementKind::q1},
+                                           Case{32, 8, 8, "corners", ElementKind::q1}));
 
 }  // namespace

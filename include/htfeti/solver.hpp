@@ -3,8 +3,8 @@
 // -> primal reconstruction -> report. Collective over the communicator.
 #pragma once
 
-#include <nlohmann/json.hpp>
 #include <memory>
+#include <nlohmann/json.hpp>
 
 #include "htfeti/feti/dual_problem.hpp"
 #include "htfeti/qp/smalbe.hpp"
@@ -14,10 +14,10 @@ namespace htfeti {
 struct SolveOptions {
   DecompositionOptions decomposition;
   FetiOptions feti;
-  double rtol = 1e-4;      ///< relative precision eps of the QP solvers (paper: 1e-4)
-  int max_iterations = 0;  ///< PCG iterations or SMALBE-M outer iterations; 0: 1000 / 200
+  double rtol = 1e-4;        ///< relative precision eps of the QP solvers (paper: 1e-4)
+  int max_iterations = 0;    ///< PCG iterations or SMALBE-M outer iterations; 0: 1000 / 200
   qp::SmalbeOptions smalbe;  ///< rtol and max_outer are taken from the fields above
-  bool progress = false;   ///< print one line per (outer) iteration on rank 0 (stderr)
+  bool progress = false;     ///< print one line per (outer) iteration on rank 0 (stderr)
 };
 
 struct SolveOutput {

@@ -14,9 +14,12 @@ Glue parse_glue(const std::string& name) {
 
 std::string to_string(Glue glue) {
   switch (glue) {
-    case Glue::corners: return "corners";
-    case Glue::averages: return "averages";
-    case Glue::corners_averages: return "corners+averages";
+    case Glue::corners:
+      return "corners";
+    case Glue::averages:
+      return "averages";
+    case Glue::corners_averages:
+      return "corners+averages";
   }
   return "?";
 }
@@ -27,7 +30,8 @@ Decomposition::Decomposition(const DecompositionOptions& o) : opt_(o) {
   if (o.cluster_size <= 0) throw std::invalid_argument("--cluster-size must be positive");
   if (o.elements % o.subdomains != 0)
     throw std::invalid_argument("--elements " + std::to_string(o.elements) +
-                                " is not divisible by --subdomains " + std::to_string(o.subdomains));
+                                " is not divisible by --subdomains " +
+                                std::to_string(o.subdomains));
   if (o.subdomains % o.cluster_size != 0)
     throw std::invalid_argument("--subdomains " + std::to_string(o.subdomains) +
                                 " is not divisible by --cluster-size " +

@@ -1,12 +1,12 @@
 #include "htfeti/feti/cluster.hpp"
 
+#include <omp.h>
+
 #include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <stdexcept>
 #include <string>
-
-#include <omp.h>
 
 #include "htfeti/feti/constraints.hpp"
 
@@ -22,9 +22,12 @@ DualOperator parse_dual_operator(const std::string& name) {
 
 std::string to_string(DualOperator kind) {
   switch (kind) {
-    case DualOperator::implicit: return "implicit";
-    case DualOperator::explicit_: return "explicit";
-    case DualOperator::automatic: return "auto";
+    case DualOperator::implicit:
+      return "implicit";
+    case DualOperator::explicit_:
+      return "explicit";
+    case DualOperator::automatic:
+      return "auto";
   }
   return "?";
 }
@@ -35,8 +38,10 @@ Cluster::Cluster(const Decomposition& dec, int id, std::vector<Subdomain*> subs,
     : id_(id), subs_(std::move(subs)), b_(std::move(b)), explicit_(explicit_F) {
   const int s = static_cast<int>(subs_.size());
   long total = 0;
-  if (explicit_) F_.resize(s), V_.resize(s);
-  else xw_.resize(s);
+  if (explicit_)
+    F_.resize(s), V_.resize(s);
+  else
+    xw_.resize(s);
   std::string error;
   // Parallel over the cluster's subdomains when the caller is not already parallel (few large
   // clusters per rank); nested inside a parallel loop over clusters this runs serially.
@@ -92,8 +97,8 @@ Cluster::Cluster(const Decomposition& dec, int id, std::vector<Subdomain*> subs,
     const auto& cols = cols_of_sub_[i];
     W_[i] = Eigen::MatrixXd::Zero(subs_[i]->size(), static_cast<int>(cols.size()));
     for (const auto& e : c_of_sub_[i]) {
-      const int col = static_cast<int>(std::lower_bound(cols.begin(), cols.end(), e.constraint) -
-                                       cols.begin());
+      const int col =
+          static_cast<int>(std::lower_bound(cols.begin(), cols.end(), e.constraint) - cols.begin());
       W_[i](e.dof, col) += e.value;
     }
     for (int col = 0; col < W_[i].cols(); ++col)
@@ -103,7 +108,8 @@ Cluster::Cluster(const Decomposition& dec, int id, std::vector<Subdomain*> subs,
     const auto& cols = cols_of_sub_[i];
     // (C K^+ C^T)_{j, cols[col]} += C_i[j] . W_i[:, col]
     for (const auto& e : c_of_sub_[i])
-      for (int col = 0; col < W_[i].cols(); ++col) S(e.constraint, cols[col]) += e.value * W_[i](e.dof, col);
+      for (int col = 0; col < W_[i].cols(); ++col)
+        S(e.constraint, cols[col]) += e.value * W_[i](e.dof, col);
     if (i > 0) {
       const Eigen::VectorXd& R = subs_[i]->kernel();
       for (const auto& e : c_of_sub_[i]) {
@@ -154,7 +160,8 @@ long Cluster::explicit_doubles() const {
   return n;
 }
 
-void Cluster::apply_dual(const std::vector<Eigen::VectorXd>& lam, std::vector<Eigen::VectorXd>& out) {
+void Cluster::apply_dual(const std::vector<Eigen::VectorXd>& lam,
+                         std::vector<Eigen::VectorXd>& out) {
   const int s = static_cast<int>(subs_.size());
   if (!explicit_) {
 #pragma omp parallel for schedule(static) if (!omp_in_parallel() && s > 1)
@@ -178,7 +185,7 @@ void Cluster::apply_dual(const std::vector<Eigen::VectorXd>& lam, std::vector<Ei
   for (int i = 0; i < s; ++i) {  // fixed order
     const auto& cols = cols_of_sub_[i];
     for (int col = 0; col < static_cast<int>(cols.size()); ++col)
-      rhs_[cols[col]] += U_[i].col(col).dot(lam[i]);  // C K^+ B^T lam
+      rhs_[cols[col]] += U_[i].col(col).dot(lam[i]);    // C K^+ B^T lam
     if (i > 0) rhs_[nc_ + i - 1] = -V_[i].dot(lam[i]);  // -R'^T B^T lam
   }
   sol_.noalias() = lu_.solve(rhs_);

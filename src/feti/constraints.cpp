@@ -97,8 +97,8 @@ long long for_each_multiplier(const Decomposition& dec,
           for (const auto& row : orthonormal_complement(s)) {
             mult.entries.clear();
             for (int i = 0; i < k; ++i)
-              mult.entries.push_back({copies[i].subdomain, copies[i].dof,
-                                      row[group[i]] / s[group[i]]});
+              mult.entries.push_back(
+                  {copies[i].subdomain, copies[i].dof, row[group[i]] / s[group[i]]});
             emit(MultiplierKind::gluing);
           }
         }

@@ -1,5 +1,7 @@
 #include "htfeti/feti/dual_problem.hpp"
 
+#include <omp.h>
+
 #include <algorithm>
 #include <array>
 #include <chrono>
@@ -7,8 +9,6 @@
 #include <limits>
 #include <stdexcept>
 #include <string>
-
-#include <omp.h>
 
 namespace htfeti {
 
@@ -75,7 +75,8 @@ DualProblem::DualProblem(const Decomposition& dec, const Comm& comm, const FetiO
   rows_.resize(nsub);
   for (int s = 0; s < nsub; ++s) {
     rows_[s].reserve(grows[s].size());
-    for (const auto& [g, dv] : grows[s]) rows_[s].push_back({layout_.ext_index(g), dv.first, dv.second});
+    for (const auto& [g, dv] : grows[s])
+      rows_[s].push_back({layout_.ext_index(g), dv.first, dv.second});
   }
   setup_.constraints = now() - t;
   // Local numbering of the rows of B~ on each subdomain (distinct multipliers in extended order).
@@ -97,7 +98,8 @@ DualProblem::DualProblem(const Decomposition& dec, const Comm& comm, const FetiO
 
   ordering_ = options.ordering;
   const double factor_bytes_estimate = 8.0 * 100.0 * nsub * dec.nodes_per_subdomain();
-  factors_released_ = explicit_ && !options.keep_factors && factor_bytes_estimate > options.factor_budget_bytes;
+  factors_released_ =
+      explicit_ && !options.keep_factors && factor_bytes_estimate > options.factor_budget_bytes;
   contrib_.resize(nsub);
   for (int s = 0; s < nsub; ++s) contrib_[s].assign(rows_[s].size(), 0.0);
   x_.resize(c1 - c0);
@@ -188,7 +190,8 @@ DualProblem::DualProblem(const Decomposition& dec, const Comm& comm, const FetiO
   apply_Gt(coarse_work_, lambda_tilde_);
   lower_.resize(n_own);
   for (int k = 0; k < n_own; ++k)
-    lower_[k] = kind_[k] == MultiplierKind::contact ? 0.0 : -std::numeric_limits<double>::infinity();
+    lower_[k] =
+        kind_[k] == MultiplierKind::contact ? 0.0 : -std::numeric_limits<double>::infinity();
   setup_.coarse = now() - t;
 }
 
@@ -201,8 +204,10 @@ void DualProblem::cluster_rhs_from_ext(int c, bool add_f, double sign) {
   const int mm = dec_.m() * dec_.m();
   for (int i = 0; i < mm; ++i) {
     Vec& x = x_[c][i];
-    if (add_f) x = subs_[c * mm + i]->f();
-    else x.setZero();
+    if (add_f)
+      x = subs_[c * mm + i]->f();
+    else
+      x.setZero();
     if (sign != 0.0)
       for (const auto& r : rows_[c * mm + i]) x[r.dof] += sign * r.value * ext_in_[r.k];
   }
@@ -303,11 +308,13 @@ void DualProblem::assemble_coarse(const std::vector<double>& weight, SparseChole
   const int P = comm_.size();
   std::vector<std::vector<Item>> out(P);
   for (size_t c = 0; c < clusters_.size(); ++c)
-    for (const auto& [k, g] : g_rows_[c]) out[owner_[k]].push_back({layout_.global(k), clusters_[c]->id(), g});
+    for (const auto& [k, g] : g_rows_[c])
+      out[owner_[k]].push_back({layout_.global(k), clusters_[c]->id(), g});
   std::vector<int> scount(P), rcount(P), sdisp(P + 1, 0), rdisp(P + 1, 0);
   for (int r = 0; r < P; ++r) scount[r] = static_cast<int>(out[r].size() * sizeof(Item));
   MPI_Alltoall(scount.data(), 1, MPI_INT, rcount.data(), 1, MPI_INT, comm_.raw());
-  for (int r = 0; r < P; ++r) sdisp[r + 1] = sdisp[r] + scount[r], rdisp[r + 1] = rdisp[r] + rcount[r];
+  for (int r = 0; r < P; ++r)
+    sdisp[r + 1] = sdisp[r] + scount[r], rdisp[r + 1] = rdisp[r] + rcount[r];
   std::vector<Item> sbuf(sdisp[P] / sizeof(Item)), rbuf(rdisp[P] / sizeof(Item));
   for (int r = 0, pos = 0; r < P; ++r)
     for (const auto& it : out[r]) sbuf[pos++] = it;
@@ -396,8 +403,7 @@ std::vector<DualProblem::Vec> DualProblem::reconstruct(const Vec& lambda) {
 
 double DualProblem::energy(const std::vector<Vec>& u) const {
   double q = 0;
-  for (size_t s = 0; s < subs_.size(); ++s)
-    q += subs_[s]->energy(u[s]);
+  for (size_t s = 0; s < subs_.size(); ++s) q += subs_[s]->energy(u[s]);
   return comm_.sum(q);
 }
 
@@ -438,8 +444,10 @@ DualProblem::ContactData DualProblem::contact_data(const std::vector<Vec>& u, co
   for (size_t s = 0; s < subs_.size(); ++s)
     for (const auto& r : rows_[s]) {
       if (is_contact[r.k] == 0.0) continue;
-      if (r.value > 0) left[r.k] += r.value * u[s][r.dof];
-      else right[r.k] -= r.value * u[s][r.dof];
+      if (r.value > 0)
+        left[r.k] += r.value * u[s][r.dof];
+      else
+        right[r.k] -= r.value * u[s][r.dof];
     }
   layout_.reverse_add(left.data());
   layout_.reverse_add(right.data());

@@ -93,7 +93,8 @@ void SparseCholesky::factorize_impl(const Eigen::SparseMatrix<double>& A,
       if (!impl_->factor) break;
       const int* fp = static_cast<const int*>(impl_->factor->Perm);
       bool tail_ok = true;
-      for (int p = n - static_cast<int>(last->size()); p < n && tail_ok; ++p) tail_ok = cmember[fp[p]] == 1;
+      for (int p = n - static_cast<int>(last->size()); p < n && tail_ok; ++p)
+        tail_ok = cmember[fp[p]] == 1;
       if (tail_ok) break;
       cholmod_free_factor(&impl_->factor, &c);
     }

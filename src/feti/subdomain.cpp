@@ -70,10 +70,12 @@ Eigen::MatrixXd Subdomain::dual_block(const std::vector<BEntry>& b, int nmult) c
   std::vector<int> order;
   chol_.schur_factor(L, order);
   std::vector<int> pos(size(), -1);
-  for (size_t i = 0; i < order.size(); ++i) pos[order[i] + (order[i] >= fixed_)] = static_cast<int>(i);
+  for (size_t i = 0; i < order.size(); ++i)
+    pos[order[i] + (order[i] >= fixed_)] = static_cast<int>(i);
   Eigen::MatrixXd T = Eigen::MatrixXd::Zero(L.rows(), nmult);  // B_i^T on the interface
   for (const auto& e : b) {
-    if (pos[e.dof] < 0) throw std::logic_error("dual_block: a row of B touches a non-interface dof");
+    if (pos[e.dof] < 0)
+      throw std::logic_error("dual_block: a row of B touches a non-interface dof");
     T(pos[e.dof], e.mult) += e.value;
   }
   L.triangularView<Eigen::Lower>().solveInPlace(T);  // T = L_s^{-1} B_i^T

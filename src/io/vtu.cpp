@@ -41,8 +41,10 @@ void write_piece(const std::string& file, const DualProblem& dual,
       for (int b = 0; b < H; ++b)
         for (int a = 0; a < H; ++a) {
           const long n0 = base + b * np + a, n1 = n0 + 1, n2 = n0 + np + 1, n3 = n0 + np;
-          if (tri) o << n0 << ' ' << n1 << ' ' << n2 << '\n' << n0 << ' ' << n2 << ' ' << n3 << '\n';
-          else o << n0 << ' ' << n1 << ' ' << n2 << ' ' << n3 << '\n';
+          if (tri)
+            o << n0 << ' ' << n1 << ' ' << n2 << '\n' << n0 << ' ' << n2 << ' ' << n3 << '\n';
+          else
+            o << n0 << ' ' << n1 << ' ' << n2 << ' ' << n3 << '\n';
         }
     }
     o << "</DataArray>\n<DataArray type=\"Int64\" Name=\"offsets\" format=\"ascii\">\n";
@@ -59,7 +61,7 @@ void write_piece(const std::string& file, const DualProblem& dual,
     for (const char* name : {"subdomain", "cluster", "rank"}) {
       o << "<DataArray type=\"Int32\" Name=\"" << name << "\" format=\"ascii\">\n";
       for (const auto& s : subs) {
-        const int v = name[0] == 's' ? s->id()
+        const int v = name[0] == 's'   ? s->id()
                       : name[0] == 'c' ? dec.cluster_of(s->id())
                                        : dual.comm().rank();
         for (int c = 0; c < per_sub; ++c) o << v << '\n';

@@ -15,9 +15,12 @@ ProblemKind parse_problem(const std::string& name) {
 
 std::string to_string(ProblemKind kind) {
   switch (kind) {
-    case ProblemKind::poisson2d: return "poisson2d";
-    case ProblemKind::membranes: return "membranes";
-    case ProblemKind::membranes_coercive: return "membranes-coercive";
+    case ProblemKind::poisson2d:
+      return "poisson2d";
+    case ProblemKind::membranes:
+      return "membranes";
+    case ProblemKind::membranes_coercive:
+      return "membranes-coercive";
   }
   return "?";
 }
@@ -38,9 +41,12 @@ double Problem::load(double x, double y) const {
 
 bool Problem::dirichlet(int q, int gx, int gy, int n) const {
   switch (kind) {
-    case ProblemKind::poisson2d: return gx == 0 || gy == 0 || gx == n || gy == n;
-    case ProblemKind::membranes: return q == 0 && gx == 0;
-    case ProblemKind::membranes_coercive: return (q == 0 && gx == 0) || (q == 1 && gx == n);
+    case ProblemKind::poisson2d:
+      return gx == 0 || gy == 0 || gx == n || gy == n;
+    case ProblemKind::membranes:
+      return q == 0 && gx == 0;
+    case ProblemKind::membranes_coercive:
+      return (q == 0 && gx == 0) || (q == 1 && gx == n);
   }
   return false;
 }

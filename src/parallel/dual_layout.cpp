@@ -12,8 +12,10 @@ DualLayout::DualLayout(const Comm& comm, const std::vector<long long>& touched,
   const int me = comm.rank(), P = comm.size();
   std::map<int, std::vector<long long>> ghosts_by_owner;
   for (size_t i = 0; i < touched.size(); ++i)
-    if (owner[i] == me) globals_.push_back(touched[i]);
-    else ghosts_by_owner[owner[i]].push_back(touched[i]);
+    if (owner[i] == me)
+      globals_.push_back(touched[i]);
+    else
+      ghosts_by_owner[owner[i]].push_back(touched[i]);
   n_owned_ = static_cast<int>(globals_.size());
   for (size_t i = 0; i < touched.size(); ++i)
     if (owner[i] != me) globals_.push_back(touched[i]);
@@ -26,7 +28,8 @@ DualLayout::DualLayout(const Comm& comm, const std::vector<long long>& touched,
   std::vector<int> sdisp(P + 1, 0), rdisp(P + 1, 0);
   for (int r = 0; r < P; ++r) sdisp[r + 1] = sdisp[r] + nreq[r], rdisp[r + 1] = rdisp[r] + nask[r];
   std::vector<long long> sreq(sdisp[P]), rreq(rdisp[P]);
-  for (const auto& [r, list] : ghosts_by_owner) std::copy(list.begin(), list.end(), &sreq[sdisp[r]]);
+  for (const auto& [r, list] : ghosts_by_owner)
+    std::copy(list.begin(), list.end(), &sreq[sdisp[r]]);
   MPI_Alltoallv(sreq.data(), nreq.data(), sdisp.data(), MPI_LONG_LONG, rreq.data(), nask.data(),
                 rdisp.data(), MPI_LONG_LONG, comm_);
 
@@ -35,7 +38,8 @@ DualLayout::DualLayout(const Comm& comm, const std::vector<long long>& touched,
     Neighbour nb{r, {}, {}};
     for (int i = rdisp[r]; i < rdisp[r + 1]; ++i) {
       const int k = ext_index(rreq[i]);
-      if (k < 0 || k >= n_owned_) throw std::logic_error("DualLayout: request for an unowned entry");
+      if (k < 0 || k >= n_owned_)
+        throw std::logic_error("DualLayout: request for an unowned entry");
       nb.send.push_back(k);
     }
     for (int i = sdisp[r]; i < sdisp[r + 1]; ++i) nb.recv.push_back(ext_index(sreq[i]));
@@ -68,7 +72,8 @@ void DualLayout::forward(double* ext) {
   }
   MPI_Waitall(2 * nn, req_.data(), MPI_STATUSES_IGNORE);
   for (int i = 0; i < nn; ++i)
-    for (size_t j = 0; j < neighbours_[i].recv.size(); ++j) ext[neighbours_[i].recv[j]] = rbuf_[i][j];
+    for (size_t j = 0; j < neighbours_[i].recv.size(); ++j)
+      ext[neighbours_[i].recv[j]] = rbuf_[i][j];
 }
 
 void DualLayout::reverse_add(double* ext) {
@@ -84,7 +89,8 @@ void DualLayout::reverse_add(double* ext) {
   MPI_Waitall(2 * nn, req_.data(), MPI_STATUSES_IGNORE);
   // Fixed order of neighbours: the sums do not depend on message arrival.
   for (int i = 0; i < nn; ++i)
-    for (size_t j = 0; j < neighbours_[i].send.size(); ++j) ext[neighbours_[i].send[j]] += rbuf_[i][j];
+    for (size_t j = 0; j < neighbours_[i].send.size(); ++j)
+      ext[neighbours_[i].send[j]] += rbuf_[i][j];
 }
 
 }  // namespace htfeti

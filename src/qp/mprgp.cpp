@@ -8,8 +8,7 @@ namespace htfeti::qp {
 
 void projected_gradient(const Vec& x, const Vec& g, const Vec& lower, Vec& gp) {
   gp.resize(x.size());
-  for (Eigen::Index i = 0; i < x.size(); ++i)
-    gp[i] = x[i] > lower[i] ? g[i] : std::min(g[i], 0.0);
+  for (Eigen::Index i = 0; i < x.size(); ++i) gp[i] = x[i] > lower[i] ? g[i] : std::min(g[i], 0.0);
 }
 
 namespace {

@@ -11,8 +11,8 @@ PcgResult projected_cg(Operator& A, Operator& P, const Vec& b, Vec& x, const Red
   res.projected_rhs = red.norm(w);
   const double tol = opt.rtol * (res.projected_rhs > 0 ? res.projected_rhs : 1.0);
   A.apply(x, q);
-  r = b - q;                    // residual
-  P.apply(r, w);                // projected residual (the gradient in Ker G)
+  r = b - q;      // residual
+  P.apply(r, w);  // projected residual (the gradient in Ker G)
   double ww = red.dot(w, w);
   p = w;
   for (int it = 0;; ++it) {
@@ -27,7 +27,7 @@ PcgResult projected_cg(Operator& A, Operator& P, const Vec& b, Vec& x, const Red
       res.reason = StopReason::max_iterations;
       return res;
     }
-    A.apply(p, q);              // the bottleneck: one dual operator application
+    A.apply(p, q);  // the bottleneck: one dual operator application
     const double pq = red.dot(p, q);
     if (!(pq > 0)) {
       res.reason = StopReason::breakdown;

@@ -22,9 +22,9 @@ std::string to_string(Glue glue);
 struct DecompositionOptions {
   ProblemKind problem = ProblemKind::membranes;
   ElementKind element = ElementKind::q1;
-  int elements = 64;      ///< n: elements per side of each unit square
-  int subdomains = 4;     ///< N_s: subdomains per side of each unit square
-  int cluster_size = 1;   ///< m: subdomains per side of a cluster (1 = TFETI)
+  int elements = 64;     ///< n: elements per side of each unit square
+  int subdomains = 4;    ///< N_s: subdomains per side of each unit square
+  int cluster_size = 1;  ///< m: subdomains per side of a cluster (1 = TFETI)
   Glue glue = Glue::averages;
 };
 

@@ -86,16 +86,16 @@ class Cluster {
   int id_;
   int nc_ = 0;  // primal constraints
   std::vector<Subdomain*> subs_;
-  std::vector<std::vector<LocalRow>> c_of_sub_;   // C_i entries, per subdomain
-  std::vector<std::vector<int>> cols_of_sub_;     // constraints touching subdomain i
-  std::vector<Eigen::MatrixXd> W_;                // K_i^+ C_i^T (columns: cols_of_sub_[i])
+  std::vector<std::vector<LocalRow>> c_of_sub_;  // C_i entries, per subdomain
+  std::vector<std::vector<int>> cols_of_sub_;    // constraints touching subdomain i
+  std::vector<Eigen::MatrixXd> W_;               // K_i^+ C_i^T (columns: cols_of_sub_[i])
   Eigen::PartialPivLU<Eigen::MatrixXd> lu_;
   Eigen::VectorXd rhs_, sol_;
   std::vector<std::vector<Subdomain::BEntry>> b_;  // rows of B~ per subdomain (local numbering)
-  std::vector<Eigen::VectorXd> xw_;               // implicit apply_dual: physical work vectors
+  std::vector<Eigen::VectorXd> xw_;                // implicit apply_dual: physical work vectors
   bool explicit_ = false;
-  std::vector<Eigen::MatrixXd> F_, U_;             // explicit: F_i, B_i K_i^+ C_i^T
-  std::vector<Eigen::VectorXd> V_;                 // explicit: B_i R_i
+  std::vector<Eigen::MatrixXd> F_, U_;  // explicit: F_i, B_i K_i^+ C_i^T
+  std::vector<Eigen::VectorXd> V_;      // explicit: B_i R_i
   double kernel_value_ = 0;
   double setup_seconds_ = 0;
 };

@@ -10,8 +10,8 @@
 // Cost of one F: one forward and one reverse neighbour exchange, per cluster one K~^+ (see
 // cluster.hpp) and 2 nnz(B~) flops. Clusters run in parallel over OpenMP threads; each writes
 // its B~ x into its own buffer and the buffers are summed in a fixed order afterwards, so the
-// result does not depend on the number of threads. Cost of one P: one exchange each way, an allreduce of the
-// coarse vector and one sparse coarse solve.
+// result does not depend on the number of threads. Cost of one P: one exchange each way, an
+// allreduce of the coarse vector and one sparse coarse solve.
 #pragma once
 
 #include <Eigen/Dense>
@@ -44,7 +44,8 @@ constexpr int kExplicitMinNodes = 25;
 /// Seconds spent in each setup phase (wall clock on this rank).
 struct SetupTimings {
   double assembly = 0, factorization = 0, constraints = 0, coarse = 0;
-  double cluster_setup = 0;  ///< part of factorization: primal-constraint systems (summed over clusters)
+  double cluster_setup =
+      0;  ///< part of factorization: primal-constraint systems (summed over clusters)
 };
 
 class DualProblem {
@@ -110,7 +111,7 @@ class DualProblem {
   bool explicit_operator() const { return explicit_; }
   /// Whether the subdomain factors are freed after setup and rebuilt for the reconstruction.
   bool factors_released() const { return factors_released_; }
-  long explicit_doubles() const;  ///< doubles in the explicit blocks on this rank
+  long explicit_doubles() const;       ///< doubles in the explicit blocks on this rank
   long cluster_dense_doubles() const;  ///< doubles in the clusters' K^+ C^T blocks and LUs
   long coarse_factor_nonzeros() const { return coarse_factor_.factor_nonzeros(); }
 
@@ -120,13 +121,13 @@ class DualProblem {
     int dof;
     double value;
   };
-  void gather_to_ext(const Vec& owned);           // ext_in_ = [owned, ghosts]
+  void gather_to_ext(const Vec& owned);                       // ext_in_ = [owned, ghosts]
   void cluster_rhs_from_ext(int c, bool add_f, double sign);  // x_i = (f_i) + sign B_i^T ext_in_
-  void b_of_x(int c);                             // contrib_ = B_i x_i, per row entry
-  void scatter_contrib();                         // ext_out_ += contrib_, fixed order
+  void b_of_x(int c);                                         // contrib_ = B_i x_i, per row entry
+  void scatter_contrib();                                     // ext_out_ += contrib_, fixed order
   template <class Body>
-  void for_each_cluster(Body body);               // OpenMP over local clusters
-  void gt_into_ext(const Vec& coarse);            // ext_out_ = G~^T coarse (owners summed)
+  void for_each_cluster(Body body);     // OpenMP over local clusters
+  void gt_into_ext(const Vec& coarse);  // ext_out_ = G~^T coarse (owners summed)
   void assemble_coarse(const std::vector<double>& weight, SparseCholesky& factor);
   // B~ applied to per-subdomain vectors; sums are on owners afterwards (reverse_add done).
   void apply_B(const std::vector<Vec>& u, Vec& out);
@@ -140,15 +141,15 @@ class DualProblem {
   std::vector<std::unique_ptr<Cluster>> clusters_;
   std::vector<std::vector<Row>> rows_;  // B~ rows per local subdomain
   DualLayout layout_;
-  std::vector<int> owner_;  // owner rank of each extended entry
-  std::vector<MultiplierKind> kind_;  // per owned entry
-  std::vector<double> contact_y_, contact_scale_;  // per owned entry (contact rows)
+  std::vector<int> owner_;                                   // owner rank of each extended entry
+  std::vector<MultiplierKind> kind_;                         // per owned entry
+  std::vector<double> contact_y_, contact_scale_;            // per owned entry (contact rows)
   std::vector<std::vector<std::pair<int, double>>> g_rows_;  // G~ row of each local cluster
   SparseCholesky coarse_factor_;
   Vec d_, e_, lambda_tilde_, lower_;
   // work arrays (allocated once)
   Vec ext_in_, ext_out_, coarse_work_;
-  std::vector<std::vector<Vec>> x_;  // per cluster, per subdomain
+  std::vector<std::vector<Vec>> x_;           // per cluster, per subdomain
   std::vector<std::vector<double>> contrib_;  // per subdomain, per row entry
   std::vector<std::vector<int>> mult_;        // per subdomain: its multipliers (extended indices)
   std::vector<std::vector<Vec>> lam_, out_;   // per cluster, per subdomain: local dual vectors

@@ -18,7 +18,8 @@ class DualLayout {
   DualLayout() = default;
   /// touched: the global indices this rank's subdomains touch (sorted, unique), owner: their
   /// owning ranks. Collective.
-  DualLayout(const Comm& comm, const std::vector<long long>& touched, const std::vector<int>& owner);
+  DualLayout(const Comm& comm, const std::vector<long long>& touched,
+             const std::vector<int>& owner);
 
   int n_owned() const { return n_owned_; }
   int n_ext() const { return static_cast<int>(globals_.size()); }

@@ -19,8 +19,8 @@
 namespace htfeti::qp {
 
 struct MprgpOptions {
-  double gamma = 1.0;   ///< proportioning parameter Gamma > 0
-  double alpha = 0.0;   ///< expansion step length in (0, 2/||A||]; required (> 0)
+  double gamma = 1.0;  ///< proportioning parameter Gamma > 0
+  double alpha = 0.0;  ///< expansion step length in (0, 2/||A||]; required (> 0)
   int max_iterations = 10000;
 };
 

@@ -70,9 +70,12 @@ class SerialReducer final : public Reducer {
 enum class StopReason { converged, max_iterations, breakdown };
 inline std::string to_string(StopReason r) {
   switch (r) {
-    case StopReason::converged: return "converged";
-    case StopReason::max_iterations: return "max_iterations";
-    case StopReason::breakdown: return "breakdown";
+    case StopReason::converged:
+      return "converged";
+    case StopReason::max_iterations:
+      return "max_iterations";
+    case StopReason::breakdown:
+      return "breakdown";
   }
   return "?";
 }

@@ -11,7 +11,7 @@
 namespace htfeti::qp {
 
 struct PcgOptions {
-  double rtol = 1e-4;      ///< relative precision on the projected residual
+  double rtol = 1e-4;  ///< relative precision on the projected residual
   int max_iterations = 1000;
 };
 

@@ -4,7 +4,8 @@
 // where G has orthonormal rows and is given only through Q = G'G, the orthogonal projector onto
 // Im G' (then ||G x|| = ||Q x||). The multiplier mu of G x = 0 is kept as nu = G' mu.
 //
-// Outer iteration k (paper, (12)/(15), with H_rho = A + rho Q, here A = PFP so ||H|| = max(||A||, rho)):
+// Outer iteration k (paper, (12)/(15), with H_rho = A + rho Q, here A = PFP so ||H|| = max(||A||,
+// rho)):
 //   1. MPRGP finds x^k >= l with ||g^P(x^k, mu^k, rho)|| <= min(M_k ||G x^k||, eta), where
 //      g = H_rho x - b + nu (the gradient of the augmented Lagrangian L);
 //   2. nu^{k+1} = nu^k + rho Q x^k;
@@ -19,15 +20,15 @@
 namespace htfeti::qp {
 
 struct SmalbeOptions {
-  double rtol = 1e-4;          ///< relative precision eps (paper: 1e-4)
-  double rho_factor = 1.1;     ///< rho = rho_factor * ||A|| (theory: rho close to ||F~||)
-  double M0_factor = 100.0;    ///< M_0 = M0_factor * ||A||
-  double eta_factor = 0.1;     ///< eta = eta_factor * ||b||
-  double beta = 2.0;           ///< M is divided by beta when the Lagrangian grows too little
-  double norm_safety = 1.1;    ///< the expansion step is alpha = 2 / (norm_safety * ||H||_est)
-  double gamma = 1.0;          ///< MPRGP proportioning parameter Gamma
+  double rtol = 1e-4;        ///< relative precision eps (paper: 1e-4)
+  double rho_factor = 1.1;   ///< rho = rho_factor * ||A|| (theory: rho close to ||F~||)
+  double M0_factor = 100.0;  ///< M_0 = M0_factor * ||A||
+  double eta_factor = 0.1;   ///< eta = eta_factor * ||b||
+  double beta = 2.0;         ///< M is divided by beta when the Lagrangian grows too little
+  double norm_safety = 1.1;  ///< the expansion step is alpha = 2 / (norm_safety * ||H||_est)
+  double gamma = 1.0;        ///< MPRGP proportioning parameter Gamma
   int max_outer = 200;
-  int max_inner = 100000;      ///< total MPRGP iterations over all outer iterations
+  int max_inner = 100000;  ///< total MPRGP iterations over all outer iterations
 };
 
 struct SmalbeResult {
@@ -47,9 +48,8 @@ using PenalizedApply = std::function<void(const Vec& x, double rho, Vec& y)>;
 
 /// normA: an estimate of ||A|| (estimate_norm). x: start in, solution out. H_rho applications are
 /// counted by the operator `counted_H` if given (so a caller can report them), else not at all.
-SmalbeResult smalbe(Operator& A, Operator& Q, const Vec& b, const Vec& lower, Vec& x,
-                    double normA, const Reducer& red, const SmalbeOptions& options,
-                    const Progress& progress = {}, long* H_applications = nullptr,
-                    const PenalizedApply& penalized = {});
+SmalbeResult smalbe(Operator& A, Operator& Q, const Vec& b, const Vec& lower, Vec& x, double normA,
+                    const Reducer& red, const SmalbeOptions& options, const Progress& progress = {},
+                    long* H_applications = nullptr, const PenalizedApply& penalized = {});
 
 }  // namespace htfeti::qp

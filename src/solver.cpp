@@ -53,9 +53,17 @@ SolveOutput solve(const SolveOptions& options, const Comm& comm) {
   const bool verbose = options.progress && comm.rank() == 0;
 
   double t0 = now();
+  if (verbose)
+    std::fprintf(stderr,
+                 "  setup: %d subdomains in %d clusters on %d ranks: assembling, factoring...\n",
+                 dec.num_subdomains(), dec.num_clusters(), comm.size());
   out.dual = std::make_unique<DualProblem>(dec, comm, options.feti);
   DualProblem& dual = *out.dual;
   const double t_setup = now() - t0;
+  if (verbose)
+    std::fprintf(stderr, "  setup done in %.2f s (dual dimension %lld, coarse %d, %s operator)\n",
+                 t_setup, dual.dual_dimension(), dual.coarse_dimension(),
+                 dual.explicit_operator() ? "explicit" : "implicit");
   const int n = dual.n_owned();
   using Vec = Eigen::VectorXd;
 
@@ -143,6 +151,7 @@ SolveOutput solve(const SolveOptions& options, const Comm& comm) {
   double t_rec = now();
   out.u = dual.reconstruct(lambda);
   t_rec = now() - t_rec;
+  if (verbose) std::fprintf(stderr, "  reconstruction done in %.2f s\n", t_rec);
   const auto kkt = dual.kkt(out.u, lambda);
   const double energy = dual.energy(out.u);
 

@@ -65,7 +65,6 @@ class Cluster {
   /// Cost: implicit, one K_i^+ per subdomain; explicit, one dense n_i x n_i symmetric
   /// matrix-vector product per subdomain (memory-bound: 8 n_i^2 bytes). Allocates nothing.
   void apply_dual(const std::vector<Eigen::VectorXd>& lam, std::vector<Eigen::VectorXd>& out);
-  bool is_explicit() const { return explicit_; }
   /// Frees the subdomain factorizations and matrices (the explicit blocks stay); solve() then
   /// needs refactor() first.
   void release_factors();

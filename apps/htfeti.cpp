@@ -194,7 +194,7 @@ int run(int argc, char** argv, const Comm& comm) {
   SolveOutput out = htfeti::solve(opt, comm);
   if (comm.rank() == 0) print_summary(out.report);
   if (!no_vtu) {
-    const std::string where = write_vtu(vtu, *out.dual, out.u);
+    const std::string where = write_vtu(vtu, *out.model, *out.dual, out.u, out.lambda);
     if (comm.rank() == 0) std::printf("  solution: %s\n", where.c_str());
   }
   if (!no_report && comm.rank() == 0) {

@@ -6,6 +6,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <memory>
 #include <stdexcept>
 
 #include "htfeti/qp/pcg.hpp"
@@ -32,7 +33,7 @@ class CommReducer final : public qp::Reducer {
 
 }  // namespace
 
-void validate(const SolveOptions& o) {
+void validate_solver(const SolveOptions& o) {
   if (!(o.rtol > 0 && o.rtol < 1)) throw std::invalid_argument("--rtol must lie in (0, 1)");
   if (o.max_iterations < 0) throw std::invalid_argument("--max-it must be positive");
   const auto& sm = o.smalbe;
@@ -41,14 +42,28 @@ void validate(const SolveOptions& o) {
   if (!(sm.eta_factor > 0)) throw std::invalid_argument("--eta-factor must be positive");
   if (!(sm.beta > 1)) throw std::invalid_argument("--beta must be greater than 1");
   if (!(sm.gamma > 0)) throw std::invalid_argument("--gamma must be positive");
+  for (double v : {sm.rho_factor, sm.M0_factor, sm.eta_factor, sm.beta, sm.gamma})
+    if (!std::isfinite(v))
+      throw std::invalid_argument("the SMALBE-M/MPRGP parameters must be finite");
+}
+
+void validate(const SolveOptions& o) {
+  validate_solver(o);
   Decomposition check(o.decomposition);  // throws for bad sizes
 }
 
 SolveOutput solve(const SolveOptions& options, const Comm& comm) {
   validate(options);
+  return solve(std::shared_ptr<const Model>(make_builtin_model(options.decomposition)), options,
+               comm);
+}
+
+SolveOutput solve(std::shared_ptr<const Model> model_ptr, const SolveOptions& options,
+                  const Comm& comm) {
+  validate_solver(options);
   SolveOutput out;
-  out.decomposition = std::make_unique<Decomposition>(options.decomposition);
-  const Decomposition& dec = *out.decomposition;
+  out.model = std::move(model_ptr);
+  const Model& model = *out.model;
   const CommReducer red(comm);
   const bool verbose = options.progress && comm.rank() == 0;
 
@@ -56,8 +71,9 @@ SolveOutput solve(const SolveOptions& options, const Comm& comm) {
   if (verbose)
     std::fprintf(stderr,
                  "  setup: %d subdomains in %d clusters on %d ranks: assembling, factoring...\n",
-                 dec.num_subdomains(), dec.num_clusters(), comm.size());
-  out.dual = std::make_unique<DualProblem>(dec, comm, options.feti);
+                 model.num_subdomains(), model.num_clusters(), comm.size());
+  out.dual = std::make_unique<DualProblem>(
+      model.layout(), [&model](int s) { return model.input(s); }, comm, options.feti);
   DualProblem& dual = *out.dual;
   const double t_setup = now() - t0;
   if (verbose)
@@ -158,17 +174,8 @@ SolveOutput solve(const SolveOptions& options, const Comm& comm) {
   const auto& st = dual.setup_timings();
   auto tmax = [&](double v) { return comm.max(v); };
   nlohmann::json& rep = out.report;
-  const auto& o = options.decomposition;
-  rep["problem"] = to_string(o.problem);
-  rep["element"] = to_string(o.element);
-  rep["elements"] = o.elements;
-  rep["subdomains"] = dec.num_subdomains();
-  rep["subdomains_per_side"] = o.subdomains;
-  rep["clusters"] = dec.num_clusters();
-  rep["cluster_size"] = o.cluster_size;
-  rep["glue"] = o.cluster_size > 1 ? to_string(o.glue) : "none";
-  rep["H_over_h"] = dec.H();
-  rep["primal_dimension"] = dec.primal_dimension();
+  rep = model.describe();
+  rep["primal_dimension"] = model.primal_dimension();
   rep["dual_dimension"] = dual.dual_dimension();
   rep["equalities"] = dual.equalities();
   rep["inequalities"] = dual.inequalities();
@@ -213,10 +220,13 @@ SolveOutput solve(const SolveOptions& options, const Comm& comm) {
                    {"cluster_dense_mb", comm.sum(8.0 * dual.cluster_dense_doubles()) / 1048576.0},
                    {"peak_rss_mb_max_rank", comm.max(rss_mb)},
                    {"peak_rss_mb_total", comm.sum(rss_mb)}};
-  if (dec.problem().has_contact()) {
+  if (dual.has_inequalities()) {
     const auto c = dual.contact_data(out.u, lambda);
-    nlohmann::json cj = {
-        {"y", c.y}, {"u_left", c.u_left}, {"u_right", c.u_right}, {"multiplier", c.multiplier}};
+    // Per contact row: node a's coordinates, n.u_a ("u_left"), n.u_b ("u_right", 0 for a rigid
+    // obstacle), the gap and the contact force ("multiplier", nodal force units).
+    nlohmann::json cj = {{"x", c.x},     {"y", c.y},          {"z", c.z},
+                         {"u_left", c.u_a}, {"u_right", c.u_b}, {"gap", c.gap},
+                         {"multiplier", c.force}};
     // Rank 0 holds the gathered arrays; share them so the report is the same everywhere.
     std::string s = comm.rank() == 0 ? cj.dump() : std::string();
     long long len = static_cast<long long>(s.size());

@@ -7,7 +7,8 @@
 #include <stdexcept>
 
 #include "htfeti/feti/constraints.hpp"
-#include "htfeti/feti/subdomain.hpp"
+#include "htfeti/decomposition/decomposition.hpp"
+#include "htfeti/fem/physics.hpp"
 
 extern "C" void dsyevd_(const char* jobz, const char* uplo, const int* n, double* a, const int* lda,
                         double* w, double* work, const int* lwork, int* iwork, const int* liwork,
@@ -51,8 +52,8 @@ ClusterSpectrum cluster_spectrum(int m, int n, ElementKind element) {
 
   // One subdomain's Schur complement on its boundary nodes.
   Decomposition dec({ProblemKind::poisson2d, element, n, m, 1, Glue::averages});
-  Subdomain sd(dec, 0);
-  const Eigen::MatrixXd K(sd.K());
+  Physics laplace;
+  const Eigen::MatrixXd K(assemble_stiffness(dec.grid().mesh(0), laplace));
   const int np = H + 1;
   std::vector<int> bnd, inner, bindex(np * np, -1);
   for (int k = 0; k < np * np; ++k) {

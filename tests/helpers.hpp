@@ -1,29 +1,39 @@
-// Shared helpers of the tests: global node numbering and comparison with the undecomposed solution.
+// Shared helpers of the tests: the built-in models, global node numbering, dense constraint
+// matrices and comparison with the undecomposed solution.
 #pragma once
 
 #include <Eigen/Dense>
+#include <map>
+#include <memory>
 #include <vector>
 
 #include "htfeti/feti/dual_problem.hpp"
+#include "htfeti/model.hpp"
 #include "htfeti/reference.hpp"
 
 namespace htfeti::test {
 
-/// Index of subdomain-local node k of subdomain s in the global numbering of reference.hpp.
-inline int global_node(const Decomposition& dec, int s, int k) {
-  const auto p = dec.position(s);
-  const int H = dec.H(), np = dec.n() + 1;
-  return p.q * np * np + (p.sy * H + k / (H + 1)) * np + p.sx * H + k % (H + 1);
+/// A DualProblem of a model; the model must outlive it.
+inline std::unique_ptr<DualProblem> make_dual(const Model& model, const Comm& comm,
+                                              const FetiOptions& options = {}) {
+  return std::make_unique<DualProblem>(
+      model.layout(), [&model](int s) { return model.input(s); }, comm, options);
 }
 
-/// max |u - u_ref| over all copies of all nodes, relative to max |u_ref| (collective).
-inline double relative_error(const DualProblem& dual, const std::vector<Eigen::VectorXd>& u,
-                             const Eigen::VectorXd& ref) {
+/// The subdomain s of a model, assembled (not factored).
+inline Subdomain make_subdomain(const Model& model, int s) { return Subdomain(model.input(s).system); }
+
+/// max |u - u_ref| over all copies of all nodes, relative to max |u_ref| (collective); u_ref is
+/// indexed by global node (dofs_per_node entries per node).
+inline double relative_error(const Model& model, const DualProblem& dual,
+                             const std::vector<Eigen::VectorXd>& u, const Eigen::VectorXd& ref) {
+  const int dpn = model.physics().dofs_per_node();
   double err = 0;
   for (size_t i = 0; i < u.size(); ++i) {
-    const int s = dual.subdomains()[i]->id();
-    for (int k = 0; k < u[i].size(); ++k)
-      err = std::max(err, std::abs(u[i][k] - ref[global_node(dual.decomposition(), s, k)]));
+    const SubdomainMesh m = model.mesh(dual.subdomains()[i]->id());
+    for (int k = 0; k < m.num_nodes(); ++k)
+      for (int d = 0; d < dpn; ++d)
+        err = std::max(err, std::abs(u[i][k * dpn + d] - ref[m.global_node[k] * dpn + d]));
   }
   return dual.comm().max(err) / ref.cwiseAbs().maxCoeff();
 }
@@ -38,6 +48,61 @@ inline Eigen::VectorXd pseudo_random(const DualProblem& dual, double seed) {
     v[i] -= 0.5;
   }
   return v;
+}
+
+/// Dense B~ (rows: multipliers in global order, columns: all subdomain dofs stacked) and C (all
+/// clusters), built serially from every subdomain's rows.
+struct DenseConstraints {
+  Eigen::MatrixXd B, C;
+  std::vector<MultiplierKind> kind;
+  Eigen::VectorXd c;  ///< right-hand sides of the rows of B~
+  std::vector<int> offset;  ///< first column of each subdomain
+};
+
+inline DenseConstraints dense_constraints(const Model& model, bool gluing_only = false) {
+  const FetiLayout L = model.layout();
+  std::vector<SubdomainInput> in;
+  DenseConstraints d;
+  d.offset.push_back(0);
+  for (int s = 0; s < L.num_subdomains; ++s) {
+    in.push_back(model.input(s));
+    d.offset.push_back(d.offset.back() + static_cast<int>(in.back().system.f.size()));
+  }
+  std::map<RowKey, std::vector<std::pair<int, double>>> rows;
+  std::map<RowKey, std::pair<MultiplierKind, double>> meta;
+  for (int s = 0; s < L.num_subdomains; ++s) {
+    std::vector<LocalRow> lr;
+    subdomain_rows(L, in[s], lr);
+    for (const auto& r : lr) {
+      if (gluing_only && r.kind != MultiplierKind::gluing) continue;
+      for (const auto& [dof, v] : r.entries) rows[r.key].push_back({d.offset[s] + dof, v});
+      meta[r.key] = {r.kind, r.rhs};
+    }
+  }
+  const int N = d.offset.back();
+  d.B = Eigen::MatrixXd::Zero(static_cast<int>(rows.size()), N);
+  d.c = Eigen::VectorXd::Zero(static_cast<int>(rows.size()));
+  int r = 0;
+  for (const auto& [key, entries] : rows) {
+    for (const auto& [col, v] : entries) d.B(r, col) += v;
+    d.kind.push_back(meta[key].first);
+    d.c[r] = meta[key].second;
+    ++r;
+  }
+  std::vector<std::vector<double>> crow;
+  std::vector<Eigen::VectorXd> cr;
+  for (int c = 0; c < L.num_clusters; ++c) {
+    std::vector<const SubdomainInput*> members;
+    for (int s = L.cluster_first[c]; s < L.cluster_first[c + 1]; ++s) members.push_back(&in[s]);
+    for (const auto& row : cluster_primal_constraints(L, c, members)) {
+      Eigen::VectorXd v = Eigen::VectorXd::Zero(N);
+      for (const auto& e : row) v[d.offset[L.cluster_first[c] + e.member] + e.dof] += e.value;
+      cr.push_back(v);
+    }
+  }
+  d.C = Eigen::MatrixXd::Zero(static_cast<int>(cr.size()), N);
+  for (size_t i = 0; i < cr.size(); ++i) d.C.row(static_cast<int>(i)) = cr[i].transpose();
+  return d;
 }
 
 }  // namespace htfeti::test

@@ -21,11 +21,13 @@ class DualOperators : public ::testing::TestWithParam<Case> {
     const Case c = GetParam();
     dec = std::make_unique<Decomposition>(
         DecompositionOptions{c.problem, ElementKind::q1, c.n, c.ns, c.m, c.glue});
-    dual = std::make_unique<DualProblem>(*dec, comm);
+    model = make_builtin_model(dec->options());
+    dual = test::make_dual(*model, comm);
   }
   double dot(const Eigen::VectorXd& a, const Eigen::VectorXd& b) { return comm.sum(a.dot(b)); }
   Comm comm;
   std::unique_ptr<Decomposition> dec;
+  std::unique_ptr<Model> model;
   std::unique_ptr<DualProblem> dual;
 };
 
@@ -105,7 +107,8 @@ TEST_P(DualOperators, ExplicitEqualsImplicit) {
   FetiOptions imp, exp;
   imp.dual_operator = DualOperator::implicit;
   exp.dual_operator = DualOperator::explicit_;
-  DualProblem a(*dec, comm, imp), b(*dec, comm, exp);
+  auto pa = test::make_dual(*model, comm, imp), pb = test::make_dual(*model, comm, exp);
+  DualProblem &a = *pa, &b = *pb;
   ASSERT_FALSE(a.explicit_operator());
   ASSERT_TRUE(b.explicit_operator());
   Eigen::VectorXd fa, fb;

@@ -5,6 +5,7 @@
 #include <Eigen/Dense>
 #include <numeric>
 
+#include "helpers.hpp"
 #include "htfeti/feti/cluster.hpp"
 #include "htfeti/feti/constraints.hpp"
 
@@ -33,12 +34,14 @@ TEST(Element, P1StiffnessOfTwoRightTriangles) {
 TEST(Load, TotalLoadIsTheIntegralOfF) {
   for (auto element : {ElementKind::q1, ElementKind::p1}) {
     Decomposition dec({ProblemKind::membranes, element, 8, 2, 1, Glue::averages});
+    const auto model = make_builtin_model(dec.options());
     double total = 0;
-    for (int s = 0; s < dec.num_subdomains(); ++s) total += Subdomain(dec, s).f().sum();
+    for (int s = 0; s < dec.num_subdomains(); ++s) total += test::make_subdomain(*model, s).f().sum();
     EXPECT_NEAR(total, -3.0 * 0.25 - 1.0 * 0.25, 1e-14);
     Decomposition p({ProblemKind::poisson2d, element, 6, 3, 1, Glue::averages});
+    const auto pm = make_builtin_model(p.options());
     total = 0;
-    for (int s = 0; s < p.num_subdomains(); ++s) total += Subdomain(p, s).f().sum();
+    for (int s = 0; s < p.num_subdomains(); ++s) total += test::make_subdomain(*pm, s).f().sum();
     EXPECT_NEAR(total, 1.0, 1e-14);
   }
 }
@@ -46,7 +49,8 @@ TEST(Load, TotalLoadIsTheIntegralOfF) {
 TEST(Subdomain, GeneralizedInverseAndKernel) {
   for (auto element : {ElementKind::q1, ElementKind::p1}) {
     Decomposition dec({ProblemKind::poisson2d, element, 10, 2, 1, Glue::averages});
-    Subdomain sd(dec, 3);
+    const auto model = make_builtin_model(dec.options());
+    Subdomain sd = test::make_subdomain(*model, 3);
     sd.factorize(Ordering::amd);
     const Eigen::MatrixXd K = Eigen::MatrixXd(sd.K());
     Eigen::MatrixXd KpK(K.rows(), K.cols());
@@ -74,30 +78,14 @@ TEST(Subdomain, NotPositiveDefiniteIsAnError) {
 
 namespace {
 
-// Dense B~ (rows: multipliers, columns: all subdomain dofs stacked) and C (all clusters).
 struct Dense {
   Eigen::MatrixXd B, C;
-  int gluing_rows = 0;
 };
 
 Dense dense_constraints(const Decomposition& dec, bool gluing_only) {
-  const int per = dec.nodes_per_subdomain(), N = dec.num_subdomains() * per;
-  std::vector<Multiplier> rows;
-  for_each_multiplier(dec, [&](const Multiplier& m) {
-    if (!gluing_only || m.kind == MultiplierKind::gluing) rows.push_back(m);
-  });
-  Dense d;
-  d.B = Eigen::MatrixXd::Zero(static_cast<int>(rows.size()), N);
-  for (size_t r = 0; r < rows.size(); ++r)
-    for (const auto& e : rows[r].entries)
-      d.B(static_cast<int>(r), e.subdomain * per + e.dof) += e.value;
-  std::vector<std::vector<ConstraintEntry>> c;
-  for (int cl = 0; cl < dec.num_clusters(); ++cl)
-    for (auto& row : cluster_primal_constraints(dec, cl)) c.push_back(row);
-  d.C = Eigen::MatrixXd::Zero(static_cast<int>(c.size()), N);
-  for (size_t r = 0; r < c.size(); ++r)
-    for (const auto& e : c[r]) d.C(static_cast<int>(r), e.subdomain * per + e.dof) += e.value;
-  return d;
+  const auto model = make_builtin_model(dec.options());
+  const auto d = test::dense_constraints(*model, gluing_only);
+  return {d.B, d.C};
 }
 
 }  // namespace
@@ -138,21 +126,27 @@ TEST_P(ClusterInverse, IsAGeneralizedInverseOfTheClusterStiffness) {
   // K~ = Z' K Z with Z an orthonormal basis of Ker C; the cluster solve returns Z K~^+ Z' x.
   const auto [H, m, glue] = GetParam();
   Decomposition dec({ProblemKind::poisson2d, ElementKind::q1, H * m, m, m, glue});
+  const auto model = make_builtin_model(dec.options());
+  const FetiLayout layout = model->layout();
+  std::vector<SubdomainInput> inputs;
+  std::vector<const SubdomainInput*> members;
+  for (int s = 0; s < m * m; ++s) inputs.push_back(model->input(s));
+  for (const auto& in : inputs) members.push_back(&in);
+  const auto rows = cluster_primal_constraints(layout, 0, members);
   std::vector<std::unique_ptr<Subdomain>> subs;
   std::vector<Subdomain*> ptrs;
   for (int s = 0; s < m * m; ++s) {
-    subs.push_back(std::make_unique<Subdomain>(dec, s));
+    subs.push_back(std::make_unique<Subdomain>(inputs[s].system));
     ptrs.push_back(subs.back().get());
   }
-  Cluster cluster(dec, 0, ptrs, Ordering::amd);
-  const int per = dec.nodes_per_subdomain(), N = m * m * per;
+  Cluster cluster(0, ptrs, rows, Ordering::amd);
+  const int per = static_cast<int>(dec.nodes_per_subdomain()), N = m * m * per;
   Eigen::MatrixXd K = Eigen::MatrixXd::Zero(N, N), C;
   for (int s = 0; s < m * m; ++s)
     K.block(s * per, s * per, per, per) = Eigen::MatrixXd(subs[s]->K());
-  const auto rows = cluster_primal_constraints(dec, 0);
   C = Eigen::MatrixXd::Zero(static_cast<int>(rows.size()), N);
   for (size_t r = 0; r < rows.size(); ++r)
-    for (const auto& e : rows[r]) C(static_cast<int>(r), e.subdomain * per + e.dof) += e.value;
+    for (const auto& e : rows[r]) C(static_cast<int>(r), e.member * per + e.dof) += e.value;
   // Z: orthonormal basis of Ker C from the SVD.
   Eigen::MatrixXd Z = Eigen::MatrixXd::Identity(N, N);
   if (C.rows() > 0) {
@@ -173,7 +167,10 @@ TEST_P(ClusterInverse, IsAGeneralizedInverseOfTheClusterStiffness) {
   EXPECT_LT((Z.transpose() * K * AKZ - Kt).norm(), 1e-10 * Kt.norm());
   // The result satisfies the primal constraints, and the cluster kernel is the constant.
   EXPECT_LT((C * AKZ).norm(), 1e-10 * AKZ.norm());
-  const Eigen::VectorXd R = Eigen::VectorXd::Constant(N, cluster.kernel_value());
+  ASSERT_EQ(cluster.kernel_dimension(), 1);
+  Eigen::VectorXd R(N);
+  for (int s = 0; s < m * m; ++s)
+    for (int k = 0; k < per; ++k) R[s * per + k] = cluster.kernel_entry(s, k, 0);
   EXPECT_NEAR(R.norm(), 1.0, 1e-14);
   EXPECT_LT((Kt * (Z.transpose() * R)).norm(), 1e-12);
   EXPECT_LT((Z * (Z.transpose() * R) - R).norm(), 1e-12);  // R~ lies in the cluster space

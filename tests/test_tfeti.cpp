@@ -25,7 +25,7 @@ TEST_P(LinearAgainstUndecomposed, Poisson2d) {
   auto out = solve(opt, comm);
   ASSERT_TRUE(out.converged);
   const auto ref = solve_undecomposed(ProblemKind::poisson2d, c.element, c.n);
-  EXPECT_LT(test::relative_error(*out.dual, out.u, ref.u), 1e-8);
+  EXPECT_LT(test::relative_error(*out.model, *out.dual, out.u, ref.u), 1e-8);
   const double energy = out.report["objective"];
   EXPECT_NEAR(energy, ref.energy, 1e-8 * std::abs(ref.energy));
   EXPECT_LT(out.report["kkt"]["equality_residual"].get<double>(), 1e-8);

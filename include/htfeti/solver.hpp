@@ -7,12 +7,13 @@
 #include <nlohmann/json.hpp>
 
 #include "htfeti/feti/dual_problem.hpp"
+#include "htfeti/model.hpp"
 #include "htfeti/qp/smalbe.hpp"
 
 namespace htfeti {
 
 struct SolveOptions {
-  DecompositionOptions decomposition;
+  DecompositionOptions decomposition;  ///< the built-in problem (solve(options, comm) only)
   FetiOptions feti;
   double rtol = 1e-4;        ///< relative precision eps of the QP solvers (paper: 1e-4)
   int max_iterations = 0;    ///< PCG iterations or SMALBE-M outer iterations; 0: 1000 / 200
@@ -22,17 +23,23 @@ struct SolveOptions {
 
 struct SolveOutput {
   nlohmann::json report;  ///< identical on every rank
-  std::unique_ptr<Decomposition> decomposition;
+  std::shared_ptr<const Model> model;
   std::unique_ptr<DualProblem> dual;
   std::vector<Eigen::VectorXd> u;  ///< primal solution of this rank's subdomains
   Eigen::VectorXd lambda;          ///< owned multipliers
   bool converged = false;
 };
 
-/// Throws std::invalid_argument for bad options (the same on every rank).
+/// Solves a model. Throws std::invalid_argument for bad options or input (on every rank alike),
+/// std::runtime_error for a numerical failure (agreed on by all ranks).
+SolveOutput solve(std::shared_ptr<const Model> model, const SolveOptions& options,
+                  const Comm& comm);
+/// Solves the built-in problem of options.decomposition.
 SolveOutput solve(const SolveOptions& options, const Comm& comm);
 
-/// Checks options that do not need a decomposition; throws std::invalid_argument.
+/// Checks the solver options; throws std::invalid_argument.
+void validate_solver(const SolveOptions& options);
+/// validate_solver() and the built-in decomposition.
 void validate(const SolveOptions& options);
 
 }  // namespace htfeti

@@ -4,30 +4,12 @@
 
 namespace htfeti {
 
-Glue parse_glue(const std::string& name) {
-  if (name == "corners") return Glue::corners;
-  if (name == "averages") return Glue::averages;
-  if (name == "corners+averages") return Glue::corners_averages;
-  throw std::invalid_argument("unknown glue '" + name +
-                              "' (expected corners, averages or corners+averages)");
-}
-
-std::string to_string(Glue glue) {
-  switch (glue) {
-    case Glue::corners:
-      return "corners";
-    case Glue::averages:
-      return "averages";
-    case Glue::corners_averages:
-      return "corners+averages";
-  }
-  return "?";
-}
-
 Decomposition::Decomposition(const DecompositionOptions& o) : opt_(o) {
   if (o.elements <= 0) throw std::invalid_argument("--elements must be positive");
   if (o.subdomains <= 0) throw std::invalid_argument("--subdomains must be positive");
   if (o.cluster_size <= 0) throw std::invalid_argument("--cluster-size must be positive");
+  if (1LL * o.subdomains * o.subdomains * 2 > 1000000000LL)
+    throw std::invalid_argument("--subdomains " + std::to_string(o.subdomains) + " is too large");
   if (o.elements % o.subdomains != 0)
     throw std::invalid_argument("--elements " + std::to_string(o.elements) +
                                 " is not divisible by --subdomains " +
@@ -36,10 +18,25 @@ Decomposition::Decomposition(const DecompositionOptions& o) : opt_(o) {
     throw std::invalid_argument("--subdomains " + std::to_string(o.subdomains) +
                                 " is not divisible by --cluster-size " +
                                 std::to_string(o.cluster_size));
+  if (nodes_per_subdomain() > 500000000LL)
+    throw std::invalid_argument("a subdomain of " + std::to_string(H()) + " x " +
+                                std::to_string(H()) + " elements is too large (use more subdomains)");
   if (glue_averages() && H() < 2)
     throw std::invalid_argument(
         "gluing by edge averages needs at least 2 elements per subdomain side (edge interiors "
         "are empty otherwise); use --glue corners or fewer subdomains");
+}
+
+BoxGrid Decomposition::grid() const {
+  BoxGridOptions g;
+  g.dim = 2;
+  g.cell = opt_.element == ElementKind::q1 ? CellType::quad4 : CellType::tri3;
+  g.boxes = squares();
+  g.size = {1, 1, 1};
+  g.elements = {n(), n(), 1};
+  g.subdomains = {ns(), ns(), 1};
+  g.cluster_size = m();
+  return BoxGrid(g);
 }
 
 SubdomainPosition Decomposition::position(int s) const {

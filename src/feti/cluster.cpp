@@ -8,8 +8,6 @@
 #include <stdexcept>
 #include <string>
 
-#include "htfeti/feti/constraints.hpp"
-
 namespace htfeti {
 
 DualOperator parse_dual_operator(const std::string& name) {
@@ -32,12 +30,27 @@ std::string to_string(DualOperator kind) {
   return "?";
 }
 
-Cluster::Cluster(const Decomposition& dec, int id, std::vector<Subdomain*> subs, Ordering ordering,
-                 std::vector<std::vector<Subdomain::BEntry>> b, std::vector<int> nmult,
-                 bool explicit_F)
+namespace {
+
+// An orthonormal basis of Null(A) (A is O(1): orthonormal rows times orthonormal columns).
+Eigen::MatrixXd null_space(const Eigen::MatrixXd& A) {
+  const int n = static_cast<int>(A.cols());
+  if (A.rows() == 0) return Eigen::MatrixXd::Identity(n, n);
+  Eigen::BDCSVD<Eigen::MatrixXd> svd(A, Eigen::ComputeFullV);
+  const auto& sv = svd.singularValues();
+  int rank = 0;
+  for (int i = 0; i < sv.size(); ++i)
+    if (sv[i] > 1e-9) ++rank;
+  return svd.matrixV().rightCols(n - rank);
+}
+
+}  // namespace
+
+Cluster::Cluster(int id, std::vector<Subdomain*> subs, std::vector<std::vector<ConstraintEntry>> C,
+                 Ordering ordering, std::vector<std::vector<Subdomain::BEntry>> b,
+                 std::vector<int> nmult, bool explicit_F)
     : id_(id), subs_(std::move(subs)), b_(std::move(b)), explicit_(explicit_F) {
   const int s = static_cast<int>(subs_.size());
-  long total = 0;
   if (explicit_)
     F_.resize(s), V_.resize(s);
   else
@@ -55,41 +68,82 @@ Cluster::Cluster(const Decomposition& dec, int id, std::vector<Subdomain*> subs,
         dofs.erase(std::unique(dofs.begin(), dofs.end()), dofs.end());
         subs_[i]->factorize_with_interface_last(dofs);
         F_[i] = subs_[i]->dual_block(b_[i], nmult[i]);
-        V_[i] = Eigen::VectorXd::Zero(nmult[i]);
-        for (const auto& e : b_[i]) V_[i][e.mult] += e.value * subs_[i]->kernel()[e.dof];
+        V_[i] = Eigen::MatrixXd::Zero(nmult[i], subs_[i]->kernel_dimension());
+        for (const auto& e : b_[i]) V_[i].row(e.mult) += e.value * subs_[i]->kernel().row(e.dof);
       } else {
         subs_[i]->factorize(ordering);
         xw_[i] = Eigen::VectorXd::Zero(subs_[i]->size());
       }
     } catch (const std::exception& e) {
 #pragma omp critical
-      error = e.what();
+      error = "subdomain " + std::to_string(subs_[i]->id()) + ": " + e.what();
     }
   }
   if (!error.empty()) throw std::runtime_error(error);
-  for (int i = 0; i < s; ++i) total += subs_[i]->size();
-  kernel_value_ = 1.0 / std::sqrt(static_cast<double>(total));
-  const auto rows = cluster_primal_constraints(dec, id);
-  nc_ = static_cast<int>(rows.size());
-  if (nc_ == 0) {
+
+  const auto t0 = std::chrono::steady_clock::now();
+  beta_offset_.assign(s + 1, 0);
+  for (int i = 0; i < s; ++i) beta_offset_[i + 1] = beta_offset_[i] + subs_[i]->kernel_dimension();
+  const int nk = beta_offset_[s];
+  nc_ = static_cast<int>(C.size());
+  c_of_sub_.assign(s, {});
+  cols_of_sub_.assign(s, {});
+  for (int j = 0; j < nc_; ++j)
+    for (const auto& e : C[j]) {
+      c_of_sub_[e.member].push_back({j, e.dof, e.value});
+      auto& cols = cols_of_sub_[e.member];
+      if (cols.empty() || cols.back() != j) cols.push_back(j);
+    }
+  // Cluster kernel N = Null(C R), made canonical: beta_J fixed by a greedy choice in coefficient
+  // order, N <- N N_J^{-1} (so N_J = I), then orthonormalized column by column.
+  Eigen::MatrixXd CR = Eigen::MatrixXd::Zero(nc_, nk);
+  for (int i = 0; i < s; ++i)
+    for (const auto& e : c_of_sub_[i])
+      CR.row(e.constraint).segment(beta_offset_[i], subs_[i]->kernel_dimension()) +=
+          e.value * subs_[i]->kernel().row(e.dof);
+  const Eigen::MatrixXd N0 = null_space(CR);
+  const int dk = static_cast<int>(N0.cols());
+  std::vector<int> J;
+  {
+    Eigen::MatrixXd basis(dk, dk);
+    int r = 0;
+    for (int g = 0; g < nk && r < dk; ++g) {
+      Eigen::VectorXd v = N0.row(g).transpose();
+      const double n0 = v.norm();
+      if (n0 < 1e-8) continue;
+      for (int pass = 0; pass < 2; ++pass)
+        for (int q = 0; q < r; ++q) v -= basis.col(q).dot(v) * basis.col(q);
+      if (v.norm() < 1e-6 * n0) continue;
+      basis.col(r++) = v.normalized();
+      J.push_back(g);
+    }
+    if (r < dk) throw std::runtime_error("cluster " + std::to_string(id) + ": kernel selection failed");
+  }
+  if (dk > 0) {
+    Eigen::MatrixXd NJ(dk, dk);
+    for (int j = 0; j < dk; ++j) NJ.row(j) = N0.row(J[j]);
+    Eigen::MatrixXd N = N0 * NJ.inverse();
+    for (int j = 0; j < dk; ++j) {
+      for (int pass = 0; pass < 2; ++pass)
+        for (int q = 0; q < j; ++q) N.col(j) -= N.col(q).dot(N.col(j)) * N.col(q);
+      N.col(j).normalize();
+    }
+    N_ = N;
+  } else {
+    N_ = Eigen::MatrixXd(nk, 0);
+  }
+  beta_index_.assign(nk, -1);
+  int dim = nc_;
+  for (int g = 0; g < nk; ++g)
+    if (std::find(J.begin(), J.end(), g) == J.end()) beta_index_[g] = dim++;
+  if (dim == 0) {
     rhs_.resize(0);
     sol_.resize(0);
     if (explicit_) b_ = {};  // the explicit blocks replace the rows of B~ here
     return;
   }
 
-  const auto t0 = std::chrono::steady_clock::now();
-  const int first = subs_.front()->id();
-  c_of_sub_.assign(s, {});
-  cols_of_sub_.assign(s, {});
-  for (int j = 0; j < nc_; ++j)
-    for (const auto& e : rows[j]) {
-      const int i = e.subdomain - first;
-      c_of_sub_[i].push_back({j, e.dof, e.value});
-      if (cols_of_sub_[i].empty() || cols_of_sub_[i].back() != j) cols_of_sub_[i].push_back(j);
-    }
   // W_i = K_i^+ C_i^T, and the dense saddle-point matrix.
-  const int dim = nc_ + s - 1;
   Eigen::MatrixXd S = Eigen::MatrixXd::Zero(dim, dim);
   W_.resize(s);
 #pragma omp parallel for schedule(dynamic) if (!omp_in_parallel() && s > 1)
@@ -110,30 +164,62 @@ Cluster::Cluster(const Decomposition& dec, int id, std::vector<Subdomain*> subs,
     for (const auto& e : c_of_sub_[i])
       for (int col = 0; col < W_[i].cols(); ++col)
         S(e.constraint, cols[col]) += e.value * W_[i](e.dof, col);
-    if (i > 0) {
-      const Eigen::VectorXd& R = subs_[i]->kernel();
-      for (const auto& e : c_of_sub_[i]) {
-        S(e.constraint, nc_ + i - 1) -= e.value * R[e.dof];
-        S(nc_ + i - 1, e.constraint) -= e.value * R[e.dof];
-      }
+  }
+  for (int g = 0; g < nk; ++g) {
+    if (beta_index_[g] < 0) continue;
+    for (int j = 0; j < nc_; ++j) {
+      S(j, beta_index_[g]) -= CR(j, g);
+      S(beta_index_[g], j) -= CR(j, g);
     }
   }
+  // Equilibration: S' = D S D with D = 1/sqrt(a) on mu and sqrt(a) on beta, a = max diagonal of
+  // C K^+ C^T, so both blocks are O(1) whatever the stiffness scale.
+  double a = 0;
+  for (int j = 0; j < nc_; ++j) a = std::max(a, S(j, j));
+  if (!(a > 0)) a = 1;
+  dscale_.resize(dim);
+  for (int j = 0; j < dim; ++j) dscale_[j] = j < nc_ ? 1.0 / std::sqrt(a) : std::sqrt(a);
+  const Eigen::MatrixXd Ss = dscale_.asDiagonal() * S * dscale_.asDiagonal();
   if (explicit_) {  // U_i = B_i W_i
     for (int i = 0; i < s; ++i) {
       U_.push_back(Eigen::MatrixXd::Zero(nmult[i], W_[i].cols()));
       for (const auto& e : b_[i]) U_[i].row(e.mult) += e.value * W_[i].row(e.dof);
     }
   }
-  lu_.compute(S);
+  lu_.compute(Ss);
   if (explicit_) b_ = {};  // the explicit blocks replace the rows of B~ here
   setup_seconds_ = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   const double rcond = lu_.rcond();
-  if (!(rcond > 1e-14))
+  if (!(rcond > 1e-13))
     throw std::runtime_error("cluster " + std::to_string(id) +
-                             ": the primal constraints do not remove the subdomain kernels "
-                             "(singular cluster system)");
+                             ": singular cluster system (reciprocal condition number " +
+                             std::to_string(rcond) + " after scaling)");
   rhs_.resize(dim);
   sol_.resize(dim);
+}
+
+void Cluster::solve_saddle() {
+  rhs_.array() *= dscale_.array();
+  sol_.noalias() = lu_.solve(rhs_);
+  sol_.array() *= dscale_.array();
+}
+
+void Cluster::kernel_dot(int i, const Eigen::VectorXd& x, double* out) const {
+  const int k = subs_[i]->kernel_dimension(), dk = kernel_dimension();
+  const Eigen::VectorXd rx = subs_[i]->kernel().transpose() * x;  // small
+  for (int j = 0; j < dk; ++j) out[j] += N_.col(j).segment(beta_offset_[i], k).dot(rx);
+}
+
+void Cluster::kernel_add(int i, const double* gamma, Eigen::VectorXd& u) const {
+  const int k = subs_[i]->kernel_dimension(), dk = kernel_dimension();
+  Eigen::VectorXd beta = Eigen::VectorXd::Zero(k);
+  for (int j = 0; j < dk; ++j) beta += gamma[j] * N_.col(j).segment(beta_offset_[i], k);
+  u.noalias() += subs_[i]->kernel() * beta;
+}
+
+double Cluster::kernel_entry(int i, int dof, int j) const {
+  const int k = subs_[i]->kernel_dimension();
+  return subs_[i]->kernel().row(dof).dot(N_.col(j).segment(beta_offset_[i], k));
 }
 
 void Cluster::release_factors() {
@@ -145,11 +231,18 @@ void Cluster::release_factors() {
 
 void Cluster::refactor(Ordering ordering) {
   const int s = static_cast<int>(subs_.size());
+  std::string error;
 #pragma omp parallel for schedule(dynamic) if (!omp_in_parallel() && s > 1)
   for (int i = 0; i < s; ++i) {
-    subs_[i]->factorize(ordering);
-    subs_[i]->release_matrix();
+    try {
+      subs_[i]->factorize(ordering);
+      subs_[i]->release_matrix();
+    } catch (const std::exception& e) {
+#pragma omp critical
+      error = e.what();
+    }
   }
+  if (!error.empty()) throw std::runtime_error(error);
 }
 
 long Cluster::explicit_doubles() const {
@@ -180,21 +273,27 @@ void Cluster::apply_dual(const std::vector<Eigen::VectorXd>& lam,
 #pragma omp parallel for schedule(static) if (!omp_in_parallel() && s > 1)
   for (int i = 0; i < s; ++i)
     out[i].noalias() = F_[i].selfadjointView<Eigen::Lower>() * lam[i];  // the bottleneck
-  if (nc_ == 0) return;
+  if (rhs_.size() == 0) return;
   rhs_.setZero();
   for (int i = 0; i < s; ++i) {  // fixed order
     const auto& cols = cols_of_sub_[i];
     for (int col = 0; col < static_cast<int>(cols.size()); ++col)
-      rhs_[cols[col]] += U_[i].col(col).dot(lam[i]);    // C K^+ B^T lam
-    if (i > 0) rhs_[nc_ + i - 1] = -V_[i].dot(lam[i]);  // -R'^T B^T lam
+      rhs_[cols[col]] += U_[i].col(col).dot(lam[i]);  // C K^+ B^T lam
+    for (int q = 0; q < V_[i].cols(); ++q) {
+      const int bi = beta_index_[beta_offset_[i] + q];
+      if (bi >= 0) rhs_[bi] = -V_[i].col(q).dot(lam[i]);  // -R_F^T B^T lam
+    }
   }
-  sol_.noalias() = lu_.solve(rhs_);
+  solve_saddle();
 #pragma omp parallel for schedule(static) if (!omp_in_parallel() && s > 1)
   for (int i = 0; i < s; ++i) {
     const auto& cols = cols_of_sub_[i];
     for (int col = 0; col < static_cast<int>(cols.size()); ++col)
       out[i].noalias() -= sol_[cols[col]] * U_[i].col(col);
-    if (i > 0) out[i].noalias() += sol_[nc_ + i - 1] * V_[i];
+    for (int q = 0; q < V_[i].cols(); ++q) {
+      const int bi = beta_index_[beta_offset_[i] + q];
+      if (bi >= 0) out[i].noalias() += sol_[bi] * V_[i].col(q);
+    }
   }
 }
 
@@ -206,24 +305,31 @@ long Cluster::dense_doubles() const {
 
 void Cluster::solve(std::vector<Eigen::VectorXd>& x) {
   const int s = static_cast<int>(subs_.size());
-  if (nc_ == 0) {
+  if (rhs_.size() == 0) {
 #pragma omp parallel for schedule(dynamic) if (!omp_in_parallel() && s > 1)
     for (int i = 0; i < s; ++i) subs_[i]->apply_pinv(x[i].data(), x[i].data());
     return;
   }
   rhs_.setZero();
-  for (int i = 1; i < s; ++i) rhs_[nc_ + i - 1] = -subs_[i]->kernel().dot(x[i]);
+  for (int i = 0; i < s; ++i)
+    for (int q = 0; q < subs_[i]->kernel_dimension(); ++q) {
+      const int bi = beta_index_[beta_offset_[i] + q];
+      if (bi >= 0) rhs_[bi] = -subs_[i]->kernel().col(q).dot(x[i]);
+    }
 #pragma omp parallel for schedule(dynamic) if (!omp_in_parallel() && s > 1)
   for (int i = 0; i < s; ++i) subs_[i]->apply_pinv(x[i].data(), x[i].data());  // x_i <- K_i^+ x_i
   for (int i = 0; i < s; ++i)  // C K^+ x, summed in a fixed order
     for (const auto& e : c_of_sub_[i]) rhs_[e.constraint] += e.value * x[i][e.dof];
-  sol_.noalias() = lu_.solve(rhs_);
+  solve_saddle();
 #pragma omp parallel for schedule(static) if (!omp_in_parallel() && s > 1)
   for (int i = 0; i < s; ++i) {
     const auto& cols = cols_of_sub_[i];
     for (int col = 0; col < static_cast<int>(cols.size()); ++col)
       x[i].noalias() -= sol_[cols[col]] * W_[i].col(col);
-    if (i > 0) x[i].noalias() += sol_[nc_ + i - 1] * subs_[i]->kernel();
+    for (int q = 0; q < subs_[i]->kernel_dimension(); ++q) {
+      const int bi = beta_index_[beta_offset_[i] + q];
+      if (bi >= 0) x[i].noalias() += sol_[bi] * subs_[i]->kernel().col(q);
+    }
   }
 }
 

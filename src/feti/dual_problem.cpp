@@ -8,7 +8,12 @@
 #include <cmath>
 #include <limits>
 #include <stdexcept>
+#include <cstddef>
+#include <numeric>
 #include <string>
+#include <tuple>
+
+#include "htfeti/parallel/key_numbering.hpp"
 
 namespace htfeti {
 
@@ -18,67 +23,145 @@ double now() {
 }
 }  // namespace
 
-DualProblem::DualProblem(const Decomposition& dec, const Comm& comm, const FetiOptions& options)
-    : dec_(dec), comm_(comm) {
-  const int P = comm.size(), me = comm.rank(), mm = dec.m() * dec.m();
-  const auto [c0, c1] = dec.cluster_range(me, P);
-  first_sub_ = c0 * mm;
-  const int nsub = (c1 - c0) * mm;
+DualProblem::DualProblem(const FetiLayout& layout,
+                         const std::function<SubdomainInput(int)>& make_input, const Comm& comm,
+                         const FetiOptions& options)
+    : layout_(layout), comm_(comm) {
+  const int P = comm.size(), me = comm.rank();
+  std::tie(c0_, c1_) = layout_.cluster_range(me, P);
+  const int ncl = c1_ - c0_;
+  const int s0 = layout_.cluster_first[c0_];
+  const int nsub = layout_.cluster_first[c1_] - s0;
+  sub_first_.resize(ncl + 1);
+  for (int c = 0; c <= ncl; ++c) sub_first_[c] = layout_.cluster_first[c0_ + c] - s0;
 
+  // 1. Per cluster: generate and assemble the subdomains, their rows of B~ and the cluster's
+  //    primal constraints, while the dof sharing is at hand; then drop the sharing.
   double t = now();
   subs_.resize(nsub);
-#pragma omp parallel for schedule(dynamic) if (omp_get_max_threads() > 1)
-  for (int s = 0; s < nsub; ++s) subs_[s] = std::make_unique<Subdomain>(dec, first_sub_ + s);
+  std::vector<std::vector<LocalRow>> local_rows(nsub);
+  std::vector<std::vector<std::vector<ConstraintEntry>>> primal(ncl);
+  outer_parallel_ = omp_get_max_threads() > 1 && ncl >= omp_get_max_threads();
+  std::string error;
+  bool input_error = false;
+#pragma omp parallel for schedule(dynamic) if (outer_parallel_)
+  for (int c = 0; c < ncl; ++c) {
+    try {
+      const int ms = members(c);
+      std::vector<SubdomainInput> in(ms);
+      std::string inner_error;
+      bool inner_input = false;
+#pragma omp parallel for schedule(dynamic) if (!omp_in_parallel() && ms > 1)
+      for (int i = 0; i < ms; ++i) {
+        try {
+          in[i] = make_input(layout_.cluster_first[c0_ + c] + i);
+          subdomain_rows(layout_, in[i], local_rows[sub_of(c, i)]);
+        } catch (const std::invalid_argument& e) {
+#pragma omp critical
+          inner_error = e.what(), inner_input = true;
+        } catch (const std::exception& e) {
+#pragma omp critical
+          inner_error = e.what();
+        }
+      }
+      if (!inner_error.empty()) {
+        if (inner_input) throw std::invalid_argument(inner_error);
+        throw std::runtime_error(inner_error);
+      }
+      std::vector<const SubdomainInput*> ptrs;
+      for (auto& x : in) ptrs.push_back(&x);
+      primal[c] = cluster_primal_constraints(layout_, c0_ + c, ptrs);
+      for (int i = 0; i < ms; ++i)
+        subs_[sub_of(c, i)] = std::make_unique<Subdomain>(std::move(in[i].system));
+    } catch (const std::invalid_argument& e) {
+#pragma omp critical
+      error = e.what(), input_error = true;
+    } catch (const std::bad_alloc&) {
+#pragma omp critical
+      error = "out of memory while assembling the subdomains", input_error = true;
+    } catch (const std::exception& e) {
+#pragma omp critical
+      error = e.what();
+    }
+  }
+  comm_.agree(error, input_error);
   setup_.assembly = now() - t;
 
-  // Rows of B~ touching this rank's subdomains.
+  // 2. Global numbering of the rows by key, owners, and the extended dual layout.
   t = now();
-  std::vector<long long> touched;
-  std::vector<int> touched_owner;
-  std::vector<MultiplierKind> touched_kind;
-  std::vector<double> touched_y, touched_scale;
-  std::vector<std::vector<std::pair<long long, std::pair<int, double>>>> grows(nsub);
-  n_dual_ = for_each_multiplier(dec, [&](const Multiplier& m) {
-    if (m.kind == MultiplierKind::contact) ++n_inequalities_;
-    bool mine = false;
-    int lowest = std::numeric_limits<int>::max();
-    for (const auto& e : m.entries) {
-      lowest = std::min(lowest, e.subdomain);
-      const int ls = e.subdomain - first_sub_;
-      if (ls >= 0 && ls < nsub) {
-        grows[ls].push_back({m.index, {e.dof, e.value}});
-        mine = true;
+  std::vector<NumberingKey> keys;
+  std::vector<int> key_owner;
+  std::vector<const LocalRow*> key_row;
+  {
+    std::vector<std::pair<RowKey, const LocalRow*>> all;
+    for (int s = 0; s < nsub; ++s)
+      for (const auto& r : local_rows[s]) all.push_back({r.key, &r});
+    std::sort(all.begin(), all.end(),
+              [](const auto& x, const auto& y) { return x.first < y.first; });
+    for (size_t i = 0; i < all.size(); ++i)
+      if (i == 0 || all[i].first != all[i - 1].first) {
+        keys.push_back(all[i].first);
+        key_owner.push_back(layout_.rank_of_subdomain(all[i].second->owner_subdomain, P));
+        key_row.push_back(all[i].second);
       }
-    }
-    if (!mine) return;
-    touched.push_back(m.index);
-    touched_owner.push_back(dec.rank_of_subdomain(lowest, P));
-    touched_kind.push_back(m.kind);
-    touched_y.push_back(m.y);
-    touched_scale.push_back(m.scale);
-  });
-  layout_ = DualLayout(comm, touched, touched_owner);
-  const int n_ext = layout_.n_ext(), n_own = layout_.n_owned();
+  }
+  // Bucket position: per-node rows by their node, object rows after all nodes by cluster.
+  const long long nodes = layout_.num_nodes;
+  const std::vector<long long> index = number_keys(
+      comm_, keys, nodes + layout_.num_clusters,
+      [nodes](const NumberingKey& k) { return k[0] == 0 ? k[1] : nodes + k[1]; }, n_dual_);
+  {
+    std::vector<long long> touched(index);
+    std::vector<int> owner(key_owner);
+    std::vector<size_t> perm(index.size());
+    std::iota(perm.begin(), perm.end(), 0);
+    std::sort(perm.begin(), perm.end(), [&](size_t a, size_t b) { return index[a] < index[b]; });
+    for (size_t i = 0; i < perm.size(); ++i) touched[i] = index[perm[i]], owner[i] = key_owner[perm[i]];
+    layout_dual_ = DualLayout(comm, touched, owner);
+  }
+  const int n_ext = layout_dual_.n_ext(), n_own = layout_dual_.n_owned();
   owner_.assign(n_ext, me);
   kind_.assign(n_own, MultiplierKind::gluing);
-  contact_y_.assign(n_own, 0.0);
+  c_ = Vec::Zero(n_own);
   contact_scale_.assign(n_own, 1.0);
-  for (size_t i = 0; i < touched.size(); ++i) {
-    const int k = layout_.ext_index(touched[i]);
-    owner_[k] = touched_owner[i];
+  contact_gap_.assign(n_own, 0.0);
+  contact_point_.assign(n_own, {0, 0, 0});
+  long long my_inequalities = 0;
+  for (size_t i = 0; i < keys.size(); ++i) {
+    const int k = layout_dual_.ext_index(index[i]);
+    owner_[k] = key_owner[i];
     if (k < n_own) {
-      kind_[k] = touched_kind[i];
-      contact_y_[k] = touched_y[i];
-      contact_scale_[k] = touched_scale[i];
+      const LocalRow& r = *key_row[i];
+      kind_[k] = r.kind;
+      c_[k] = r.rhs;
+      contact_scale_[k] = r.scale;
+      contact_gap_[k] = r.gap;
+      contact_point_[k] = r.point;
+      if (r.kind == MultiplierKind::contact) ++my_inequalities;
     }
   }
+  n_inequalities_ = comm_.sum(my_inequalities);
   rows_.resize(nsub);
   for (int s = 0; s < nsub; ++s) {
-    rows_[s].reserve(grows[s].size());
-    for (const auto& [g, dv] : grows[s])
-      rows_[s].push_back({layout_.ext_index(g), dv.first, dv.second});
+    auto& lr = local_rows[s];
+    std::vector<std::pair<int, const LocalRow*>> ordered;
+    for (const auto& r : lr) {
+      const size_t i = std::lower_bound(keys.begin(), keys.end(), r.key) - keys.begin();
+      ordered.push_back({layout_dual_.ext_index(index[i]), &r});
+    }
+    // Rows in global order (the order of the ext indices of owned entries, then ghosts, is the
+    // global order within each part; sort by global index for a fixed accumulation order).
+    std::sort(ordered.begin(), ordered.end(), [&](const auto& x, const auto& y) {
+      return layout_dual_.global(x.first) < layout_dual_.global(y.first);
+    });
+    for (const auto& [k, r] : ordered)
+      for (const auto& [dof, v] : r->entries)
+        rows_[s].push_back({k, dof, v, r->side});
+    lr = {};
   }
+  local_rows = {};
   setup_.constraints = now() - t;
+
   // Local numbering of the rows of B~ on each subdomain (distinct multipliers in extended order).
   mult_.resize(nsub);
   std::vector<std::vector<Subdomain::BEntry>> local_b(nsub);
@@ -92,78 +175,108 @@ DualProblem::DualProblem(const Decomposition& dec, const Comm& comm, const FetiO
       for (const auto& r : rows_[s]) local_b[s].push_back({local_of[r.k], r.dof, r.value});
     }
   }
+  double min_nodes = std::numeric_limits<double>::infinity(), local_dofs = 0;
+  for (const auto& sd : subs_) {
+    min_nodes = std::min(min_nodes, static_cast<double>(sd->size() / sd->dofs_per_node()));
+    local_dofs += sd->size();
+  }
+  min_nodes = comm_.min(min_nodes);
   explicit_ = options.dual_operator == DualOperator::explicit_ ||
-              (options.dual_operator == DualOperator::automatic &&
-               dec.nodes_per_subdomain() >= kExplicitMinNodes);
+              (options.dual_operator == DualOperator::automatic && min_nodes >= kExplicitMinNodes);
 
   ordering_ = options.ordering;
-  const double factor_bytes_estimate = 8.0 * 100.0 * nsub * dec.nodes_per_subdomain();
+  const double factor_bytes_estimate = 8.0 * 100.0 * local_dofs;
   factors_released_ =
       explicit_ && !options.keep_factors && factor_bytes_estimate > options.factor_budget_bytes;
   contrib_.resize(nsub);
   for (int s = 0; s < nsub; ++s) contrib_[s].assign(rows_[s].size(), 0.0);
-  x_.resize(c1 - c0);
-  for (int c = 0; c < c1 - c0; ++c)
-    for (int i = 0; i < mm; ++i) x_[c].push_back(Vec::Zero(subs_[c * mm + i]->size()));
+  x_.resize(ncl);
+  for (int c = 0; c < ncl; ++c)
+    for (int i = 0; i < members(c); ++i) x_[c].push_back(Vec::Zero(subs_[sub_of(c, i)]->size()));
 
+  // 3. Clusters: factorizations, explicit blocks, the primal-constraint systems; d.
   t = now();
-  clusters_.resize(c1 - c0);
-  // Threads run over clusters when there are enough of them, else inside each cluster.
-  outer_parallel_ = omp_get_max_threads() > 1 && c1 - c0 >= omp_get_max_threads();
-  std::string error;
+  clusters_.resize(ncl);
+  error.clear();
+  input_error = false;
 #pragma omp parallel for schedule(dynamic) if (outer_parallel_)
-  for (int c = c0; c < c1; ++c) {
-    std::vector<Subdomain*> members;
+  for (int c = 0; c < ncl; ++c) {
+    std::vector<Subdomain*> ptrs;
     std::vector<std::vector<Subdomain::BEntry>> b;
     std::vector<int> nmult;
-    for (int i = 0; i < mm; ++i) {
-      const int s = (c - c0) * mm + i;
-      members.push_back(subs_[s].get());
+    for (int i = 0; i < members(c); ++i) {
+      const int s = sub_of(c, i);
+      ptrs.push_back(subs_[s].get());
       b.push_back(std::move(local_b[s]));
       nmult.push_back(static_cast<int>(mult_[s].size()));
     }
     try {
-      clusters_[c - c0] = std::make_unique<Cluster>(dec, c, std::move(members), options.ordering,
-                                                    std::move(b), std::move(nmult), explicit_);
+      clusters_[c] = std::make_unique<Cluster>(c0_ + c, std::move(ptrs), std::move(primal[c]),
+                                               options.ordering, std::move(b), std::move(nmult),
+                                               explicit_);
       // The cluster's part of d = B~ K~^+ f, while its factors are at hand.
-      cluster_rhs_from_ext(c - c0, true, 0.0);
-      clusters_[c - c0]->solve(x_[c - c0]);
-      b_of_x(c - c0);
-      if (factors_released_) clusters_[c - c0]->release_factors();
+      cluster_rhs_from_ext(c, true, 0.0);
+      clusters_[c]->solve(x_[c]);
+      b_of_x(c);
+      if (factors_released_) clusters_[c]->release_factors();
+    } catch (const std::bad_alloc&) {
+#pragma omp critical
+      error = "out of memory while factoring the subdomains", input_error = true;
     } catch (const std::exception& e) {
 #pragma omp critical
       error = e.what();
     }
   }
-  if (!error.empty()) throw std::runtime_error(error);
-  for (auto& sd : subs_) sd->release_matrix();  // factored: K_i is no longer needed
+  comm_.agree(error, input_error);
+  if (!factors_released_)  // keep K_i for the energy unless memory is short
+    ;
+  else
+    for (auto& sd : subs_) sd->release_matrix();
   setup_.factorization = now() - t;
   for (const auto& c : clusters_) setup_.cluster_setup += c->setup_seconds();
-  lam_.resize(clusters_.size());
-  out_.resize(clusters_.size());
-  for (size_t c = 0; c < clusters_.size(); ++c)
-    for (int i = 0; i < mm; ++i) {
-      lam_[c].push_back(Vec::Zero(mult_[c * mm + i].size()));
-      out_[c].push_back(Vec::Zero(mult_[c * mm + i].size()));
+  lam_.resize(ncl);
+  out_.resize(ncl);
+  for (int c = 0; c < ncl; ++c)
+    for (int i = 0; i < members(c); ++i) {
+      lam_[c].push_back(Vec::Zero(mult_[sub_of(c, i)].size()));
+      out_[c].push_back(Vec::Zero(mult_[sub_of(c, i)].size()));
     }
 
-  // G~ rows: (G~)_{c,k} = R~_c . b_k = kernel value * sum of row k's coefficients on cluster c.
+  // 4. Coarse space: the kernel dimension of every cluster (allgathered), G~ rows
+  //    (G~)_{(c,j),k} = R~_{c,j} . b_k, the coarse matrix, e~ and lambda~.
   t = now();
-  g_rows_.resize(clusters_.size());
+  {
+    std::vector<int> dims(ncl), counts(P), displs(P + 1, 0), all(layout_.num_clusters);
+    for (int c = 0; c < ncl; ++c) dims[c] = clusters_[c]->kernel_dimension();
+    for (int r = 0; r < P; ++r) {
+      const auto [a, b] = layout_.cluster_range(r, P);
+      counts[r] = b - a;
+      displs[r + 1] = displs[r] + counts[r];
+    }
+    MPI_Allgatherv(dims.data(), ncl, MPI_INT, all.data(), counts.data(), displs.data(), MPI_INT,
+                   comm_.raw());
+    coarse_first_.assign(layout_.num_clusters + 1, 0);
+    for (int c = 0; c < layout_.num_clusters; ++c) coarse_first_[c + 1] = coarse_first_[c] + all[c];
+  }
+  g_rows_.resize(ncl);
   std::vector<double> acc(n_ext, 0.0);
   std::vector<int> hit;
-  for (size_t c = 0; c < clusters_.size(); ++c) {
-    hit.clear();
-    for (int i = 0; i < mm; ++i)
-      for (const auto& r : rows_[c * mm + i]) {
-        if (acc[r.k] == 0.0) hit.push_back(r.k);
-        acc[r.k] += r.value * clusters_[c]->kernel_value();
+  for (int c = 0; c < ncl; ++c) {
+    const int dk = clusters_[c]->kernel_dimension();
+    g_rows_[c].resize(dk);
+    for (int j = 0; j < dk; ++j) {
+      hit.clear();
+      for (int i = 0; i < members(c); ++i)
+        for (const auto& r : rows_[sub_of(c, i)]) {
+          if (acc[r.k] == 0.0) hit.push_back(r.k);
+          acc[r.k] += r.value * clusters_[c]->kernel_entry(i, r.dof, j);
+        }
+      std::sort(hit.begin(), hit.end());
+      hit.erase(std::unique(hit.begin(), hit.end()), hit.end());
+      for (int k : hit) {
+        if (acc[k] != 0.0) g_rows_[c][j].push_back({k, acc[k]});
+        acc[k] = 0.0;
       }
-    std::sort(hit.begin(), hit.end());
-    hit.erase(std::unique(hit.begin(), hit.end()), hit.end());
-    for (int k : hit) {
-      if (acc[k] != 0.0) g_rows_[c].push_back({k, acc[k]});
-      acc[k] = 0.0;
     }
   }
   ext_in_ = Vec::Zero(n_ext);
@@ -172,17 +285,14 @@ DualProblem::DualProblem(const Decomposition& dec, const Comm& comm, const FetiO
 
   assemble_coarse(std::vector<double>(n_own, 1.0), coarse_factor_);
 
-  // d = B~ K~^+ f, e~ = R~^T f, lambda~ = G~^T (G~G~^T)^{-1} e~.
   scatter_contrib();  // d: the clusters' parts were computed with their setup
   contrib_ = {};      // needed for nothing else
-  layout_.reverse_add(ext_out_.data());
-  d_ = ext_out_.head(n_own);
+  layout_dual_.reverse_add(ext_out_.data());
+  d_ = ext_out_.head(n_own) - c_;
   e_ = Vec::Zero(coarse_dimension());
-  for (size_t c = 0; c < clusters_.size(); ++c) {
-    double sum = 0;
-    for (int i = 0; i < mm; ++i) sum += subs_[c * mm + i]->f().sum();
-    e_[clusters_[c]->id()] = clusters_[c]->kernel_value() * sum;
-  }
+  for (int c = 0; c < ncl; ++c)
+    for (int i = 0; i < members(c); ++i)
+      clusters_[c]->kernel_dot(i, subs_[sub_of(c, i)]->f(), &e_[coarse_first_[c0_ + c]]);
   comm_.sum_in_place(e_.data(), static_cast<int>(e_.size()));
   coarse_work_ = e_;
   coarse_solve(coarse_work_);
@@ -196,29 +306,27 @@ DualProblem::DualProblem(const Decomposition& dec, const Comm& comm, const FetiO
 }
 
 void DualProblem::gather_to_ext(const Vec& owned) {
-  ext_in_.head(layout_.n_owned()) = owned;
-  layout_.forward(ext_in_.data());
+  ext_in_.head(layout_dual_.n_owned()) = owned;
+  layout_dual_.forward(ext_in_.data());
 }
 
 void DualProblem::cluster_rhs_from_ext(int c, bool add_f, double sign) {
-  const int mm = dec_.m() * dec_.m();
-  for (int i = 0; i < mm; ++i) {
+  for (int i = 0; i < members(c); ++i) {
     Vec& x = x_[c][i];
     if (add_f)
-      x = subs_[c * mm + i]->f();
+      x = subs_[sub_of(c, i)]->f();
     else
       x.setZero();
     if (sign != 0.0)
-      for (const auto& r : rows_[c * mm + i]) x[r.dof] += sign * r.value * ext_in_[r.k];
+      for (const auto& r : rows_[sub_of(c, i)]) x[r.dof] += sign * r.value * ext_in_[r.k];
   }
 }
 
 void DualProblem::b_of_x(int c) {
-  const int mm = dec_.m() * dec_.m();
-  for (int i = 0; i < mm; ++i) {
+  for (int i = 0; i < members(c); ++i) {
     const Vec& x = x_[c][i];
-    const auto& rows = rows_[c * mm + i];
-    double* out = contrib_[c * mm + i].data();
+    const auto& rows = rows_[sub_of(c, i)];
+    double* out = contrib_[sub_of(c, i)].data();
     for (size_t j = 0; j < rows.size(); ++j) out[j] = rows[j].value * x[rows[j].dof];
   }
 }
@@ -235,39 +343,52 @@ void DualProblem::scatter_contrib() {
 template <class Body>
 void DualProblem::for_each_cluster(Body body) {
   const int nc = static_cast<int>(clusters_.size());
+  std::string error;
 #pragma omp parallel for schedule(dynamic) if (outer_parallel_)
-  for (int c = 0; c < nc; ++c) body(c);
+  for (int c = 0; c < nc; ++c) {
+    try {
+      body(c);
+    } catch (const std::exception& e) {
+#pragma omp critical
+      error = e.what();
+    }
+  }
+  if (!error.empty()) throw std::runtime_error(error);
 }
 
 void DualProblem::apply_F(const Vec& lambda, Vec& y) {
   gather_to_ext(lambda);
-  const int mm = dec_.m() * dec_.m();
-  for_each_cluster([&](int c) {
-    for (int i = 0; i < mm; ++i) {  // the cluster's part of lambda
-      const auto& mult = mult_[c * mm + i];
+  const int nc = static_cast<int>(clusters_.size());
+#pragma omp parallel for schedule(dynamic) if (outer_parallel_)
+  for (int c = 0; c < nc; ++c) {
+    for (int i = 0; i < members(c); ++i) {  // the cluster's part of lambda
+      const auto& mult = mult_[sub_of(c, i)];
       Vec& l = lam_[c][i];
       for (size_t j = 0; j < mult.size(); ++j) l[j] = ext_in_[mult[j]];
     }
     clusters_[c]->apply_dual(lam_[c], out_[c]);  // the bottleneck
-  });
+  }
   ext_out_.setZero();  // F lambda, summed in a fixed order
-  for (size_t c = 0; c < clusters_.size(); ++c)
-    for (int i = 0; i < mm; ++i) {
-      const auto& mult = mult_[c * mm + i];
+  for (int c = 0; c < nc; ++c)
+    for (int i = 0; i < members(c); ++i) {
+      const auto& mult = mult_[sub_of(c, i)];
       const Vec& o = out_[c][i];
       for (size_t j = 0; j < mult.size(); ++j) ext_out_[mult[j]] += o[j];
     }
-  layout_.reverse_add(ext_out_.data());
-  y = ext_out_.head(layout_.n_owned());
+  layout_dual_.reverse_add(ext_out_.data());
+  y = ext_out_.head(layout_dual_.n_owned());
 }
 
 void DualProblem::apply_G(const Vec& lambda, Vec& coarse) {
   gather_to_ext(lambda);
   coarse.setZero(coarse_dimension());
   for (size_t c = 0; c < clusters_.size(); ++c) {
-    double s = 0;
-    for (const auto& [k, g] : g_rows_[c]) s += g * ext_in_[k];
-    coarse[clusters_[c]->id()] = s;
+    const int base = coarse_first_[clusters_[c]->id()];
+    for (size_t j = 0; j < g_rows_[c].size(); ++j) {
+      double s = 0;
+      for (const auto& [k, g] : g_rows_[c][j]) s += g * ext_in_[k];
+      coarse[base + static_cast<int>(j)] = s;
+    }
   }
   comm_.sum_in_place(coarse.data(), static_cast<int>(coarse.size()));
 }
@@ -275,108 +396,147 @@ void DualProblem::apply_G(const Vec& lambda, Vec& coarse) {
 void DualProblem::gt_into_ext(const Vec& coarse) {
   ext_out_.setZero();
   for (size_t c = 0; c < clusters_.size(); ++c) {
-    const double z = coarse[clusters_[c]->id()];
-    for (const auto& [k, g] : g_rows_[c]) ext_out_[k] += g * z;
+    const int base = coarse_first_[clusters_[c]->id()];
+    for (size_t j = 0; j < g_rows_[c].size(); ++j) {
+      const double z = coarse[base + static_cast<int>(j)];
+      for (const auto& [k, g] : g_rows_[c][j]) ext_out_[k] += g * z;
+    }
   }
-  layout_.reverse_add(ext_out_.data());
+  layout_dual_.reverse_add(ext_out_.data());
 }
 
 void DualProblem::apply_Gt(const Vec& coarse, Vec& lambda) {
   gt_into_ext(coarse);
-  lambda = ext_out_.head(layout_.n_owned());
+  lambda = ext_out_.head(layout_dual_.n_owned());
 }
 
 void DualProblem::project(const Vec& x, Vec& y) {
   apply_G(x, coarse_work_);    // G~ x
   coarse_solve(coarse_work_);  // (G~ G~^T)^{-1} G~ x
   gt_into_ext(coarse_work_);   // G~^T (G~ G~^T)^{-1} G~ x, owned part in ext_out_
-  y = x - ext_out_.head(layout_.n_owned());
+  y = x - ext_out_.head(layout_dual_.n_owned());
 }
 
 void DualProblem::assemble_coarse(const std::vector<double>& weight, SparseCholesky& factor) {
-  // (G~ W G~^T)_{ab} = sum_k w_k g_ak g_bk. Every cluster sends (k, cluster, g_ak) to the owner of
-  // k; owners form the products; all triplets are shared, and every rank factors the matrix.
+  // (G~ W G~^T)_{ab} = sum_k w_k g_ak g_bk. Every cluster sends (k, coarse row, g_ak) to the
+  // owner of k; owners form the products and sum equal entries; the summed triplets are shared
+  // (every rank factors the coarse matrix). Counts are in items (MPI datatypes), not bytes.
   struct Item {
     long long k;
-    int cluster;
+    int row;
     double g;
   };
   struct Triplet {
     int a, b;
     double v;
   };
+  MPI_Datatype item_type, trip_type;
+  {
+    int bl[3] = {1, 1, 1};
+    MPI_Aint disp[3] = {offsetof(Item, k), offsetof(Item, row), offsetof(Item, g)};
+    MPI_Datatype types[3] = {MPI_LONG_LONG, MPI_INT, MPI_DOUBLE};
+    MPI_Datatype tmp;
+    MPI_Type_create_struct(3, bl, disp, types, &tmp);
+    MPI_Type_create_resized(tmp, 0, sizeof(Item), &item_type);
+    MPI_Type_free(&tmp);
+    MPI_Type_commit(&item_type);
+    MPI_Aint disp2[3] = {offsetof(Triplet, a), offsetof(Triplet, b), offsetof(Triplet, v)};
+    MPI_Datatype types2[3] = {MPI_INT, MPI_INT, MPI_DOUBLE};
+    MPI_Type_create_struct(3, bl, disp2, types2, &tmp);
+    MPI_Type_create_resized(tmp, 0, sizeof(Triplet), &trip_type);
+    MPI_Type_free(&tmp);
+    MPI_Type_commit(&trip_type);
+  }
   const int P = comm_.size();
   std::vector<std::vector<Item>> out(P);
-  for (size_t c = 0; c < clusters_.size(); ++c)
-    for (const auto& [k, g] : g_rows_[c])
-      out[owner_[k]].push_back({layout_.global(k), clusters_[c]->id(), g});
+  for (size_t c = 0; c < clusters_.size(); ++c) {
+    const int base = coarse_first_[clusters_[c]->id()];
+    for (size_t j = 0; j < g_rows_[c].size(); ++j)
+      for (const auto& [k, g] : g_rows_[c][j])
+        out[owner_[k]].push_back({layout_dual_.global(k), base + static_cast<int>(j), g});
+  }
   std::vector<int> scount(P), rcount(P), sdisp(P + 1, 0), rdisp(P + 1, 0);
-  for (int r = 0; r < P; ++r) scount[r] = static_cast<int>(out[r].size() * sizeof(Item));
+  for (int r = 0; r < P; ++r) scount[r] = static_cast<int>(out[r].size());
   MPI_Alltoall(scount.data(), 1, MPI_INT, rcount.data(), 1, MPI_INT, comm_.raw());
   for (int r = 0; r < P; ++r)
     sdisp[r + 1] = sdisp[r] + scount[r], rdisp[r + 1] = rdisp[r] + rcount[r];
-  std::vector<Item> sbuf(sdisp[P] / sizeof(Item)), rbuf(rdisp[P] / sizeof(Item));
+  std::vector<Item> sbuf(sdisp[P]), rbuf(rdisp[P]);
   for (int r = 0, pos = 0; r < P; ++r)
     for (const auto& it : out[r]) sbuf[pos++] = it;
-  MPI_Alltoallv(sbuf.data(), scount.data(), sdisp.data(), MPI_BYTE, rbuf.data(), rcount.data(),
-                rdisp.data(), MPI_BYTE, comm_.raw());
+  MPI_Alltoallv(sbuf.data(), scount.data(), sdisp.data(), item_type, rbuf.data(), rcount.data(),
+                rdisp.data(), item_type, comm_.raw());
   std::stable_sort(rbuf.begin(), rbuf.end(), [](const Item& x, const Item& y) {
-    return x.k != y.k ? x.k < y.k : x.cluster < y.cluster;
+    return x.k != y.k ? x.k < y.k : x.row < y.row;
   });
   std::vector<Triplet> mine;
   for (size_t i = 0; i < rbuf.size();) {
     size_t j = i;
     while (j < rbuf.size() && rbuf[j].k == rbuf[i].k) ++j;
-    const double w = weight[layout_.ext_index(rbuf[i].k)];
+    const double w = weight[layout_dual_.ext_index(rbuf[i].k)];
     if (w != 0.0)
       for (size_t a = i; a < j; ++a)
         for (size_t b = a; b < j; ++b) {
-          int ca = rbuf[a].cluster, cb = rbuf[b].cluster;
+          int ca = rbuf[a].row, cb = rbuf[b].row;
           if (ca > cb) std::swap(ca, cb);
           mine.push_back({ca, cb, w * rbuf[a].g * rbuf[b].g});
         }
     i = j;
   }
-  int nbytes = static_cast<int>(mine.size() * sizeof(Triplet));
+  int nmine = static_cast<int>(mine.size());
   std::vector<int> counts(P), disp(P + 1, 0);
-  MPI_Allgather(&nbytes, 1, MPI_INT, counts.data(), 1, MPI_INT, comm_.raw());
+  MPI_Allgather(&nmine, 1, MPI_INT, counts.data(), 1, MPI_INT, comm_.raw());
   for (int r = 0; r < P; ++r) disp[r + 1] = disp[r] + counts[r];
-  std::vector<Triplet> all(disp[P] / sizeof(Triplet));
-  MPI_Allgatherv(mine.data(), nbytes, MPI_BYTE, all.data(), counts.data(), disp.data(), MPI_BYTE,
+  std::vector<Triplet> all(disp[P]);
+  MPI_Allgatherv(mine.data(), nmine, trip_type, all.data(), counts.data(), disp.data(), trip_type,
                  comm_.raw());
+  MPI_Type_free(&item_type);
+  MPI_Type_free(&trip_type);
   std::vector<Eigen::Triplet<double>> trip;
   trip.reserve(all.size());
   for (const auto& t : all) trip.emplace_back(t.a, t.b, t.v);
   Eigen::SparseMatrix<double> GGt(coarse_dimension(), coarse_dimension());
   GGt.setFromTriplets(trip.begin(), trip.end());
   factor = SparseCholesky(Ordering::amd);
-  factor.factorize(GGt);
+  std::string error;
+  try {
+    factor.factorize(GGt);
+  } catch (const std::exception& e) {
+    error = std::string("the coarse problem G G^T is singular (") + e.what() +
+            "): some subdomain kernel is not restrained by any constraint row";
+  }
+  comm_.agree(error);
 }
 
 void DualProblem::apply_B(const std::vector<Vec>& u, Vec& out) {
   ext_out_.setZero();
   for (size_t s = 0; s < subs_.size(); ++s)
     for (const auto& r : rows_[s]) ext_out_[r.k] += r.value * u[s][r.dof];
-  layout_.reverse_add(ext_out_.data());
-  out = ext_out_.head(layout_.n_owned());
+  layout_dual_.reverse_add(ext_out_.data());
+  out = ext_out_.head(layout_dual_.n_owned());
 }
 
 std::vector<DualProblem::Vec> DualProblem::reconstruct(const Vec& lambda) {
-  const int mm = dec_.m() * dec_.m(), n_own = layout_.n_owned();
+  const int n_own = layout_dual_.n_owned();
   gather_to_ext(lambda);
   std::vector<Vec> u(subs_.size());
-  for_each_cluster([&](int c) {
-    if (factors_released_) clusters_[c]->refactor(ordering_);
-    cluster_rhs_from_ext(c, true, -1.0);  // f - B~^T lambda
-    clusters_[c]->solve(x_[c]);
-    for (int i = 0; i < mm; ++i) u[c * mm + i] = x_[c][i];
-    if (factors_released_) clusters_[c]->release_factors();
-  });
-  // B u0 = d - F lambda; alpha solves G~ D G~^T alpha = G~ D (F lambda - d), D masking the
+  std::string error;
+  try {
+    for_each_cluster([&](int c) {
+      if (factors_released_) clusters_[c]->refactor(ordering_);
+      cluster_rhs_from_ext(c, true, -1.0);  // f - B~^T lambda
+      clusters_[c]->solve(x_[c]);
+      for (int i = 0; i < members(c); ++i) u[sub_of(c, i)] = x_[c][i];
+      if (factors_released_) clusters_[c]->release_factors();
+    });
+  } catch (const std::exception& e) {
+    error = e.what();
+  }
+  comm_.agree(error);
+  // B u0 = d + c - F lambda; alpha solves G~ D G~^T alpha = G~ D (c - B u0), D masking the
   // contact rows with lambda_i = 0 (paper, (10)).
   Vec r;
   apply_B(u, r);
-  r = -r;
+  r = c_ - r;
   std::vector<double> weight(n_own, 1.0);
   bool masked = false;
   for (int k = 0; k < n_own; ++k)
@@ -395,8 +555,9 @@ std::vector<DualProblem::Vec> DualProblem::reconstruct(const Vec& lambda) {
     coarse_solve(alpha);
   }
   for (size_t c = 0; c < clusters_.size(); ++c) {
-    const double shift = alpha[clusters_[c]->id()] * clusters_[c]->kernel_value();
-    for (int i = 0; i < mm; ++i) u[c * mm + i].array() += shift;
+    const double* a = &alpha[coarse_first_[clusters_[c]->id()]];
+    for (int i = 0; i < members(static_cast<int>(c)); ++i)
+      clusters_[c]->kernel_add(i, a, u[sub_of(static_cast<int>(c), i)]);
   }
   return u;
 }
@@ -412,15 +573,15 @@ DualProblem::Kkt DualProblem::kkt(const std::vector<Vec>& u, const Vec& lambda) 
   apply_B(u, bu);
   double eq = 0, viol = 0, minmult = std::numeric_limits<double>::infinity(), compl_ = 0;
   bool any_contact = false;
-  for (int k = 0; k < layout_.n_owned(); ++k) {
+  for (int k = 0; k < layout_dual_.n_owned(); ++k) {
     if (kind_[k] != MultiplierKind::contact) {
-      eq += bu[k] * bu[k];
+      eq += (bu[k] - c_[k]) * (bu[k] - c_[k]);
       continue;
     }
     any_contact = true;
-    const double c = contact_scale_[k];
-    const double gap = -bu[k] / c;  // u_right - u_left
-    const double force = c * lambda[k];
+    const double s = contact_scale_[k];
+    const double gap = (c_[k] - bu[k]) / s;  // gap - n.(u_a - u_b), >= 0 when feasible
+    const double force = s * lambda[k];
     viol = std::max(viol, -gap);
     minmult = std::min(minmult, force);
     compl_ = std::max(compl_, std::abs(force * gap));
@@ -434,29 +595,25 @@ DualProblem::Kkt DualProblem::kkt(const std::vector<Vec>& u, const Vec& lambda) 
 }
 
 DualProblem::ContactData DualProblem::contact_data(const std::vector<Vec>& u, const Vec& lambda) {
-  // Averages of the left copies (positive coefficients c/k_L) and right copies (-c/k_R).
-  const int n_own = layout_.n_owned();
-  Vec left = Vec::Zero(layout_.n_ext()), right = Vec::Zero(layout_.n_ext());
-  // The kind of a multiplier is known on its owner: send a contact mark to the ghosts.
-  std::vector<double> is_contact(layout_.n_ext(), 0.0);
-  for (int k = 0; k < n_own; ++k) is_contact[k] = kind_[k] == MultiplierKind::contact ? 1.0 : 0.0;
-  layout_.forward(is_contact.data());
+  // n.(avg u_a) from the entries on node a (coefficients scale n_i / k_a), n.(avg u_b) likewise.
+  const int n_own = layout_dual_.n_owned();
+  Vec a = Vec::Zero(layout_dual_.n_ext()), b = Vec::Zero(layout_dual_.n_ext());
   for (size_t s = 0; s < subs_.size(); ++s)
     for (const auto& r : rows_[s]) {
-      if (is_contact[r.k] == 0.0) continue;
-      if (r.value > 0)
-        left[r.k] += r.value * u[s][r.dof];
-      else
-        right[r.k] -= r.value * u[s][r.dof];
+      if (r.side > 0) a[r.k] += r.value * u[s][r.dof];
+      if (r.side < 0) b[r.k] -= r.value * u[s][r.dof];
     }
-  layout_.reverse_add(left.data());
-  layout_.reverse_add(right.data());
+  layout_dual_.reverse_add(a.data());
+  layout_dual_.reverse_add(b.data());
   std::vector<double> mine;
   for (int k = 0; k < n_own; ++k)
     if (kind_[k] == MultiplierKind::contact) {
-      const double c = contact_scale_[k];
-      mine.insert(mine.end(), {contact_y_[k], left[k] / c, right[k] / c, c * lambda[k]});
+      const double s = contact_scale_[k];
+      const auto& p = contact_point_[k];
+      mine.insert(mine.end(),
+                  {p[0], p[1], p[2], a[k] / s, b[k] / s, contact_gap_[k], s * lambda[k]});
     }
+  constexpr int W = 7;
   const int P = comm_.size();
   int count = static_cast<int>(mine.size());
   std::vector<int> counts(P), disp(P + 1, 0);
@@ -467,17 +624,31 @@ DualProblem::ContactData DualProblem::contact_data(const std::vector<Vec>& u, co
               comm_.raw());
   ContactData data;
   if (comm_.rank() != 0) return data;
-  std::vector<std::array<double, 4>> rows(all.size() / 4);
+  std::vector<std::array<double, W>> rows(all.size() / W);
   for (size_t i = 0; i < rows.size(); ++i)
-    rows[i] = {all[4 * i], all[4 * i + 1], all[4 * i + 2], all[4 * i + 3]};
+    for (int j = 0; j < W; ++j) rows[i][j] = all[W * i + j];
   std::sort(rows.begin(), rows.end());
   for (const auto& r : rows) {
-    data.y.push_back(r[0]);
-    data.u_left.push_back(r[1]);
-    data.u_right.push_back(r[2]);
-    data.multiplier.push_back(r[3]);
+    data.x.push_back(r[0]);
+    data.y.push_back(r[1]);
+    data.z.push_back(r[2]);
+    data.u_a.push_back(r[3]);
+    data.u_b.push_back(r[4]);
+    data.gap.push_back(r[5]);
+    data.force.push_back(r[6]);
   }
   return data;
+}
+
+std::vector<DualProblem::Vec> DualProblem::contact_forces(const Vec& lambda) {
+  gather_to_ext(lambda);
+  std::vector<Vec> out(subs_.size());
+  for (size_t s = 0; s < subs_.size(); ++s) {
+    out[s] = Vec::Zero(subs_[s]->size());
+    for (const auto& r : rows_[s])
+      if (r.side != 0) out[s][r.dof] -= r.value * ext_in_[r.k];
+  }
+  return out;
 }
 
 long DualProblem::factor_nonzeros() const {
@@ -485,10 +656,6 @@ long DualProblem::factor_nonzeros() const {
   for (const auto& s : subs_) n += s->factor_nonzeros();
   return n;
 }
-
-}  // namespace htfeti
-
-namespace htfeti {
 
 long DualProblem::explicit_doubles() const {
   long n = 0;

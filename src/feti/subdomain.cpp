@@ -1,63 +1,34 @@
 #include "htfeti/feti/subdomain.hpp"
 
 #include <stdexcept>
-#include <vector>
+#include <string>
 
 namespace htfeti {
 
-Subdomain::Subdomain(const Decomposition& dec, int id)
-    : id_(id), pos_(dec.position(id)), H_(dec.H()), h_(1.0 / dec.n()) {
-  const int np = H_ + 1, nn = np * np;
-  ke_ = square_stiffness(dec.options().element);
-  const Problem problem = dec.problem();
-  f_ = Eigen::VectorXd::Zero(nn);
-  for (int b = 0; b < H_; ++b)
-    for (int a = 0; a < H_; ++a) {
-      const int n0 = b * np + a, nodes[4] = {n0, n0 + 1, n0 + np + 1, n0 + np};
-      const double x0 = pos_.q + (pos_.sx * H_ + a) * h_, y0 = (pos_.sy * H_ + b) * h_;
-      const auto fe = square_load(problem, dec.options().element, x0, y0, h_);
-      for (int i = 0; i < 4; ++i) f_[nodes[i]] += fe[i];
-    }
-  assemble();
-  R_ = Eigen::VectorXd::Constant(nn, 1.0 / std::sqrt(static_cast<double>(nn)));
-  fixed_ = dec.local_node(H_ / 2, H_ / 2);
+Subdomain::Subdomain(SubdomainSystem system) : sys_(std::move(system)) {
+  const int n = size();
+  if (sys_.K.rows() != n && !sys_.assemble)
+    throw std::logic_error("Subdomain: K and f sizes differ");
+  if (sys_.R.rows() != n) throw std::logic_error("Subdomain: R and f sizes differ");
+  if (static_cast<int>(sys_.fixed_dofs.size()) != sys_.R.cols())
+    throw std::logic_error("Subdomain " + std::to_string(sys_.id) +
+                           ": the number of fixed dofs differs from the kernel dimension");
+  reduced_.assign(n, 0);
+  for (int d : sys_.fixed_dofs) reduced_.at(d) = -1;
+  for (int d = 0, r = 0; d < n; ++d)
+    if (reduced_[d] == 0) reduced_[d] = r++;
 }
 
-void Subdomain::assemble() {
-  const int np = H_ + 1, nn = np * np;
-  std::vector<Eigen::Triplet<double>> trip;
-  trip.reserve(16 * H_ * H_);
-  for (int b = 0; b < H_; ++b)
-    for (int a = 0; a < H_; ++a) {
-      const int n0 = b * np + a, nodes[4] = {n0, n0 + 1, n0 + np + 1, n0 + np};
-      for (int i = 0; i < 4; ++i)
-        for (int j = 0; j < 4; ++j)
-          if (ke_[i][j] != 0.0) trip.emplace_back(nodes[i], nodes[j], ke_[i][j]);
-    }
-  K_.resize(nn, nn);
-  K_.setFromTriplets(trip.begin(), trip.end());
+double Subdomain::energy(const Eigen::VectorXd& u) const {
+  if (sys_.K.rows() == size()) return 0.5 * u.dot(sys_.K.selfadjointView<Eigen::Lower>() * u) - sys_.f.dot(u);
+  const Eigen::SparseMatrix<double> K = sys_.assemble();
+  return 0.5 * u.dot(K * u) - sys_.f.dot(u);
 }
 
 void Subdomain::release_factor() {
   chol_ = SparseCholesky();
   work_ = Eigen::VectorXd();
 }
-
-double Subdomain::energy(const Eigen::VectorXd& u) const {
-  const int np = H_ + 1;
-  double q = 0;
-  for (int b = 0; b < H_; ++b)
-    for (int a = 0; a < H_; ++a) {
-      const int n0 = b * np + a;
-      const double ue[4] = {u[n0], u[n0 + 1], u[n0 + np + 1], u[n0 + np]};
-      for (int i = 0; i < 4; ++i)
-        for (int j = 0; j < 4; ++j) q += 0.5 * ue[i] * ke_[i][j] * ue[j];
-    }
-  return q - f_.dot(u);
-}
-
-double Subdomain::x_of(int k) const { return pos_.q + (pos_.sx * H_ + k % (H_ + 1)) * h_; }
-double Subdomain::y_of(int k) const { return (pos_.sy * H_ + k / (H_ + 1)) * h_; }
 
 void Subdomain::factorize(Ordering ordering) { factorize_impl(ordering, nullptr); }
 
@@ -69,11 +40,15 @@ Eigen::MatrixXd Subdomain::dual_block(const std::vector<BEntry>& b, int nmult) c
   Eigen::MatrixXd L;
   std::vector<int> order;
   chol_.schur_factor(L, order);
+  // order[i]: reduced index of the dof standing for row i of L_s.
+  std::vector<int> dof_of_reduced(size() - sys_.fixed_dofs.size());
+  for (int d = 0; d < size(); ++d)
+    if (reduced_[d] >= 0) dof_of_reduced[reduced_[d]] = d;
   std::vector<int> pos(size(), -1);
-  for (size_t i = 0; i < order.size(); ++i)
-    pos[order[i] + (order[i] >= fixed_)] = static_cast<int>(i);
+  for (size_t i = 0; i < order.size(); ++i) pos[dof_of_reduced[order[i]]] = static_cast<int>(i);
   Eigen::MatrixXd T = Eigen::MatrixXd::Zero(L.rows(), nmult);  // B_i^T on the interface
   for (const auto& e : b) {
+    if (reduced_[e.dof] < 0) continue;  // K^+ vanishes on fixed dofs
     if (pos[e.dof] < 0)
       throw std::logic_error("dual_block: a row of B touches a non-interface dof");
     T(pos[e.dof], e.mult) += e.value;
@@ -85,42 +60,45 @@ Eigen::MatrixXd Subdomain::dual_block(const std::vector<BEntry>& b, int nmult) c
   return F.selfadjointView<Eigen::Lower>();
 }
 
-void Subdomain::factorize_impl(Ordering ordering, const std::vector<int>* interface_dofs) {
+Eigen::SparseMatrix<double> Subdomain::reduced_matrix() {
   const int nn = size();
-  if (K_.rows() != nn) assemble();  // released earlier
-  // K_rr: drop the fixed node's row and column (indices above it shift down by one).
+  if (sys_.K.rows() != nn) sys_.K = sys_.assemble();  // released earlier
+  const int nr = nn - static_cast<int>(sys_.fixed_dofs.size());
   std::vector<Eigen::Triplet<double>> trip;
-  trip.reserve(K_.nonZeros());
+  trip.reserve(sys_.K.nonZeros());
   for (int col = 0; col < nn; ++col)
-    for (Eigen::SparseMatrix<double>::InnerIterator it(K_, col); it; ++it) {
+    for (Eigen::SparseMatrix<double>::InnerIterator it(sys_.K, col); it; ++it) {
       const int row = static_cast<int>(it.row());
-      if (row == fixed_ || col == fixed_ || row > col) continue;
-      trip.emplace_back(row - (row > fixed_), col - (col > fixed_), it.value());
+      if (row > col || reduced_[row] < 0 || reduced_[col] < 0) continue;
+      trip.emplace_back(reduced_[row], reduced_[col], it.value());
     }
-  Eigen::SparseMatrix<double> Krr(nn - 1, nn - 1);
+  Eigen::SparseMatrix<double> Krr(nr, nr);
   Krr.setFromTriplets(trip.begin(), trip.end());
+  return Krr;
+}
+
+void Subdomain::factorize_impl(Ordering ordering, const std::vector<int>* interface_dofs) {
+  const Eigen::SparseMatrix<double> Krr = reduced_matrix();
   chol_ = SparseCholesky(ordering);
   if (interface_dofs) {
     std::vector<int> last;
-    for (int d : *interface_dofs) {
-      if (d == fixed_) throw std::logic_error("the fixed node lies on the interface");
-      last.push_back(d - (d > fixed_));
-    }
+    for (int d : *interface_dofs)
+      if (reduced_[d] >= 0) last.push_back(reduced_[d]);
     chol_.factorize(Krr, last);
   } else {
     chol_.factorize(Krr);
   }
   factor_nonzeros_ = chol_.factor_nonzeros();
-  work_.resize(nn - 1);
+  work_.resize(Krr.rows());
 }
 
 void Subdomain::apply_pinv(const double* x, double* y) {
   const int nn = size();
   double* w = work_.data();
-  for (int k = 0, r = 0; k < nn; ++k)
-    if (k != fixed_) w[r++] = x[k];
+  for (int k = 0; k < nn; ++k)
+    if (reduced_[k] >= 0) w[reduced_[k]] = x[k];
   chol_.solve(w, w);
-  for (int k = nn - 1, r = nn - 2; k >= 0; --k) y[k] = (k == fixed_) ? 0.0 : w[r--];
+  for (int k = nn - 1; k >= 0; --k) y[k] = reduced_[k] < 0 ? 0.0 : w[reduced_[k]];
 }
 
 }  // namespace htfeti

@@ -1,5 +1,6 @@
-// Decomposition of the problem's unit squares into N_s x N_s square subdomains (H_s = 1/N_s),
-// grouped into clusters of m x m subdomains (paper, Sections 3 and 5).
+// Decomposition of the built-in 2D problems' unit squares into N_s x N_s square subdomains
+// (H_s = 1/N_s), grouped into clusters of m x m subdomains (paper, Sections 3 and 5). It is the
+// box generator (mesh/box.hpp) with the built-ins' options; grid() gives that generator.
 //
 // Numbering is cluster-major so that a contiguous range of subdomain ids is a contiguous range of
 // clusters: subdomain id = cluster id * m^2 + (ly * m + lx), cluster id = (q * nc + cy) * nc + cx
@@ -10,14 +11,11 @@
 #include <string>
 #include <vector>
 
+#include "htfeti/feti/input.hpp"
+#include "htfeti/mesh/box.hpp"
 #include "htfeti/mesh/problem.hpp"
 
 namespace htfeti {
-
-/// Which primal constraints join the subdomains of a cluster (paper, Section 5).
-enum class Glue { corners, averages, corners_averages };
-Glue parse_glue(const std::string& name);  // throws std::invalid_argument
-std::string to_string(Glue glue);
 
 struct DecompositionOptions {
   ProblemKind problem = ProblemKind::membranes;
@@ -47,7 +45,7 @@ class Decomposition {
   int squares() const { return problem().squares(); }
   int num_subdomains() const { return squares() * ns() * ns(); }
   int num_clusters() const { return squares() * clusters_per_side() * clusters_per_side(); }
-  int nodes_per_subdomain() const { return (H() + 1) * (H() + 1); }
+  long long nodes_per_subdomain() const { return (H() + 1LL) * (H() + 1LL); }
   /// Primal unknowns of the decomposed problem (every subdomain has its own copy of its nodes).
   long long primal_dimension() const { return 1LL * num_subdomains() * nodes_per_subdomain(); }
   bool glue_corners() const { return m() > 1 && opt_.glue != Glue::averages; }
@@ -61,6 +59,9 @@ class Decomposition {
   std::pair<int, int> cluster_range(int r, int P) const;
   int rank_of_cluster(int c, int P) const;
   int rank_of_subdomain(int s, int P) const { return rank_of_cluster(cluster_of(s), P); }
+
+  /// The generated mesh of the squares (one or two boxes, Q1 -> quad4, P1 -> tri3).
+  BoxGrid grid() const;
 
   /// Subdomain-local node index of grid node (a, b), a, b in [0, H].
   int local_node(int a, int b) const { return b * (H() + 1) + a; }

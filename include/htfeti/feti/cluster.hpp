@@ -1,28 +1,38 @@
-// The generalized inverse of a cluster of m x m subdomains joined by primal constraints
-// (paper, Section 5: K~ = Z^T diag(K_i) Z, with Z an orthonormal basis of the vectors that satisfy
-// the primal constraints C u = 0: corner continuity and/or equal edge averages).
+// The generalized inverse of a cluster of subdomains joined by primal constraints (paper,
+// Section 5: K~ = Z^T diag(K_i) Z, with Z an orthonormal basis of the vectors that satisfy the
+// primal constraints C u = 0: corners and/or averages of the kernel over shared edges/faces).
 //
-// K~^+ is never formed. Applied to a physical right-hand side x (one vector per subdomain) it
-// returns y = Z K~^+ Z^T x, the solution of
-//     min 1/2 u'Ku - x'u   subject to  C u = 0  and  u(fixed node of subdomain 0) = 0,
-// computed from the subdomain generalized inverses K_i^+ (fixed nodes, sparse Cholesky) and a
-// small dense saddle-point system over the primal constraints mu and the kernel coefficients beta
-// of subdomains 1..s-1 (subdomain 0 is fixed, which removes the cluster kernel):
-//     u = K^+ (x - C^T mu) + R' beta,
-//     [ C K^+ C^T   -C R' ] [mu  ]   [ C K^+ x ]
-//     [ -R'^T C^T     0   ] [beta] = [ -R'^T x ].
-// Fixing one cluster variable gives K~^+ = [K~_rr^{-1} 0; 0 0], so K~ K~^+ K~ = K~. For m = 1
-// there are no constraints and y = K_0^+ x: plain TFETI.
+// Cluster kernel. A vector of the cluster is in Ker K~ iff u_i = R_i beta_i on every subdomain and
+// C R beta = 0; so Ker K~ = R N with N an orthonormal basis of Null(C R). C has orthonormal rows
+// and R orthonormal columns, so C R is O(1) whatever the physics' scale (E ~ 2e7 or 1) and its
+// rank is decided by an absolute threshold (scale-invariant). A cluster that is really joined has
+// dim Ker = the dimension of one subdomain's kernel (1 for Laplace, 3/6 for elasticity); a
+// disconnected cluster or a mechanism is handled by the same formula with a larger kernel.
 //
-// Cost of one application: one K_i^+ solve per subdomain, plus a dense solve of size
-// (#constraints + s - 1) and products with the precomputed K_i^+ C_i^T (at most 12 columns each).
-// Setup: #constraints touching a subdomain extra solves per subdomain, and one dense LU.
+// K~^+ is never formed. Applied to x (one vector per subdomain) it returns y = Z K~^+ Z^T x, the
+// solution of
+//     min 1/2 u'Ku - x'u  subject to  C u = 0  and  beta_J = 0,
+// where beta_J are dim Ker kernel coefficients chosen (greedily in subdomain order) so that N
+// restricted to them is invertible; that fixes the cluster kernel, so K~ K~^+ K~ = K~. With
+// K_i^+ (fixed dofs, sparse Cholesky) and the free coefficients beta_F:
+//     u = K^+ (x - C^T mu) + R_F beta_F,
+//     [ C K^+ C^T   -C R_F ] [mu    ]   [ C K^+ x  ]
+//     [ -R_F^T C^T     0   ] [beta_F] = [ -R_F^T x ],
+// a dense system of size (#constraints + sum_i dim R_i - dim Ker), equilibrated (the C K^+ C^T
+// block, O(1/E), is scaled to O(1)) and factored by partial-pivoting LU; its reciprocal condition
+// number after scaling decides singularity. For one subdomain there are no constraints and
+// y = K_0^+ x: plain TFETI.
+//
+// Cost of one application: one K_i^+ solve per subdomain, plus a dense solve of size above and
+// products with the precomputed K_i^+ C_i^T. Setup: one K_i^+ solve per constraint touching a
+// subdomain, one dense LU.
 #pragma once
 
 #include <Eigen/Dense>
 #include <string>
 #include <vector>
 
+#include "htfeti/feti/constraints.hpp"
 #include "htfeti/feti/subdomain.hpp"
 
 namespace htfeti {
@@ -37,21 +47,30 @@ std::string to_string(DualOperator kind);
 
 class Cluster {
  public:
-  /// subs: the cluster's m*m subdomains in cluster-local order (already assembled); b[i]: the
-  /// rows of B~ on subdomain i, numbered 0..nmult[i]-1 locally. Factors the subdomains.
-  /// explicit_F: build the dense local blocks (implicit or explicit_, not automatic).
-  Cluster(const Decomposition& dec, int id, std::vector<Subdomain*> subs, Ordering ordering,
-          std::vector<std::vector<Subdomain::BEntry>> b, std::vector<int> nmult, bool explicit_F);
+  /// subs: the cluster's subdomains in id order (assembled); C: its primal constraints
+  /// (cluster_primal_constraints); b[i]: the rows of B~ on subdomain i, numbered 0..nmult[i]-1
+  /// locally. Factors the subdomains. explicit_F: build the dense local blocks.
+  Cluster(int id, std::vector<Subdomain*> subs, std::vector<std::vector<ConstraintEntry>> C,
+          Ordering ordering, std::vector<std::vector<Subdomain::BEntry>> b,
+          std::vector<int> nmult, bool explicit_F);
   /// Without dual rows: for tests of the generalized inverse alone.
-  Cluster(const Decomposition& dec, int id, std::vector<Subdomain*> subs, Ordering ordering)
-      : Cluster(dec, id, subs, ordering, std::vector<std::vector<Subdomain::BEntry>>(subs.size()),
+  Cluster(int id, std::vector<Subdomain*> subs, std::vector<std::vector<ConstraintEntry>> C,
+          Ordering ordering)
+      : Cluster(id, subs, std::move(C), ordering,
+                std::vector<std::vector<Subdomain::BEntry>>(subs.size()),
                 std::vector<int>(subs.size(), 0), false) {}
 
   int id() const { return id_; }
   const std::vector<Subdomain*>& subdomains() const { return subs_; }
   int num_primal_constraints() const { return nc_; }
-  /// Value of the cluster kernel R~ (the normalized constant) at every physical dof.
-  double kernel_value() const { return kernel_value_; }
+  /// Dimension of the cluster kernel R~ (rows of G~ contributed by this cluster).
+  int kernel_dimension() const { return static_cast<int>(N_.cols()); }
+  /// out[j] += (R~_j restricted to subdomain i) . x (j < kernel_dimension()).
+  void kernel_dot(int i, const Eigen::VectorXd& x, double* out) const;
+  /// u += R~ restricted to subdomain i, times gamma.
+  void kernel_add(int i, const double* gamma, Eigen::VectorXd& u) const;
+  /// Value of R~_j at dof `dof` of subdomain i.
+  double kernel_entry(int i, int dof, int j) const;
   /// Doubles held by the cluster's dense data (K^+ C^T blocks and the LU).
   long dense_doubles() const;
 
@@ -61,7 +80,7 @@ class Cluster {
   /// nmult[i] entries. Implicit: x = B^T lam, solve(x), B x. Explicit, with the same dense
   /// saddle-point system as solve():
   ///   out_i = F_i lam_i - U_i mu + V_i beta_i,  U_i = B_i K_i^+ C_i^T,  V_i = B_i R_i,
-  ///   [mu; beta] = S^{-1} [sum_i U_i^T lam_i; -V_i^T lam_i].
+  ///   [mu; beta_F] = S^{-1} [sum_i U_i^T lam_i; -V_i,F^T lam_i].
   /// Cost: implicit, one K_i^+ per subdomain; explicit, one dense n_i x n_i symmetric
   /// matrix-vector product per subdomain (memory-bound: 8 n_i^2 bytes). Allocates nothing.
   void apply_dual(const std::vector<Eigen::VectorXd>& lam, std::vector<Eigen::VectorXd>& out);
@@ -82,20 +101,23 @@ class Cluster {
     int dof;
     double value;
   };
+  void solve_saddle();  // sol_ = S^{-1} rhs_ with the equilibration
   int id_;
   int nc_ = 0;  // primal constraints
   std::vector<Subdomain*> subs_;
+  std::vector<int> beta_offset_;                 // first kernel coefficient of subdomain i
+  std::vector<int> beta_index_;                  // coefficient -> saddle unknown, -1 if fixed
+  Eigen::MatrixXd N_;                            // cluster kernel in coefficient space
   std::vector<std::vector<LocalRow>> c_of_sub_;  // C_i entries, per subdomain
   std::vector<std::vector<int>> cols_of_sub_;    // constraints touching subdomain i
   std::vector<Eigen::MatrixXd> W_;               // K_i^+ C_i^T (columns: cols_of_sub_[i])
   Eigen::PartialPivLU<Eigen::MatrixXd> lu_;
-  Eigen::VectorXd rhs_, sol_;
+  Eigen::VectorXd rhs_, sol_, dscale_;
   std::vector<std::vector<Subdomain::BEntry>> b_;  // rows of B~ per subdomain (local numbering)
   std::vector<Eigen::VectorXd> xw_;                // implicit apply_dual: physical work vectors
   bool explicit_ = false;
   std::vector<Eigen::MatrixXd> F_, U_;  // explicit: F_i, B_i K_i^+ C_i^T
-  std::vector<Eigen::VectorXd> V_;      // explicit: B_i R_i
-  double kernel_value_ = 0;
+  std::vector<Eigen::MatrixXd> V_;      // explicit: B_i R_i
   double setup_seconds_ = 0;
 };
 

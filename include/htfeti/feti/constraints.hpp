@@ -1,55 +1,77 @@
-// The dual constraints B~ (gluing, Dirichlet, contact) with orthonormal rows, and the primal
-// constraints C that join the subdomains of a cluster (paper, (3), (13), (14)).
+// The dual constraints B~ (gluing, Dirichlet, contact) with orthonormal rows and a right-hand
+// side c, and the primal constraints C that join the subdomains of a cluster (paper, (3), (13),
+// (14)), built from the dof sharing alone.
 //
-// Rows of B~ are generated per interface object, in one global order that every rank computes
-// alike (so multiplier numbers do not depend on the number of ranks):
-//  1. every node on the subdomain skeleton of square q (q, then row gy, then column gx):
-//     - gluing rows: an orthonormal basis of the differences between the node's copies. Copies
-//       that are joined primally (same cluster, corner gluing) count as one group; the rows are
-//       constant on a group, so they are orthogonal to the primal constraints (B~ B~^T = I holds in
-//       the cluster variables too). Nodes inside an edge joined by its average are skipped here;
-//     - a Dirichlet row (1/sqrt(k)) (1,...,1) on the node's k copies (the average of the copies);
-//     - on x = 1 of a contact problem, one contact row c (avg of left copies - avg of right
-//       copies), c = 1/sqrt(1/k_L + 1/k_R), so that B_I u <= 0 means u2 - u1 >= 0;
-//  2. every edge inside a cluster that is joined by its average: with p interior nodes, the
-//     p - 1 rows (c_l, -c_l)/sqrt(2), c_l an orthonormal basis of the vectors orthogonal to
-//     (1,...,1) in R^p. The average of the jump is the primal constraint, so Ker B~ = Ker B Z.
-// Every row is orthogonal to every other one and of unit norm: B~ B~^T = I.
+// Interface objects. The extended sharing set of a node is the set of subdomains holding a copy,
+// plus a mark "on the domain boundary" (as PETSc's PCBDDCGraph does), so that the ends of an
+// interface edge on the boundary are told apart from the edge. A node is
+//  - averaged (in cluster c): shared by exactly two subdomains, both of cluster c, and not on the
+//    boundary (the interior of an edge in 2D, of a face in 3D), when the glue has averages;
+//  - a vertex: its extended set has at least 3 members and (in 3D) no other node has that set.
+// Objects: the averaged nodes of one pair of subdomains form one object.
+//
+// Rows of B~ (every row orthonormal to every other, B~ B~^T = I):
+//  1. per node with k >= 2 copies that is not averaged: copies are grouped when they are joined
+//     primally (a vertex with corner gluing: the copies of one cluster form a group); gluing rows
+//     are an orthonormal (generalized Helmert) basis of the differences of the groups, constant on
+//     each group, one set per component;
+//  2. a Dirichlet row per fixed dof: (1/sqrt(k)) on each copy, c = sqrt(k) * value;
+//  3. a contact row n.(avg u_a - avg u_b) scaled to unit norm: entries c n/k_a on a's copies and
+//     -c n/k_b on b's, c = 1/sqrt(1/k_a + 1/k_b) (b absent: 1/k_b = 0), right-hand side c * gap;
+//     c * lambda is the nodal contact force;
+//  4. per averaged object with p nodes: W = the orthonormalized kernel of the physics on the
+//     object's nodes (constants, rigid body motions); the rows (w, -w)/sqrt(2) for w in an
+//     orthonormal basis of the complement of W in R^(p dofs). The primal constraints of the object
+//     are (W, -W)/sqrt(2), so Ker B~ = Ker B Z (the averages of the jump are enforced primally).
+// Corner primal constraints: the Helmert differences of the copies of a vertex in one cluster.
+//
+// Global order of the rows (independent of the number of ranks): by key, per-node rows first
+// (key = global node, then gluing/Dirichlet/contact, then the row number), then the object rows
+// (key = cluster, the object's subdomain pair, its lowest node, the row number).
 #pragma once
 
+#include <array>
 #include <cstdint>
-#include <functional>
 #include <vector>
 
-#include "htfeti/decomposition/decomposition.hpp"
+#include "htfeti/feti/input.hpp"
 
 namespace htfeti {
 
 enum class MultiplierKind : std::uint8_t { gluing, dirichlet, contact };
 
+using RowKey = std::array<long long, 6>;
+
+/// The part of one row of B~ on one local subdomain.
+struct LocalRow {
+  RowKey key{};
+  MultiplierKind kind = MultiplierKind::gluing;
+  int owner_subdomain = 0;  ///< lowest subdomain the row touches: its rank owns the multiplier
+  double rhs = 0;           ///< c: B~ u = c (equalities) or B~ u <= c (contact)
+  double scale = 1;         ///< contact: scale * lambda is the nodal force
+  double gap = 0;           ///< contact: the gap in length units
+  int side = 0;             ///< contact: +1 for the part on node a, -1 on node b
+  std::array<double, 3> point{0, 0, 0};      ///< contact: node a
+  std::array<double, 3> direction{0, 0, 0};  ///< contact: n
+  std::vector<std::pair<int, double>> entries;  ///< (local dof, value)
+};
+
+/// Rows of B~ touching one subdomain (unsorted).
+void subdomain_rows(const FetiLayout& layout, const SubdomainInput& input,
+                    std::vector<LocalRow>& out);
+
 struct ConstraintEntry {
-  int subdomain;  ///< global subdomain id
-  int dof;        ///< subdomain-local node
+  int member;  ///< index of the subdomain within its cluster
+  int dof;
   double value;
 };
 
-struct Multiplier {
-  long long index = 0;
-  MultiplierKind kind = MultiplierKind::gluing;
-  double y = 0;      ///< contact rows: node height on x = 1
-  double scale = 1;  ///< contact rows: c, so that c * lambda is the nodal contact force
-  std::vector<ConstraintEntry> entries;
-};
+/// The primal constraints C of one cluster, rows in a deterministic order; `members` are the
+/// cluster's subdomain inputs in id order. Empty for a cluster of one subdomain.
+std::vector<std::vector<ConstraintEntry>> cluster_primal_constraints(
+    const FetiLayout& layout, int cluster, const std::vector<const SubdomainInput*>& members);
 
-/// Calls fn for every row of B~ in the global order; returns the number of rows.
-long long for_each_multiplier(const Decomposition& dec,
-                              const std::function<void(const Multiplier&)>& fn);
-
-/// The primal constraints C of one cluster (rows with entries on its subdomains); empty for m = 1.
-std::vector<std::vector<ConstraintEntry>> cluster_primal_constraints(const Decomposition& dec,
-                                                                     int cluster);
-
-/// Rows of an orthonormal basis of the complement of s (s_i > 0) in R^t: t - 1 rows of length t.
+/// Rows of an orthonormal basis of the complement of s (s_i != 0) in R^t: t - 1 rows of length t.
 std::vector<std::vector<double>> orthonormal_complement(const std::vector<double>& s);
 
 }  // namespace htfeti

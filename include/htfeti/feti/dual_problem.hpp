@@ -1,10 +1,16 @@
 // The (H-)TFETI dual problem (paper, (8)-(12) and (14)-(16)):
 //     min 1/2 lambda' F lambda - lambda' d   s.t.  lambda_I >= 0,  G lambda = e,
-// with F = B~ K~^+ B~^T applied matrix-free, d = B~ K~^+ f, G~ = R~^T B~^T (one row per cluster),
-// e~ = R~^T f and the orthogonal projector P = I - G~^T (G~ G~^T)^{-1} G~ onto Ker G. The
-// orthonormalized G = T G~ with T = L^{-1}, G~ G~^T = L L^T, is never formed: P, Q = I - P and
-// ||G x|| = ||Q x|| need only the coarse matrix G~ G~^T, which is sparse, assembled once and
-// factored by CHOLMOD on every rank (its dimension is the number of clusters).
+// with F = B~ K~^+ B~^T applied matrix-free, d = B~ K~^+ f - c (c: the right-hand sides of the
+// rows: Dirichlet values, gaps), G~ = R~^T B~^T (one row per cluster kernel vector: the coarse
+// dimension is the sum of the cluster kernel dimensions), e~ = R~^T f and the orthogonal
+// projector P = I - G~^T (G~ G~^T)^{-1} G~ onto Ker G. The orthonormalized G = T G~ with
+// T = L^{-1}, G~ G~^T = L L^T, is never formed: P, Q = I - P and ||G x|| = ||Q x|| need only the
+// coarse matrix G~ G~^T, which is sparse, assembled once and factored by CHOLMOD on every rank.
+//
+// Setup (parallel rules of DESIGN.md): each rank generates and assembles only its own
+// subdomains, builds the rows of B~ that touch them from the dof sharing, and numbers the rows
+// by their keys (parallel/key_numbering.hpp) so that the numbering does not depend on the
+// number of ranks; the owner of a row is the rank of the lowest subdomain it touches.
 //
 // Vectors passed in and out are the rank's owned part of a dual vector (DualLayout).
 // Cost of one F: one forward and one reverse neighbour exchange, per cluster one K~^+ (see
@@ -15,6 +21,8 @@
 #pragma once
 
 #include <Eigen/Dense>
+#include <array>
+#include <functional>
 #include <memory>
 #include <vector>
 
@@ -27,8 +35,8 @@ namespace htfeti {
 
 struct FetiOptions {
   Ordering ordering = Ordering::amd;  ///< fill-reducing ordering of the subdomain factors
-  /// implicit, explicit, or automatic: explicit when a subdomain has at least kExplicitMinNodes
-  /// nodes (docs/performance.md: measured break-even).
+  /// implicit, explicit, or automatic: explicit when every subdomain has at least
+  /// kExplicitMinNodes nodes (docs/performance.md: measured break-even).
   DualOperator dual_operator = DualOperator::automatic;
   /// With the explicit operator the subdomain factors are needed only for d (setup) and the
   /// primal reconstruction. When their estimated size on a rank (100 nonzeros per node) exceeds
@@ -51,18 +59,25 @@ struct SetupTimings {
 class DualProblem {
  public:
   using Vec = Eigen::VectorXd;
-  DualProblem(const Decomposition& dec, const Comm& comm, const FetiOptions& options = {});
+  /// Builds the rank's part of the dual problem. make_input(s) returns the input of subdomain s
+  /// (called once for each subdomain of the rank's clusters, possibly from several threads).
+  /// Collective; a failure on any rank (bad input, a non-positive pivot) is agreed on by all
+  /// ranks and thrown on every rank (std::runtime_error, or std::invalid_argument for input).
+  DualProblem(const FetiLayout& layout, const std::function<SubdomainInput(int)>& make_input,
+              const Comm& comm, const FetiOptions& options = {});
 
-  const Decomposition& decomposition() const { return dec_; }
+  const FetiLayout& layout() const { return layout_; }
   const Comm& comm() const { return comm_; }
-  int n_owned() const { return layout_.n_owned(); }
+  int n_owned() const { return layout_dual_.n_owned(); }
   long long dual_dimension() const { return n_dual_; }
   long long equalities() const { return n_dual_ - n_inequalities_; }
   long long inequalities() const { return n_inequalities_; }
-  int coarse_dimension() const { return dec_.num_clusters(); }
+  int coarse_dimension() const { return coarse_first_.back(); }
+  /// Clusters [first, last) of this rank.
+  std::pair<int, int> cluster_range() const { return {c0_, c1_}; }
   const SetupTimings& setup_timings() const { return setup_; }
   /// Global index of owned entry i.
-  long long global_index(int i) const { return layout_.global(i); }
+  long long global_index(int i) const { return layout_dual_.global(i); }
 
   void apply_F(const Vec& lambda, Vec& y);
   /// coarse = G~ lambda (all clusters, on every rank).
@@ -74,6 +89,7 @@ class DualProblem {
   /// y = P x (x and y may alias).
   void project(const Vec& x, Vec& y);
 
+  /// d = B~ K~^+ f - c.
   const Vec& d() const { return d_; }
   /// e~ = R~^T f (all clusters).
   const Vec& e() const { return e_; }
@@ -92,20 +108,26 @@ class DualProblem {
 
   /// Checks of a primal solution (global, on every rank).
   struct Kkt {
-    double equality_residual = 0;  ///< ||B_E u||
-    double max_violation = 0;      ///< max over contact nodes of (u_left - u_right)_+
+    double equality_residual = 0;  ///< ||B_E u - c_E||
+    double max_violation = 0;      ///< max over contact rows of (n.(u_a - u_b) - gap)_+
     double min_multiplier = 0;     ///< smallest contact force (0 without contact)
-    double complementarity = 0;    ///< max |force * gap| over contact nodes
+    double complementarity = 0;    ///< max |force * gap| over contact rows
   };
   Kkt kkt(const std::vector<Vec>& u, const Vec& lambda);
   /// q(u) = 1/2 u'Ku - f'u summed over subdomains.
   double energy(const std::vector<Vec>& u) const;
 
-  /// Contact data along x = 1, sorted by y, gathered on rank 0 (empty elsewhere).
+  /// Per contact row, sorted by the point (x, y, z), gathered on rank 0 (empty elsewhere):
+  /// coordinates of node a, the normal displacements n.u_a and n.u_b (0 for an obstacle),
+  /// the gap and the contact force (scale * lambda).
   struct ContactData {
-    std::vector<double> y, u_left, u_right, multiplier;
+    std::vector<double> x, y, z, u_a, u_b, gap, force;
   };
   ContactData contact_data(const std::vector<Vec>& u, const Vec& lambda);
+
+  /// The force of the contact rows on each local subdomain's copy, -B_I^T lambda (one vector per
+  /// local subdomain; summed over a node's copies it is the nodal contact force). Collective.
+  std::vector<Vec> contact_forces(const Vec& lambda);
 
   long factor_nonzeros() const;  ///< summed over this rank's subdomains
   bool explicit_operator() const { return explicit_; }
@@ -120,31 +142,39 @@ class DualProblem {
     int k;  // extended dual index
     int dof;
     double value;
+    int side;  // contact rows: +1 on node a, -1 on node b; 0 otherwise
   };
-  void gather_to_ext(const Vec& owned);                       // ext_in_ = [owned, ghosts]
-  void cluster_rhs_from_ext(int c, bool add_f, double sign);  // x_i = (f_i) + sign B_i^T ext_in_
-  void b_of_x(int c);                                         // contrib_ = B_i x_i, per row entry
-  void scatter_contrib();                                     // ext_out_ += contrib_, fixed order
+  void gather_to_ext(const Vec& owned);                        // ext_in_ = [owned, ghosts]
+  void cluster_rhs_from_ext(int c, bool add_f, double sign);   // x_i = (f_i) + sign B_i^T ext_in_
+  void b_of_x(int c);                                          // contrib_ = B_i x_i, per row entry
+  void scatter_contrib();                                      // ext_out_ += contrib_, fixed order
   template <class Body>
   void for_each_cluster(Body body);     // OpenMP over local clusters
   void gt_into_ext(const Vec& coarse);  // ext_out_ = G~^T coarse (owners summed)
   void assemble_coarse(const std::vector<double>& weight, SparseCholesky& factor);
   // B~ applied to per-subdomain vectors; sums are on owners afterwards (reverse_add done).
   void apply_B(const std::vector<Vec>& u, Vec& out);
+  int members(int c) const { return sub_first_[c + 1] - sub_first_[c]; }
+  int sub_of(int c, int i) const { return sub_first_[c] + i; }
 
-  const Decomposition& dec_;
+  FetiLayout layout_;
   const Comm& comm_;
   SetupTimings setup_;
   long long n_dual_ = 0, n_inequalities_ = 0;
-  int first_sub_ = 0;
+  int c0_ = 0, c1_ = 0;            // local clusters
+  std::vector<int> sub_first_;     // per local cluster: first local subdomain index
+  std::vector<int> coarse_first_;  // per global cluster: first coarse index (num_clusters + 1)
   std::vector<std::unique_ptr<Subdomain>> subs_;
   std::vector<std::unique_ptr<Cluster>> clusters_;
   std::vector<std::vector<Row>> rows_;  // B~ rows per local subdomain
-  DualLayout layout_;
-  std::vector<int> owner_;                                   // owner rank of each extended entry
-  std::vector<MultiplierKind> kind_;                         // per owned entry
-  std::vector<double> contact_y_, contact_scale_;            // per owned entry (contact rows)
-  std::vector<std::vector<std::pair<int, double>>> g_rows_;  // G~ row of each local cluster
+  DualLayout layout_dual_;
+  std::vector<int> owner_;                // owner rank of each extended entry
+  std::vector<MultiplierKind> kind_;      // per owned entry
+  Vec c_;                                 // per owned entry: right-hand side of B~ u (<)= c
+  std::vector<double> contact_scale_, contact_gap_;  // per owned entry (contact rows)
+  std::vector<std::array<double, 3>> contact_point_;
+  // G~ rows of each local cluster: per kernel vector, (extended index, value)
+  std::vector<std::vector<std::vector<std::pair<int, double>>>> g_rows_;
   SparseCholesky coarse_factor_;
   Vec d_, e_, lambda_tilde_, lower_;
   // work arrays (allocated once)

@@ -1,45 +1,47 @@
 // One subdomain of TFETI (paper, Section 4): stiffness K_i, load f_i, orthonormal kernel R_i and
-// the generalized inverse K_i^+ obtained by fixing one node: K_rr (K without the fixed node's row
-// and column) is factored by sparse Cholesky and K^+ = [K_rr^{-1} 0; 0 0], so K K^+ K = K.
-// For the Laplacian the kernel is the constant vector, R_i = e / sqrt(n_i).
+// the generalized inverse K_i^+ obtained by fixing dim(Ker K_i) dofs chosen by the physics (one
+// node for the Laplacian; dofs of well-separated nodes for elasticity, see fem/physics.hpp):
+// K_rr (K without the fixed rows and columns) is factored by sparse Cholesky and
+// K^+ = [K_rr^{-1} 0; 0 0]. Because as many dofs are fixed as the kernel has dimensions and R
+// restricted to them is invertible, rank K_rr = rank K and K K^+ K = K (tested).
 //
-// Cost of one K^+ application: one forward and one backward triangular solve with the factor
-// of K_rr (about 4 nnz(L) flops) plus two gathers of n_i values.
+// Cost of one K^+ application: one forward and one backward triangular solve with the factor of
+// K_rr (about 4 nnz(L) flops) plus two gathers of n_i values.
 #pragma once
 
 #include <Eigen/Dense>
 #include <Eigen/Sparse>
-#include <array>
 #include <vector>
 
-#include "htfeti/decomposition/decomposition.hpp"
+#include "htfeti/feti/input.hpp"
 #include "htfeti/feti/sparse_cholesky.hpp"
 
 namespace htfeti {
 
 class Subdomain {
  public:
-  /// Assembles K_i and f_i of subdomain `id`; the factorization is separate (factorize()).
-  Subdomain(const Decomposition& dec, int id);
+  /// Takes the assembled system; the factorization is separate (factorize()).
+  explicit Subdomain(SubdomainSystem system);
 
-  int id() const { return id_; }
-  const SubdomainPosition& position() const { return pos_; }
-  int size() const { return static_cast<int>(f_.size()); }
+  int id() const { return sys_.id; }
+  int size() const { return static_cast<int>(sys_.f.size()); }
+  int dofs_per_node() const { return sys_.dofs_per_node; }
   /// The assembled K_i; empty after release_matrix().
-  const Eigen::SparseMatrix<double>& K() const { return K_; }
-  /// Frees K_i once it is factored (the factor and the element matrices remain): about
-  /// 12 bytes x 9 nonzeros per node.
-  void release_matrix() { K_ = Eigen::SparseMatrix<double>(); }  // factorize() reassembles it
-  /// q_i(u) = 1/2 u'K_i u - f_i'u, element by element (works after release_matrix()).
+  const Eigen::SparseMatrix<double>& K() const { return sys_.K; }
+  /// Frees K_i (the factor remains); energy() and factorize() rebuild it when needed.
+  void release_matrix() { sys_.K = Eigen::SparseMatrix<double>(); }
+  /// q_i(u) = 1/2 u'K_i u - f_i'u (rebuilds K_i temporarily if it was freed).
   double energy(const Eigen::VectorXd& u) const;
-  const Eigen::VectorXd& f() const { return f_; }
-  /// The orthonormal kernel basis (one column for the Laplacian).
-  const Eigen::VectorXd& kernel() const { return R_; }
-  int fixed_node() const { return fixed_; }
+  const Eigen::VectorXd& f() const { return sys_.f; }
+  /// The orthonormal kernel basis R_i (one column for the Laplacian, 3 or 6 for elasticity).
+  const Eigen::MatrixXd& kernel() const { return sys_.R; }
+  int kernel_dimension() const { return static_cast<int>(sys_.R.cols()); }
+  const std::vector<int>& fixed_dofs() const { return sys_.fixed_dofs; }
 
   void factorize(Ordering ordering);
   /// Factors with the given dofs (the interface) ordered last, so that the Schur complement of
-  /// K_rr onto them is available for dual_block() (explicit dual operator).
+  /// K_rr onto them is available for dual_block() (explicit dual operator). Fixed dofs among
+  /// them are left out (K^+ is zero there).
   void factorize_with_interface_last(const std::vector<int>& interface_dofs);
   /// One entry of the subdomain's part of B~: row `mult` (subdomain-local numbering), column `dof`.
   struct BEntry {
@@ -60,24 +62,14 @@ class Subdomain {
   /// Frees the factorization (apply_pinv needs factorize() again).
   void release_factor();
 
-  /// Coordinates of local node k.
-  double x_of(int k) const;
-  double y_of(int k) const;
-
  private:
-  void assemble();
   void factorize_impl(Ordering ordering, const std::vector<int>* interface_dofs);
-  int id_;
-  SubdomainPosition pos_;
-  int H_;
-  double h_;
-  std::array<std::array<double, 4>, 4> ke_;
-  Eigen::SparseMatrix<double> K_;
-  Eigen::VectorXd f_, R_;
-  int fixed_ = 0;
+  Eigen::SparseMatrix<double> reduced_matrix();
+  SubdomainSystem sys_;
+  std::vector<int> reduced_;  // dof -> index in K_rr, -1 for fixed dofs
   long factor_nonzeros_ = 0;
   SparseCholesky chol_;
-  Eigen::VectorXd work_;  // reduced vectors of length size() - 1
+  Eigen::VectorXd work_;  // reduced vectors
 };
 
 }  // namespace htfeti

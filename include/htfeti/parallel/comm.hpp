@@ -4,6 +4,7 @@
 
 #include <mpi.h>
 
+#include <string>
 #include <vector>
 
 namespace htfeti {
@@ -20,6 +21,11 @@ class Comm {
   double min(double v) const;
   void sum_in_place(double* data, int n) const;
   void barrier() const;
+  /// Failure agreement (DESIGN.md, "Parallel rules"): every rank passes its error message (empty
+  /// if it succeeded); if any rank failed, every rank throws the message of the lowest failing
+  /// rank: std::invalid_argument if that failure was bad input (input_error), else
+  /// std::runtime_error. Collective; never hangs because every rank takes part.
+  void agree(const std::string& error, bool input_error = false) const;
 
  private:
   MPI_Comm comm_;

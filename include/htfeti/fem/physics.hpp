@@ -1,0 +1,75 @@
+// The physics of a problem and the assembly of one subdomain (DESIGN.md, fem/):
+//  - laplace: -div(grad u) = source, one dof per node, kernel = the constants;
+//  - elasticity: isotropic linear elasticity (E, nu; plane strain in 2D), dim dofs per node
+//    (node-major: u_x, u_y[, u_z]), body force density * gravity, kernel = the rigid body
+//    motions (3 in 2D, 6 in 3D) centred at the centroid of the nodes.
+// Loads use the centroid rule: a source (or body force) evaluated at the cell's centroid times
+// the cell's measure, shared equally by its nodes (exact for constant data on affine cells).
+//
+// assemble_subdomain() returns K_i, f_i (volume loads only; the caller adds tractions), the
+// orthonormal kernel R_i computed per connected part of the subdomain (a METIS part that is not
+// connected has one kernel block per part), and the dofs to fix for K^+: for each part, dim R
+// dofs chosen by column-pivoted QR of the part's kernel rows at a few well-separated nodes
+// (centre-nearest node first), so that R restricted to them is invertible and K K^+ K = K.
+#pragma once
+
+#include <Eigen/Dense>
+#include <Eigen/Sparse>
+#include <array>
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "htfeti/mesh/subdomain_mesh.hpp"
+
+namespace htfeti {
+
+enum class PhysicsKind { laplace, elasticity };
+PhysicsKind parse_physics(const std::string& name);  // throws std::invalid_argument
+std::string to_string(PhysicsKind kind);
+
+struct Physics {
+  PhysicsKind kind = PhysicsKind::laplace;
+  int dim = 2;
+  Material material;   ///< elasticity
+  double density = 0;  ///< elasticity: body force density * gravity
+  std::array<double, 3> gravity{0, 0, 0};
+  int dofs_per_node() const { return kind == PhysicsKind::laplace ? 1 : dim; }
+  int kernel_dimension() const {
+    return kind == PhysicsKind::laplace ? 1 : (dim == 2 ? 3 : 6);
+  }
+  /// Throws std::invalid_argument for non-physical values (E <= 0, nu outside (-1, 0.5), ...).
+  void validate() const;
+};
+
+/// The kernel of the physics at n nodes with coordinates xyz (3 per node), centred at their
+/// centroid, not normalized: n dofs_per_node x kernel_dimension (Laplace: ones).
+Eigen::MatrixXd physics_kernel(const Physics& physics, const double* xyz, int n);
+
+/// Orthonormal basis of the column space of A (modified Gram-Schmidt twice, columns dropped when
+/// their remaining norm is below tol times their original norm). Deterministic.
+Eigen::MatrixXd orthonormal_columns(const Eigen::MatrixXd& A, double tol = 1e-10);
+
+/// Source of a Laplace problem at a point (the centroid of a cell).
+using SourceFunction = std::function<double(const std::array<double, 3>&)>;
+
+struct AssembledSubdomain {
+  Eigen::SparseMatrix<double> K;
+  Eigen::VectorXd f;
+  Eigen::MatrixXd R;            ///< orthonormal kernel basis
+  std::vector<int> fixed_dofs;  ///< R.cols() dofs fixed for K^+
+  int parts = 1;                ///< connected parts of the subdomain
+};
+
+/// Stiffness only (for rebuilding K after it was freed).
+Eigen::SparseMatrix<double> assemble_stiffness(const SubdomainMesh& mesh, const Physics& physics);
+/// K, the volume load (source for Laplace, density * gravity for elasticity), kernel, fixed dofs.
+AssembledSubdomain assemble_subdomain(const SubdomainMesh& mesh, const Physics& physics,
+                                      const SourceFunction& source);
+/// Adds a uniform traction (elasticity: a vector; Laplace: a flux, component 0) on the facets
+/// of a facet group: each facet's measure times the traction, shared equally by its nodes.
+void add_traction(const SubdomainMesh& mesh, const SubdomainMesh::FacetGroup& group,
+                  const Physics& physics, const std::array<double, 3>& traction,
+                  Eigen::VectorXd& f);
+
+}  // namespace htfeti

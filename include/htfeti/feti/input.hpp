@@ -1,0 +1,96 @@
+// What the FETI stage is given for each subdomain of a rank (DESIGN.md: "feti sees
+// SubdomainSystems and DofSharing, never a mesh"), and the global facts it needs.
+//
+// - SubdomainSystem: K_i (rebuildable after it is freed), f_i, the orthonormal kernel R_i and
+//   the dofs fixed for K^+;
+// - DofSharing: per local node its global id, coordinates (for the kernel restricted to an
+//   interface object), the subdomains holding a copy (canonical order) and whether it lies on
+//   the domain boundary; dofs are node-major (node * dofs_per_node + component);
+// - the conditions: Dirichlet dofs with values, and contact rows n.(u_a - u_b) <= gap (b absent
+//   for a rigid obstacle).
+#pragma once
+
+#include <Eigen/Dense>
+#include <Eigen/Sparse>
+#include <array>
+#include <functional>
+#include <string>
+#include <vector>
+
+namespace htfeti {
+
+/// Which primal constraints join the subdomains of a cluster (paper, Section 5): corners
+/// (vertices), averages of the kernel over shared edges (2D) or faces (3D), or both.
+enum class Glue { corners, averages, corners_averages };
+Glue parse_glue(const std::string& name);  // throws std::invalid_argument
+std::string to_string(Glue glue);
+
+struct SubdomainSystem {
+  int id = 0;  ///< global subdomain id
+  int dofs_per_node = 1;
+  Eigen::SparseMatrix<double> K;
+  /// Rebuilds K after it was freed (the factors are computed again for the reconstruction).
+  std::function<Eigen::SparseMatrix<double>()> assemble;
+  Eigen::VectorXd f;
+  Eigen::MatrixXd R;            ///< orthonormal kernel basis, one column per rigid mode
+  std::vector<int> fixed_dofs;  ///< R.cols() dofs set to zero by K^+ (sorted)
+};
+
+struct DofSharing {
+  std::vector<long long> global_node;
+  std::vector<double> coords;  ///< 3 per node
+  std::vector<int> copy_offset, copy_list;
+  std::vector<char> on_boundary;
+  int num_nodes() const { return static_cast<int>(global_node.size()); }
+  int num_copies(int k) const { return copy_offset[k + 1] - copy_offset[k]; }
+  const int* copies(int k) const { return copy_list.data() + copy_offset[k]; }
+};
+
+struct DirichletDof {
+  int node;       ///< local node
+  int component;  ///< 0 .. dofs_per_node - 1
+  double value;
+};
+
+/// One inequality n.(u_a - u_b) <= gap on the average of each node's copies (b = -1: a rigid
+/// obstacle, n.u_a <= gap). Given to every subdomain that holds a copy of a or b, with `node`
+/// the local node and `side` +1 for a, -1 for b.
+struct ContactRow {
+  int node = 0;
+  int side = 1;
+  long long node_a = 0;  ///< global id of a (the key that orders the row)
+  int copies_a = 1, copies_b = 0;
+  int owner_subdomain = 0;  ///< lowest subdomain holding a copy of a or b
+  std::array<double, 3> direction{1, 0, 0};  ///< unit normal n (dofs_per_node components used)
+  double gap = 0;
+  std::array<double, 3> point{0, 0, 0};  ///< coordinates of a (for the report)
+};
+
+/// One local subdomain's input: moved into the FETI stage, which keeps what it needs.
+struct SubdomainInput {
+  SubdomainSystem system;
+  DofSharing sharing;
+  std::vector<DirichletDof> dirichlet;
+  std::vector<ContactRow> contact;
+};
+
+/// Global structure: clusters own contiguous subdomain ranges (cluster-major numbering).
+struct FetiLayout {
+  int dim = 2;
+  int dofs_per_node = 1;
+  long long num_nodes = 0;  ///< global nodes (keys of the per-node rows)
+  int num_subdomains = 0;
+  int num_clusters = 0;
+  std::vector<int> cluster_first;  ///< num_clusters + 1 offsets into the subdomain ids
+  Glue glue = Glue::averages;
+  /// The kernel of the physics at n nodes (3 coordinates each), unnormalized columns.
+  std::function<Eigen::MatrixXd(const double* xyz, int n)> kernel;
+  int cluster_of(int s) const;
+  int cluster_size(int c) const { return cluster_first[c + 1] - cluster_first[c]; }
+  /// Clusters [first, last) owned by rank r of P (contiguous blocks).
+  std::pair<int, int> cluster_range(int r, int P) const;
+  int rank_of_cluster(int c, int P) const;
+  int rank_of_subdomain(int s, int P) const { return rank_of_cluster(cluster_of(s), P); }
+};
+
+}  // namespace htfeti

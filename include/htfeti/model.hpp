@@ -1,0 +1,57 @@
+// A problem as htfeti solves it (DESIGN.md, "Architecture"): a mesh source (a generated box, or a
+// Gmsh mesh split by METIS), the physics, conditions on named groups and the decomposition into
+// subdomains and clusters. The model hands the FETI stage what it needs, one subdomain at a time
+// (input(s)), and the writers the subdomain meshes (mesh(s)); a rank asks only for its own
+// subdomains, so a generated box is never built whole.
+//
+// The built-in benchmarks (poisson2d, membranes, membranes-coercive) are models on generated
+// boxes with conditions of their own (make_builtin_model); problem files give models with
+// conditions on named groups (problem_file.hpp, make_model).
+#pragma once
+
+#include <memory>
+#include <nlohmann/json.hpp>
+#include <string>
+#include <vector>
+
+#include "htfeti/decomposition/decomposition.hpp"
+#include "htfeti/fem/physics.hpp"
+#include "htfeti/feti/input.hpp"
+#include "htfeti/mesh/subdomain_mesh.hpp"
+
+namespace htfeti {
+
+class Model {
+ public:
+  virtual ~Model() = default;
+  const Physics& physics() const { return physics_; }
+  int dim() const { return physics_.dim; }
+  Glue glue() const { return glue_; }
+  virtual int num_subdomains() const = 0;
+  virtual int num_clusters() const = 0;
+  /// Subdomains of cluster c: [cluster_first(c), cluster_first(c + 1)).
+  virtual int cluster_first(int c) const = 0;
+  virtual long long num_nodes() const = 0;
+  /// Primal unknowns of the decomposed problem (every subdomain with its own copies).
+  virtual long long primal_dimension() const = 0;
+  virtual SubdomainMesh mesh(int s) const = 0;
+  /// The load of a Laplace problem at a point (unused for elasticity).
+  virtual SourceFunction source() const { return {}; }
+  /// Adds the subdomain's boundary loads to f and its Dirichlet dofs and contact rows.
+  virtual void apply_conditions(const SubdomainMesh& mesh, SubdomainInput& in) const = 0;
+  /// The report's description of the problem (mesh, physics, decomposition).
+  virtual nlohmann::json describe() const = 0;
+
+  FetiLayout layout() const;
+  /// Generates, assembles and describes subdomain s for the FETI stage. Thread-safe.
+  SubdomainInput input(int s) const;
+
+ protected:
+  Physics physics_;
+  Glue glue_ = Glue::averages;
+};
+
+/// The built-in 2D benchmarks (DESIGN.md, "Built-in problems") on the generated squares.
+std::unique_ptr<Model> make_builtin_model(const DecompositionOptions& options);
+
+}  // namespace htfeti

@@ -1,0 +1,333 @@
+#include "htfeti/fem/element.hpp"
+
+#include <cmath>
+#include <stdexcept>
+#include <vector>
+
+namespace htfeti {
+
+CellType parse_cell_type(const std::string& name) {
+  if (name == "tri3") return CellType::tri3;
+  if (name == "quad4") return CellType::quad4;
+  if (name == "tet4") return CellType::tet4;
+  if (name == "hex8") return CellType::hex8;
+  throw std::invalid_argument("unknown element '" + name + "' (expected quad4, tri3, hex8 or tet4)");
+}
+
+std::string to_string(CellType t) {
+  switch (t) {
+    case CellType::tri3:
+      return "tri3";
+    case CellType::quad4:
+      return "quad4";
+    case CellType::tet4:
+      return "tet4";
+    case CellType::hex8:
+      return "hex8";
+  }
+  return "?";
+}
+
+int cell_dimension(CellType t) { return t == CellType::tri3 || t == CellType::quad4 ? 2 : 3; }
+int cell_nodes(CellType t) {
+  switch (t) {
+    case CellType::tri3:
+      return 3;
+    case CellType::quad4:
+      return 4;
+    case CellType::tet4:
+      return 4;
+    case CellType::hex8:
+      return 8;
+  }
+  return 0;
+}
+int vtk_cell_type(CellType t) {
+  switch (t) {
+    case CellType::tri3:
+      return 5;
+    case CellType::quad4:
+      return 9;
+    case CellType::tet4:
+      return 10;
+    case CellType::hex8:
+      return 12;
+  }
+  return 0;
+}
+
+namespace {
+
+// Reference node coordinates of quad4 ([0,1]^2, the 2D built-ins' convention) and hex8 ([-1,1]^3).
+constexpr double q4[4][2] = {{0, 0}, {1, 0}, {1, 1}, {0, 1}};
+constexpr double h8[8][3] = {{-1, -1, -1}, {1, -1, -1}, {1, 1, -1}, {-1, 1, -1},
+                             {-1, -1, 1},  {1, -1, 1},  {1, 1, 1},  {-1, 1, 1}};
+
+struct QuadPoint {
+  Eigen::MatrixXd dN;  // n x dim physical gradients
+  Eigen::VectorXd N;   // n shape values
+  double w;            // weight x |det J|
+};
+
+// Shape values and reference gradients at a reference point.
+void reference_shape(CellType t, const double* xi, Eigen::VectorXd& N, Eigen::MatrixXd& dN) {
+  switch (t) {
+    case CellType::tri3:
+      N.resize(3), dN.resize(3, 2);
+      N << 1 - xi[0] - xi[1], xi[0], xi[1];
+      dN << -1, -1, 1, 0, 0, 1;
+      return;
+    case CellType::tet4:
+      N.resize(4), dN.resize(4, 3);
+      N << 1 - xi[0] - xi[1] - xi[2], xi[0], xi[1], xi[2];
+      dN << -1, -1, -1, 1, 0, 0, 0, 1, 0, 0, 0, 1;
+      return;
+    case CellType::quad4:
+      N.resize(4), dN.resize(4, 2);
+      for (int a = 0; a < 4; ++a) {
+        const double sx = q4[a][0] ? xi[0] : 1 - xi[0], sy = q4[a][1] ? xi[1] : 1 - xi[1];
+        N[a] = sx * sy;
+        dN(a, 0) = (q4[a][0] ? 1.0 : -1.0) * sy;
+        dN(a, 1) = (q4[a][1] ? 1.0 : -1.0) * sx;
+      }
+      return;
+    case CellType::hex8:
+      N.resize(8), dN.resize(8, 3);
+      for (int a = 0; a < 8; ++a) {
+        const double f0 = 1 + h8[a][0] * xi[0], f1 = 1 + h8[a][1] * xi[1],
+                     f2 = 1 + h8[a][2] * xi[2];
+        N[a] = f0 * f1 * f2 / 8;
+        dN(a, 0) = h8[a][0] * f1 * f2 / 8;
+        dN(a, 1) = f0 * h8[a][1] * f2 / 8;
+        dN(a, 2) = f0 * f1 * h8[a][2] / 8;
+      }
+      return;
+  }
+}
+
+// Gauss points in reference coordinates with weights.
+void gauss_points(CellType t, std::vector<std::array<double, 4>>& pts) {
+  pts.clear();
+  switch (t) {
+    case CellType::tri3:
+      pts.push_back({1.0 / 3, 1.0 / 3, 0, 0.5});
+      return;
+    case CellType::tet4:
+      pts.push_back({0.25, 0.25, 0.25, 1.0 / 6});
+      return;
+    case CellType::quad4: {
+      const double g = 0.5 / std::sqrt(3.0);
+      for (double a : {0.5 - g, 0.5 + g})
+        for (double b : {0.5 - g, 0.5 + g}) pts.push_back({a, b, 0, 0.25});
+      return;
+    }
+    case CellType::hex8: {
+      const double g = 1.0 / std::sqrt(3.0);
+      for (double a : {-g, g})
+        for (double b : {-g, g})
+          for (double c : {-g, g}) pts.push_back({a, b, c, 1.0});
+      return;
+    }
+  }
+}
+
+std::vector<QuadPoint> quadrature(CellType t, const double* x) {
+  const int n = cell_nodes(t), dim = cell_dimension(t);
+  std::vector<std::array<double, 4>> pts;
+  gauss_points(t, pts);
+  std::vector<QuadPoint> out;
+  Eigen::MatrixXd X(n, dim);
+  for (int a = 0; a < n; ++a)
+    for (int d = 0; d < dim; ++d) X(a, d) = x[3 * a + d];
+  for (const auto& p : pts) {
+    QuadPoint q;
+    Eigen::MatrixXd dNr;
+    reference_shape(t, p.data(), q.N, dNr);
+    const Eigen::MatrixXd J = X.transpose() * dNr;  // dim x dim: dx/dxi
+    const double det = J.determinant();
+    if (!(std::abs(det) > 0))
+      throw std::invalid_argument("a " + to_string(t) + " element has zero or invalid volume");
+    q.dN = dNr * J.inverse();
+    q.w = p[3] * std::abs(det);
+    out.push_back(std::move(q));
+  }
+  return out;
+}
+
+Eigen::MatrixXd strain_matrix(int dim, const Eigen::MatrixXd& dN) {
+  const int n = static_cast<int>(dN.rows());
+  Eigen::MatrixXd B;
+  if (dim == 2) {
+    B = Eigen::MatrixXd::Zero(3, 2 * n);
+    for (int a = 0; a < n; ++a) {
+      B(0, 2 * a) = dN(a, 0);
+      B(1, 2 * a + 1) = dN(a, 1);
+      B(2, 2 * a) = dN(a, 1);
+      B(2, 2 * a + 1) = dN(a, 0);
+    }
+  } else {
+    B = Eigen::MatrixXd::Zero(6, 3 * n);
+    for (int a = 0; a < n; ++a) {
+      B(0, 3 * a) = dN(a, 0);
+      B(1, 3 * a + 1) = dN(a, 1);
+      B(2, 3 * a + 2) = dN(a, 2);
+      B(3, 3 * a) = dN(a, 1);
+      B(3, 3 * a + 1) = dN(a, 0);
+      B(4, 3 * a + 1) = dN(a, 2);
+      B(4, 3 * a + 2) = dN(a, 1);
+      B(5, 3 * a) = dN(a, 2);
+      B(5, 3 * a + 2) = dN(a, 0);
+    }
+  }
+  return B;
+}
+
+}  // namespace
+
+Eigen::MatrixXd elasticity_matrix(int dim, const Material& m) {
+  const double E = m.young, nu = m.poisson;
+  const double lambda = E * nu / ((1 + nu) * (1 - 2 * nu)), mu = E / (2 * (1 + nu));
+  if (dim == 2) {
+    Eigen::MatrixXd D(3, 3);
+    D << lambda + 2 * mu, lambda, 0, lambda, lambda + 2 * mu, 0, 0, 0, mu;
+    return D;
+  }
+  Eigen::MatrixXd D = Eigen::MatrixXd::Zero(6, 6);
+  for (int i = 0; i < 3; ++i) {
+    for (int j = 0; j < 3; ++j) D(i, j) = lambda;
+    D(i, i) = lambda + 2 * mu;
+    D(3 + i, 3 + i) = mu;
+  }
+  return D;
+}
+
+Eigen::MatrixXd laplace_stiffness(CellType t, const double* x) {
+  const int n = cell_nodes(t);
+  Eigen::MatrixXd K = Eigen::MatrixXd::Zero(n, n);
+  for (const auto& q : quadrature(t, x)) K.noalias() += q.w * q.dN * q.dN.transpose();
+  return K;
+}
+
+Eigen::MatrixXd elasticity_stiffness(CellType t, const double* x, const Material& m) {
+  const int n = cell_nodes(t), dim = cell_dimension(t);
+  const Eigen::MatrixXd D = elasticity_matrix(dim, m);
+  Eigen::MatrixXd K = Eigen::MatrixXd::Zero(dim * n, dim * n);
+  for (const auto& q : quadrature(t, x)) {
+    const Eigen::MatrixXd B = strain_matrix(dim, q.dN);
+    K.noalias() += q.w * B.transpose() * D * B;
+  }
+  return K;
+}
+
+Eigen::VectorXd shape_integrals(CellType t, const double* x) {
+  Eigen::VectorXd v = Eigen::VectorXd::Zero(cell_nodes(t));
+  for (const auto& q : quadrature(t, x)) v += q.w * q.N;
+  return v;
+}
+
+double cell_measure(CellType t, const double* x) {
+  double s = 0;
+  for (const auto& q : quadrature(t, x)) s += q.w;
+  return s;
+}
+
+std::array<double, 3> cell_centroid(CellType t, const double* x) {
+  std::array<double, 3> c{0, 0, 0};
+  const int n = cell_nodes(t);
+  for (int a = 0; a < n; ++a)
+    for (int d = 0; d < 3; ++d) c[d] += x[3 * a + d] / n;
+  return c;
+}
+
+Eigen::MatrixXd strain_matrix_at_centroid(CellType t, const double* x) {
+  const int n = cell_nodes(t), dim = cell_dimension(t);
+  double xi[3] = {0, 0, 0};
+  if (t == CellType::tri3) xi[0] = xi[1] = 1.0 / 3;
+  if (t == CellType::tet4) xi[0] = xi[1] = xi[2] = 0.25;
+  if (t == CellType::quad4) xi[0] = xi[1] = 0.5;
+  Eigen::VectorXd N;
+  Eigen::MatrixXd dNr;
+  reference_shape(t, xi, N, dNr);
+  Eigen::MatrixXd X(n, dim);
+  for (int a = 0; a < n; ++a)
+    for (int d = 0; d < dim; ++d) X(a, d) = x[3 * a + d];
+  const Eigen::MatrixXd J = X.transpose() * dNr;
+  return strain_matrix(dim, dNr * J.inverse());
+}
+
+double von_mises(int dim, const Eigen::VectorXd& s, double nu) {
+  double sxx, syy, szz, sxy, syz, szx;
+  if (dim == 2) {
+    sxx = s[0], syy = s[1], sxy = s[2], szz = nu * (sxx + syy), syz = szx = 0;
+  } else {
+    sxx = s[0], syy = s[1], szz = s[2], sxy = s[3], syz = s[4], szx = s[5];
+  }
+  return std::sqrt(0.5 * ((sxx - syy) * (sxx - syy) + (syy - szz) * (syy - szz) +
+                          (szz - sxx) * (szz - sxx)) +
+                   3 * (sxy * sxy + syz * syz + szx * szx));
+}
+
+int cell_facet_count(CellType t) {
+  switch (t) {
+    case CellType::tri3:
+      return 3;
+    case CellType::quad4:
+      return 4;
+    case CellType::tet4:
+      return 4;
+    case CellType::hex8:
+      return 6;
+  }
+  return 0;
+}
+
+int cell_facet(CellType t, int f, int* nodes) {
+  static const int tri[3][2] = {{0, 1}, {1, 2}, {2, 0}};
+  static const int quad[4][2] = {{0, 1}, {1, 2}, {2, 3}, {3, 0}};
+  static const int tet[4][3] = {{0, 2, 1}, {0, 1, 3}, {1, 2, 3}, {0, 3, 2}};
+  static const int hex[6][4] = {{0, 3, 2, 1}, {4, 5, 6, 7}, {0, 1, 5, 4},
+                                {2, 3, 7, 6}, {1, 2, 6, 5}, {0, 4, 7, 3}};
+  switch (t) {
+    case CellType::tri3:
+      nodes[0] = tri[f][0], nodes[1] = tri[f][1];
+      return 2;
+    case CellType::quad4:
+      nodes[0] = quad[f][0], nodes[1] = quad[f][1];
+      return 2;
+    case CellType::tet4:
+      for (int i = 0; i < 3; ++i) nodes[i] = tet[f][i];
+      return 3;
+    case CellType::hex8:
+      for (int i = 0; i < 4; ++i) nodes[i] = hex[f][i];
+      return 4;
+  }
+  return 0;
+}
+
+double facet_measure(int dim, int n, const double* x) {
+  auto sub = [&](int a, int b, double* v) {
+    for (int d = 0; d < 3; ++d) v[d] = x[3 * a + d] - x[3 * b + d];
+  };
+  auto cross_norm = [](const double* u, const double* v) {
+    const double c0 = u[1] * v[2] - u[2] * v[1], c1 = u[2] * v[0] - u[0] * v[2],
+                 c2 = u[0] * v[1] - u[1] * v[0];
+    return std::sqrt(c0 * c0 + c1 * c1 + c2 * c2);
+  };
+  double u[3], v[3];
+  if (n == 2) {
+    sub(1, 0, u);
+    return std::sqrt(u[0] * u[0] + u[1] * u[1] + u[2] * u[2]);
+  }
+  if (n == 3) {
+    sub(1, 0, u), sub(2, 0, v);
+    return 0.5 * cross_norm(u, v);
+  }
+  // quad: two triangles (exact for planar quads)
+  sub(1, 0, u), sub(2, 0, v);
+  double a = 0.5 * cross_norm(u, v);
+  sub(2, 0, u), sub(3, 0, v);
+  return a + 0.5 * cross_norm(u, v);
+  (void)dim;
+}
+
+}  // namespace htfeti

@@ -1,0 +1,269 @@
+#include "htfeti/fem/physics.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <numeric>
+#include <stdexcept>
+
+namespace htfeti {
+
+PhysicsKind parse_physics(const std::string& name) {
+  if (name == "laplace") return PhysicsKind::laplace;
+  if (name == "elasticity") return PhysicsKind::elasticity;
+  throw std::invalid_argument("unknown physics '" + name + "' (expected laplace or elasticity)");
+}
+
+std::string to_string(PhysicsKind kind) {
+  return kind == PhysicsKind::laplace ? "laplace" : "elasticity";
+}
+
+void Physics::validate() const {
+  if (dim != 2 && dim != 3) throw std::invalid_argument("the dimension must be 2 or 3");
+  if (kind != PhysicsKind::elasticity) return;
+  if (!(material.young > 0) || !std::isfinite(material.young))
+    throw std::invalid_argument("physics.young must be positive and finite");
+  if (!(material.poisson > -1 && material.poisson < 0.5))
+    throw std::invalid_argument("physics.poisson must lie in (-1, 0.5)");
+  if (!(density >= 0) || !std::isfinite(density))
+    throw std::invalid_argument("physics.density must be non-negative and finite");
+  for (double g : gravity)
+    if (!std::isfinite(g)) throw std::invalid_argument("physics.gravity must be finite");
+}
+
+Eigen::MatrixXd physics_kernel(const Physics& ph, const double* xyz, int n) {
+  if (ph.kind == PhysicsKind::laplace) return Eigen::MatrixXd::Ones(n, 1);
+  double c[3] = {0, 0, 0};
+  for (int k = 0; k < n; ++k)
+    for (int d = 0; d < 3; ++d) c[d] += xyz[3 * k + d] / n;
+  const int dim = ph.dim;
+  Eigen::MatrixXd R = Eigen::MatrixXd::Zero(dim * n, ph.kernel_dimension());
+  for (int k = 0; k < n; ++k) {
+    const double x = xyz[3 * k] - c[0], y = xyz[3 * k + 1] - c[1], z = xyz[3 * k + 2] - c[2];
+    if (dim == 2) {
+      R(2 * k, 0) = 1, R(2 * k + 1, 1) = 1;
+      R(2 * k, 2) = -y, R(2 * k + 1, 2) = x;
+    } else {
+      R(3 * k, 0) = 1, R(3 * k + 1, 1) = 1, R(3 * k + 2, 2) = 1;
+      R(3 * k, 3) = -y, R(3 * k + 1, 3) = x;      // rotation about z
+      R(3 * k + 1, 4) = -z, R(3 * k + 2, 4) = y;  // about x
+      R(3 * k, 5) = z, R(3 * k + 2, 5) = -x;      // about y
+    }
+  }
+  return R;
+}
+
+Eigen::MatrixXd orthonormal_columns(const Eigen::MatrixXd& A, double tol) {
+  Eigen::MatrixXd Q(A.rows(), A.cols());
+  int r = 0;
+  for (int j = 0; j < A.cols(); ++j) {
+    Eigen::VectorXd v = A.col(j);
+    const double n0 = v.norm();
+    if (n0 == 0) continue;
+    for (int pass = 0; pass < 2; ++pass)
+      for (int i = 0; i < r; ++i) v -= Q.col(i).dot(v) * Q.col(i);
+    const double n1 = v.norm();
+    if (n1 <= tol * n0) continue;
+    Q.col(r++) = v / n1;
+  }
+  return Q.leftCols(r);
+}
+
+namespace {
+
+// Element matrix of cell e (coordinates gathered); for uniform meshes the first one is reused.
+Eigen::MatrixXd element_matrix(const SubdomainMesh& mesh, const Physics& ph, int e) {
+  const int nc = cell_nodes(mesh.type);
+  double x[24];
+  for (int a = 0; a < nc; ++a) {
+    const int k = mesh.cells[static_cast<size_t>(e) * nc + a];
+    for (int d = 0; d < 3; ++d) x[3 * a + d] = mesh.coords[3 * static_cast<size_t>(k) + d];
+  }
+  if (ph.kind == PhysicsKind::laplace) {
+    // In 2D the Laplace element matrix does not depend on the cell's scale: compute it on the
+    // cell scaled by its first edge (a grid square becomes the unit square exactly).
+    if (mesh.dim == 2) {
+      const double dx = x[3] - x[0], dy = x[4] - x[1], s = std::sqrt(dx * dx + dy * dy);
+      const double x0 = x[0], y0 = x[1];
+      for (int a = 0; a < nc; ++a) x[3 * a] = (x[3 * a] - x0) / s, x[3 * a + 1] = (x[3 * a + 1] - y0) / s;
+    }
+    return laplace_stiffness(mesh.type, x);
+  }
+  return elasticity_stiffness(mesh.type, x, ph.material);
+}
+
+}  // namespace
+
+Eigen::SparseMatrix<double> assemble_stiffness(const SubdomainMesh& mesh, const Physics& ph) {
+  const int nc = cell_nodes(mesh.type), dpn = ph.dofs_per_node(), ne = mesh.num_cells();
+  const int n = mesh.num_nodes() * dpn, ed = nc * dpn;
+  std::vector<Eigen::Triplet<double>> trip;
+  trip.reserve(static_cast<size_t>(ne) * ed * ed);
+  const int period = mesh.uniform_period;
+  std::vector<Eigen::MatrixXd> cache(period > 0 ? std::min(period, ne) : 0);
+  for (size_t e = 0; e < cache.size(); ++e) cache[e] = element_matrix(mesh, ph, static_cast<int>(e));
+  Eigen::MatrixXd local;
+  for (int e = 0; e < ne; ++e) {
+    if (period == 0) local = element_matrix(mesh, ph, e);
+    const Eigen::MatrixXd& ke = period > 0 ? cache[e % period] : local;
+    const int* cn = mesh.cells.data() + static_cast<size_t>(e) * nc;
+    for (int a = 0; a < nc; ++a)
+      for (int i = 0; i < dpn; ++i)
+        for (int b = 0; b < nc; ++b)
+          for (int j = 0; j < dpn; ++j) {
+            const double v = ke(a * dpn + i, b * dpn + j);
+            if (v != 0.0) trip.emplace_back(cn[a] * dpn + i, cn[b] * dpn + j, v);
+          }
+  }
+  Eigen::SparseMatrix<double> K(n, n);
+  K.setFromTriplets(trip.begin(), trip.end());
+  return K;
+}
+
+AssembledSubdomain assemble_subdomain(const SubdomainMesh& mesh, const Physics& ph,
+                                      const SourceFunction& source) {
+  AssembledSubdomain out;
+  const int nc = cell_nodes(mesh.type), dpn = ph.dofs_per_node(), ne = mesh.num_cells();
+  const int nn = mesh.num_nodes();
+  out.K = assemble_stiffness(mesh, ph);
+  out.f = Eigen::VectorXd::Zero(static_cast<Eigen::Index>(nn) * dpn);
+  double x[24];
+  const int period = mesh.uniform_period;
+  std::vector<double> measures(period > 0 ? std::min(period, ne) : 0);
+  for (int e = 0; e < ne; ++e) {
+    const int* cn = mesh.cells.data() + static_cast<size_t>(e) * nc;
+    for (int a = 0; a < nc; ++a)
+      for (int d = 0; d < 3; ++d) x[3 * a + d] = mesh.coords[3 * static_cast<size_t>(cn[a]) + d];
+    if (period > 0 && e < period) measures[e] = cell_measure(mesh.type, x);
+    const double measure = period > 0 ? measures[e % period] : cell_measure(mesh.type, x);
+    if (ph.kind == PhysicsKind::laplace) {
+      if (!source) continue;
+      const double share = source(cell_centroid(mesh.type, x)) * measure / nc;
+      for (int a = 0; a < nc; ++a) out.f[cn[a]] += share;
+    } else if (ph.density != 0) {
+      for (int a = 0; a < nc; ++a)
+        for (int d = 0; d < dpn; ++d) out.f[cn[a] * dpn + d] += ph.density * ph.gravity[d] * measure / nc;
+    }
+  }
+
+  // Connected parts (through shared cells), numbered by their lowest node.
+  std::vector<int> parent(nn);
+  std::iota(parent.begin(), parent.end(), 0);
+  auto find = [&](int a) {
+    while (parent[a] != a) a = parent[a] = parent[parent[a]];
+    return a;
+  };
+  for (int e = 0; e < ne; ++e) {
+    const int* cn = mesh.cells.data() + static_cast<size_t>(e) * nc;
+    for (int a = 1; a < nc; ++a) {
+      const int r0 = find(cn[0]), r1 = find(cn[a]);
+      if (r0 != r1) parent[std::max(r0, r1)] = std::min(r0, r1);
+    }
+  }
+  std::vector<int> part_of(nn), root_part(nn, -1);
+  int parts = 0;
+  for (int k = 0; k < nn; ++k) {
+    const int r = find(k);
+    if (root_part[r] < 0) root_part[r] = parts++;
+    part_of[k] = root_part[r];
+  }
+  out.parts = parts;
+  const int kd = ph.kernel_dimension();
+  out.R = Eigen::MatrixXd::Zero(static_cast<Eigen::Index>(nn) * dpn, static_cast<Eigen::Index>(parts) * kd);
+  for (int p = 0; p < parts; ++p) {
+    std::vector<int> nodes;
+    for (int k = 0; k < nn; ++k)
+      if (part_of[k] == p) nodes.push_back(k);
+    const int pn = static_cast<int>(nodes.size());
+    std::vector<double> xyz(3 * static_cast<size_t>(pn));
+    double c[3] = {0, 0, 0};
+    for (int i = 0; i < pn; ++i)
+      for (int d = 0; d < 3; ++d) {
+        xyz[3 * i + d] = mesh.coords[3 * static_cast<size_t>(nodes[i]) + d];
+        c[d] += xyz[3 * i + d] / pn;
+      }
+    Eigen::MatrixXd Rp;
+    if (ph.kind == PhysicsKind::laplace) {
+      Rp = Eigen::MatrixXd::Constant(pn, 1, 1.0 / std::sqrt(static_cast<double>(pn)));
+    } else {
+      Rp = orthonormal_columns(physics_kernel(ph, xyz.data(), pn));
+      if (Rp.cols() != kd)
+        throw std::invalid_argument("subdomain " + std::to_string(mesh.id) +
+                                    " has a part whose nodes are collinear; its rigid body "
+                                    "motions are degenerate");
+    }
+    for (int i = 0; i < pn; ++i)
+      for (int d = 0; d < dpn; ++d)
+        out.R.row(static_cast<Eigen::Index>(nodes[i]) * dpn + d).segment(p * kd, kd) =
+            Rp.row(static_cast<Eigen::Index>(i) * dpn + d);
+
+    // Fixed dofs. Laplace: the node nearest the part's centroid (lowest index on ties).
+    // Elasticity: candidate nodes = nearest to the centroid, then repeatedly the node farthest
+    // from the candidates so far (well separated); the dofs are the first kd pivots of a
+    // column-pivoted QR of R restricted to the candidates' dofs.
+    auto dist2 = [&](int k, const double* q) {
+      double s = 0;
+      for (int d = 0; d < 3; ++d) {
+        const double t = mesh.coords[3 * static_cast<size_t>(k) + d] - q[d];
+        s += t * t;
+      }
+      return s;
+    };
+    int centre = nodes[0];
+    double best = dist2(centre, c);
+    for (int k : nodes) {
+      const double d2 = dist2(k, c);
+      if (d2 < best - 1e-12 * best) best = d2, centre = k;
+    }
+    if (ph.kind == PhysicsKind::laplace) {
+      out.fixed_dofs.push_back(centre);
+      continue;
+    }
+    std::vector<int> cand{centre};
+    std::vector<double> mind(pn, 0.0);
+    for (int i = 0; i < pn; ++i) mind[i] = dist2(nodes[i], &mesh.coords[3 * static_cast<size_t>(centre)]);
+    const int ncand = std::min(pn, mesh.dim == 2 ? 3 : 4);
+    while (static_cast<int>(cand.size()) < ncand) {
+      int far = 0;
+      for (int i = 1; i < pn; ++i)
+        if (mind[i] > mind[far]) far = i;
+      if (mind[far] == 0) break;
+      cand.push_back(nodes[far]);
+      for (int i = 0; i < pn; ++i)
+        mind[i] = std::min(mind[i], dist2(nodes[i], &mesh.coords[3 * static_cast<size_t>(nodes[far])]));
+    }
+    Eigen::MatrixXd Rc(static_cast<Eigen::Index>(cand.size()) * dpn, kd);
+    std::vector<int> dofs;
+    for (size_t i = 0; i < cand.size(); ++i)
+      for (int d = 0; d < dpn; ++d) {
+        Rc.row(static_cast<Eigen::Index>(i) * dpn + d) =
+            out.R.row(static_cast<Eigen::Index>(cand[i]) * dpn + d).segment(p * kd, kd);
+        dofs.push_back(cand[i] * dpn + d);
+      }
+    Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qr(Rc.transpose());
+    if (qr.rank() < kd)
+      throw std::invalid_argument("subdomain " + std::to_string(mesh.id) +
+                                  ": no set of dofs removes its rigid body motions");
+    std::vector<int> chosen;
+    for (int i = 0; i < kd; ++i) chosen.push_back(dofs[qr.colsPermutation().indices()[i]]);
+    std::sort(chosen.begin(), chosen.end());
+    out.fixed_dofs.insert(out.fixed_dofs.end(), chosen.begin(), chosen.end());
+  }
+  std::sort(out.fixed_dofs.begin(), out.fixed_dofs.end());
+  return out;
+}
+
+void add_traction(const SubdomainMesh& mesh, const SubdomainMesh::FacetGroup& g,
+                  const Physics& ph, const std::array<double, 3>& t, Eigen::VectorXd& f) {
+  const int fn = g.facet_nodes, dpn = ph.dofs_per_node();
+  if (fn == 0) return;
+  double x[12];
+  for (size_t i = 0; i + fn <= g.nodes.size(); i += fn) {
+    for (int a = 0; a < fn; ++a)
+      for (int d = 0; d < 3; ++d) x[3 * a + d] = mesh.coords[3 * static_cast<size_t>(g.nodes[i + a]) + d];
+    const double share = facet_measure(mesh.dim, fn, x) / fn;
+    for (int a = 0; a < fn; ++a)
+      for (int d = 0; d < dpn; ++d) f[static_cast<Eigen::Index>(g.nodes[i + a]) * dpn + d] += t[d] * share;
+  }
+}
+
+}  // namespace htfeti

@@ -10,7 +10,10 @@
 #include <fstream>
 #include <iostream>
 
+#include <unistd.h>
+
 #include "htfeti/io/vtu.hpp"
+#include "htfeti/problem_file.hpp"
 #include "htfeti/parallel/threads.hpp"
 #include "htfeti/solver.hpp"
 
@@ -27,24 +30,61 @@ int fail(const Comm& comm, const std::string& msg, int code) {
   return code;
 }
 
+// Writes text to path through a unique temporary name in the same directory, renamed only when
+// complete; a special file (such as /dev/null) is written in place, never replaced.
 void write_atomically(const std::string& path, const std::string& text) {
-  const std::string tmp = path + ".tmp";
+  std::error_code ec;
+  const auto st = std::filesystem::status(path, ec);
+  if (!ec && std::filesystem::exists(st) && !std::filesystem::is_regular_file(st)) {
+    std::ofstream o(path);
+    o << text << '\n';
+    o.flush();
+    if (!o) throw std::runtime_error("error while writing " + path);
+    return;
+  }
+  const std::string tmp = path + ".htfeti-tmp-" + std::to_string(::getpid());
   {
     std::ofstream o(tmp);
     if (!o) throw std::runtime_error("cannot write " + path);
     o << text << '\n';
-    if (!o) throw std::runtime_error("error while writing " + path);
+    o.flush();
+    if (!o) {
+      o.close();
+      std::filesystem::remove(tmp, ec);
+      throw std::runtime_error("error while writing " + path + " (disk full?)");
+    }
   }
-  std::filesystem::rename(tmp, path);
+  std::filesystem::rename(tmp, path, ec);
+  if (ec) {
+    std::filesystem::remove(tmp, ec);
+    throw std::runtime_error("cannot rename the report to " + path);
+  }
+}
+
+// An output path must be usable before any work: not empty, its directory exists and is
+// writable, and it is not a directory.
+void check_output_path(const std::string& path, const std::string& option) {
+  if (path.empty()) throw std::invalid_argument(option + " is empty");
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  const fs::path p(path);
+  if (fs::is_directory(p, ec)) throw std::invalid_argument(option + " '" + path + "' is a directory");
+  if (p.filename().empty() || p.filename() == "." || p.filename() == "..")
+    throw std::invalid_argument(option + " '" + path + "' names no file");
+  const fs::path dir = p.parent_path().empty() ? fs::path(".") : p.parent_path();
+  if (!fs::is_directory(dir, ec))
+    throw std::invalid_argument(option + " '" + path + "': directory '" + dir.string() +
+                                "' does not exist");
+  if (::access(dir.c_str(), W_OK) != 0)
+    throw std::invalid_argument(option + " '" + path + "': directory '" + dir.string() +
+                                "' is not writable");
 }
 
 void print_summary(const nlohmann::json& r) {
-  std::printf(
-      "htfeti: %s, %s elements, n = %d, %d subdomains (H/h = %d), %d clusters of %dx%d (%s)\n",
-      r["problem"].get<std::string>().c_str(), r["element"].get<std::string>().c_str(),
-      r["elements"].get<int>(), r["subdomains"].get<int>(), r["H_over_h"].get<int>(),
-      r["clusters"].get<int>(), r["cluster_size"].get<int>(), r["cluster_size"].get<int>(),
-      r["glue"].get<std::string>().c_str());
+  std::printf("htfeti: %s, %s elements, %d subdomains in %d clusters (glue %s)\n",
+              r["problem"].get<std::string>().c_str(), r["element"].get<std::string>().c_str(),
+              r["subdomains"].get<int>(), r["clusters"].get<int>(),
+              r["glue"].get<std::string>().c_str());
   std::printf(
       "  primal %lld, dual %lld (%lld equalities, %lld inequalities), coarse %d, %d ranks x %d "
       "threads\n",
@@ -57,7 +97,7 @@ void print_summary(const nlohmann::json& r) {
               r["inner_iterations"].get<int>(), r["matvecs"].get<long>());
   const auto& k = r["kkt"];
   std::printf(
-      "  energy %.12e; ||B_E u|| %.2e, max violation %.2e, min multiplier %.2e, "
+      "  energy %.12e; ||B_E u - c_E|| %.2e, max violation %.2e, min multiplier %.2e, "
       "complementarity %.2e\n",
       r["objective"].get<double>(), k["equality_residual"].get<double>(),
       k["max_violation"].get<double>(), k["min_multiplier"].get<double>(),
@@ -75,76 +115,102 @@ int run(int argc, char** argv, const Comm& comm) {
       "htfeti: TFETI and H-TFETI-DP domain decomposition for elliptic problems and "
       "contact (variational inequalities)"};
   app.require_subcommand(1);
-  auto* solve_cmd = app.add_subcommand("solve", "solve a built-in problem");
-  std::string problem = "membranes", element = "q1", glue = "averages", ordering = "amd";
-  std::string dual_operator = "auto";
-  std::string report = "htfeti-report.json", vtu = "htfeti-solution.vtu";
+  auto* solve_cmd = app.add_subcommand(
+      "solve", "solve a problem file (PROBLEM.toml) or a built-in problem (--problem NAME)");
+  std::string problem_file, problem = "membranes", element = "q1", glue = "averages",
+                            ordering = "amd";
+  std::string dual_operator = "auto", elements_text = "128", subdomains_text = "8";
+  OutputOptions out_opt;
   bool no_report = false, no_vtu = false;
   SolveOptions opt;
   opt.decomposition.elements = 128;
   opt.decomposition.subdomains = 8;
-  solve_cmd->add_option("--problem", problem, "poisson2d | membranes | membranes-coercive")
-      ->capture_default_str();
-  solve_cmd
-      ->add_option("--elements,-n", opt.decomposition.elements,
-                   "n: elements per side of each unit square (h = 1/n)")
-      ->capture_default_str();
-  solve_cmd
-      ->add_option("--subdomains", opt.decomposition.subdomains,
-                   "N_s: subdomains per side of each unit square (n divisible by N_s)")
-      ->capture_default_str();
-  solve_cmd
-      ->add_option("--cluster-size,-m", opt.decomposition.cluster_size,
-                   "m: clusters of m x m subdomains (1 = TFETI; N_s divisible by m)")
-      ->capture_default_str();
-  solve_cmd
-      ->add_option("--glue", glue,
-                   "primal gluing inside clusters: corners | averages | "
-                   "corners+averages")
-      ->capture_default_str();
-  solve_cmd->add_option("--element", element, "q1 (bilinear) | p1 (linear triangles)")
-      ->capture_default_str();
-  solve_cmd->add_option("--rtol", opt.rtol, "relative precision eps, in (0, 1)")
-      ->capture_default_str();
-  solve_cmd
-      ->add_option("--max-it", opt.max_iterations,
-                   "iteration limit: PCG iterations, or SMALBE-M outer iterations (0: 1000 / 200)")
-      ->capture_default_str();
-  solve_cmd
-      ->add_option("--ordering", ordering,
-                   "fill-reducing ordering of subdomain factors: amd | metis")
-      ->capture_default_str();
-  solve_cmd
-      ->add_option("--dual-operator", dual_operator,
-                   "how F is applied: implicit (sparse solves), explicit (dense local blocks "
-                   "from Schur complements), auto (explicit from 25 nodes per subdomain)")
-      ->capture_default_str();
-  solve_cmd->add_flag("--keep-factors", opt.feti.keep_factors,
+  solve_cmd->add_option("problem_file", problem_file,
+                        "a problem file (TOML, docs/user-guide.md); options given on the command "
+                        "line override its keys");
+  auto* o_problem =
+      solve_cmd->add_option("--problem", problem, "built-in: poisson2d | membranes | membranes-coercive")
+          ->capture_default_str();
+  auto* o_elements =
+      solve_cmd
+          ->add_option("--elements,-n", elements_text,
+                       "built-ins: n, elements per side of each unit square (h = 1/n); a generated "
+                       "box: NX,NY[,NZ]")
+          ->capture_default_str();
+  auto* o_subdomains =
+      solve_cmd
+          ->add_option("--subdomains", subdomains_text,
+                       "built-ins: N_s, subdomains per side of each unit square (n divisible by "
+                       "N_s); problem files: N (METIS) or SX,SY[,SZ] (generated box)")
+          ->capture_default_str();
+  auto* o_m = solve_cmd
+                   ->add_option("--cluster-size,-m", opt.decomposition.cluster_size,
+                                "m: clusters of m x m (x m) subdomains (1 = TFETI; N_s divisible "
+                                "by m); METIS: subdomains per cluster")
+                   ->capture_default_str()
+                   ->check(CLI::PositiveNumber);
+  auto* o_glue = solve_cmd
+                     ->add_option("--glue", glue,
+                                  "primal gluing inside clusters: corners | averages | "
+                                  "corners+averages")
+                     ->capture_default_str();
+  auto* o_element =
+      solve_cmd->add_option("--element", element, "built-ins: q1 (bilinear) | p1 (linear triangles)")
+          ->capture_default_str();
+  auto* o_rtol = solve_cmd->add_option("--rtol", opt.rtol, "relative precision eps, in (0, 1)")
+                     ->capture_default_str();
+  auto* o_maxit =
+      solve_cmd
+          ->add_option("--max-it", opt.max_iterations,
+                       "iteration limit: PCG iterations, or SMALBE-M outer iterations (0: 1000 / 200)")
+          ->capture_default_str()
+          ->check(CLI::NonNegativeNumber);
+  auto* o_ordering = solve_cmd
+                         ->add_option("--ordering", ordering,
+                                      "fill-reducing ordering of subdomain factors: amd | metis "
+                                      "(implicit operator; the explicit one orders the interface "
+                                      "last by constrained AMD)")
+                         ->capture_default_str();
+  auto* o_dual =
+      solve_cmd
+          ->add_option("--dual-operator", dual_operator,
+                       "how F is applied: implicit (sparse solves), explicit (dense local blocks "
+                       "from Schur complements), auto (explicit from 25 nodes per subdomain)")
+          ->capture_default_str();
+  auto* o_keep = solve_cmd->add_flag("--keep-factors", opt.feti.keep_factors,
                       "explicit operator: always keep the subdomain factors during the iterations "
                       "(by default they are freed, and rebuilt for the reconstruction, when they "
                       "would take more than 4 GiB per rank)");
-  solve_cmd
-      ->add_option("--rho-factor", opt.smalbe.rho_factor, "SMALBE-M penalty rho = factor * ||PFP||")
-      ->capture_default_str();
-  solve_cmd
-      ->add_option("--M0-factor", opt.smalbe.M0_factor, "SMALBE-M initial M = factor * ||PFP||")
-      ->capture_default_str();
-  solve_cmd->add_option("--eta-factor", opt.smalbe.eta_factor, "SMALBE-M eta = factor * ||b||")
-      ->capture_default_str();
-  solve_cmd
-      ->add_option("--beta", opt.smalbe.beta, "SMALBE-M: M is divided by beta on a failed test")
-      ->capture_default_str();
-  solve_cmd->add_option("--gamma", opt.smalbe.gamma, "MPRGP proportioning parameter Gamma")
-      ->capture_default_str();
-  solve_cmd->add_option("--report", report, "write the report JSON here")->capture_default_str();
+  auto* o_rho =
+      solve_cmd
+          ->add_option("--rho-factor", opt.smalbe.rho_factor, "SMALBE-M penalty rho = factor * ||PFP||")
+          ->capture_default_str();
+  auto* o_M0 =
+      solve_cmd
+          ->add_option("--M0-factor", opt.smalbe.M0_factor, "SMALBE-M initial M = factor * ||PFP||")
+          ->capture_default_str();
+  auto* o_eta =
+      solve_cmd->add_option("--eta-factor", opt.smalbe.eta_factor, "SMALBE-M eta = factor * ||b||")
+          ->capture_default_str();
+  auto* o_beta =
+      solve_cmd
+          ->add_option("--beta", opt.smalbe.beta, "SMALBE-M: M is divided by beta on a failed test")
+          ->capture_default_str();
+  auto* o_gamma =
+      solve_cmd->add_option("--gamma", opt.smalbe.gamma, "MPRGP proportioning parameter Gamma")
+          ->capture_default_str();
+  auto* o_report = solve_cmd->add_option("--report", out_opt.report, "write the report JSON here")
+                       ->capture_default_str();
   solve_cmd->add_flag("--no-report", no_report, "do not write a report");
-  solve_cmd
-      ->add_option("--vtu", vtu,
-                   "write the solution for ParaView here (.vtu, or .pvtu with "
-                   "several ranks)")
-      ->capture_default_str();
+  auto* o_vtu = solve_cmd
+                    ->add_option("--vtu", out_opt.vtu,
+                                 "write the solution for ParaView here (.vtu, or .pvtu with "
+                                 "several ranks; binary)")
+                    ->capture_default_str();
   solve_cmd->add_flag("--no-vtu", no_vtu, "do not write VTU output");
-  solve_cmd->add_flag("--progress", opt.progress, "print one line per (outer) iteration");
+  auto* o_ascii = solve_cmd->add_flag("--vtu-ascii", out_opt.vtu_ascii, "write the VTU as ASCII");
+  auto* o_progress =
+      solve_cmd->add_flag("--progress", opt.progress, "print one line per (outer) iteration");
 
   auto* spec_cmd = app.add_subcommand(
       "spectrum",
@@ -180,42 +246,128 @@ int run(int argc, char** argv, const Comm& comm) {
     }
   }
 
+  std::shared_ptr<const Model> model;
   try {
-    opt.decomposition.problem = parse_problem(problem);
-    opt.decomposition.element = parse_element(element);
-    opt.decomposition.glue = parse_glue(glue);
-    opt.feti.ordering = parse_ordering(ordering);
-    opt.feti.dual_operator = parse_dual_operator(dual_operator);
-    validate(opt);
+    if (!problem_file.empty() && o_problem->count() > 0)
+      throw std::invalid_argument("give a problem file or --problem, not both");
+    if (!problem_file.empty()) {
+      // Defaults, then the file, then what the command line gives.
+      SolveOptions from_file;
+      ProblemSpec spec = read_problem_file(problem_file, from_file, out_opt);
+      if (o_rtol->count()) from_file.rtol = opt.rtol;
+      if (o_maxit->count()) from_file.max_iterations = opt.max_iterations;
+      if (o_ordering->count()) from_file.feti.ordering = parse_ordering(ordering);
+      if (o_dual->count()) from_file.feti.dual_operator = parse_dual_operator(dual_operator);
+      if (o_keep->count()) from_file.feti.keep_factors = opt.feti.keep_factors;
+      if (o_rho->count()) from_file.smalbe.rho_factor = opt.smalbe.rho_factor;
+      if (o_M0->count()) from_file.smalbe.M0_factor = opt.smalbe.M0_factor;
+      if (o_eta->count()) from_file.smalbe.eta_factor = opt.smalbe.eta_factor;
+      if (o_beta->count()) from_file.smalbe.beta = opt.smalbe.beta;
+      if (o_gamma->count()) from_file.smalbe.gamma = opt.smalbe.gamma;
+      if (o_progress->count()) from_file.progress = opt.progress;
+      if (o_subdomains->count()) spec.subdomains = parse_int_list(subdomains_text, "--subdomains");
+      if (o_m->count()) spec.cluster_size = opt.decomposition.cluster_size;
+      if (o_glue->count()) spec.glue = parse_glue(glue);
+      if (!spec.builtin.empty() && o_elements->count()) {
+        const auto e = parse_int_list(elements_text, "--elements");
+        if (e.size() != 1) throw std::invalid_argument("--elements takes one number for a built-in");
+        spec.builtin_options.elements = e[0];
+      } else if (o_elements->count()) {
+        if (!spec.mesh_file.empty())
+          throw std::invalid_argument("--elements is for generated boxes, not mesh files");
+        const auto e = parse_int_list(elements_text, "--elements");
+        if (static_cast<int>(e.size()) != spec.box.dim)
+          throw std::invalid_argument("--elements needs " + std::to_string(spec.box.dim) +
+                                      " numbers for this box");
+        for (int d = 0; d < spec.box.dim; ++d) spec.box.elements[d] = e[d];
+      }
+      if (o_element->count() && spec.builtin.empty())
+        throw std::invalid_argument("--element is for the built-in problems; set mesh.element");
+      if (o_element->count()) spec.builtin_options.element = parse_element(element);
+      if (o_report->count()) out_opt.report = o_report->as<std::string>(), out_opt.write_report = true;
+      if (o_vtu->count()) out_opt.vtu = o_vtu->as<std::string>(), out_opt.write_vtu = true;
+      if (o_ascii->count()) out_opt.vtu_ascii = true;
+      opt = from_file;
+      validate_solver(opt);
+      model = make_model(spec);
+    } else {
+      opt.decomposition.problem = parse_problem(problem);
+      opt.decomposition.element = parse_element(element);
+      opt.decomposition.glue = parse_glue(glue);
+      const auto n = parse_int_list(elements_text, "--elements");
+      const auto ns = parse_int_list(subdomains_text, "--subdomains");
+      if (n.size() != 1 || ns.size() != 1)
+        throw std::invalid_argument("--elements and --subdomains take one number for " + problem);
+      opt.decomposition.elements = n[0];
+      opt.decomposition.subdomains = ns[0];
+      opt.feti.ordering = parse_ordering(ordering);
+      opt.feti.dual_operator = parse_dual_operator(dual_operator);
+      validate(opt);
+      model = make_builtin_model(opt.decomposition);
+    }
+    if (no_report) out_opt.write_report = false;
+    if (no_vtu) out_opt.write_vtu = false;
+    if (out_opt.write_report) check_output_path(out_opt.report, "--report");
+    if (out_opt.write_vtu) {
+      check_output_path(out_opt.vtu, "--vtu");
+      for (const auto& f : vtu_files(out_opt.vtu, comm.size())) {
+        check_output_path(f, "--vtu");
+        if (out_opt.write_report &&
+            std::filesystem::weakly_canonical(f) == std::filesystem::weakly_canonical(out_opt.report))
+          throw std::invalid_argument("--report and --vtu name the same file '" + f + "'");
+      }
+    }
   } catch (const std::invalid_argument& e) {
     return fail(comm, e.what(), 2);
   }
 
-  SolveOutput out = htfeti::solve(opt, comm);
+  SolveOutput out = htfeti::solve(model, opt, comm);
   if (comm.rank() == 0) print_summary(out.report);
-  if (!no_vtu) {
-    const std::string where = write_vtu(vtu, *out.model, *out.dual, out.u, out.lambda);
+  if (out_opt.write_vtu) {
+    VtuOptions vo;
+    vo.ascii = out_opt.vtu_ascii;
+    const std::string where = write_vtu(out_opt.vtu, *out.model, *out.dual, out.u, out.lambda, vo);
     if (comm.rank() == 0) std::printf("  solution: %s\n", where.c_str());
   }
-  if (!no_report && comm.rank() == 0) {
-    write_atomically(report, out.report.dump(2));
-    std::printf("  report:   %s\n", report.c_str());
+  if (out_opt.write_report) {
+    std::string error;
+    if (comm.rank() == 0) {
+      try {
+        write_atomically(out_opt.report, out.report.dump(2));
+      } catch (const std::exception& e) {
+        error = e.what();
+      }
+    }
+    comm.agree(error);
+    if (comm.rank() == 0) std::printf("  report:   %s\n", out_opt.report.c_str());
   }
+  if (comm.rank() == 0 && std::fflush(stdout) != 0)
+    throw std::runtime_error("cannot write to standard output");
   return out.converged ? 0 : 3;
 }
 
 }  // namespace
 
+// Exit codes: 0 solved, 2 bad input (or it does not fit), 3 not converged (the report is
+// written), 4 a numerical failure. Errors raised by the library are agreed on by every rank, so
+// every rank leaves through the same path; anything else aborts the MPI job.
 int main(int argc, char** argv) {
-  MPI_Init(&argc, &argv);
+  int provided = 0;
+  MPI_Init_thread(&argc, &argv, MPI_THREAD_FUNNELED, &provided);
   init_threads();
   int code = 0;
   {
     const Comm comm(MPI_COMM_WORLD);
     try {
       code = run(argc, argv, comm);
+    } catch (const std::invalid_argument& e) {
+      code = fail(comm, e.what(), 2);
+    } catch (const std::bad_alloc&) {
+      code = fail(comm, "out of memory", 2);
+    } catch (const std::runtime_error& e) {
+      code = fail(comm, e.what(), 4);
     } catch (const std::exception& e) {
-      std::fprintf(stderr, "htfeti: error on rank %d: %s\n", comm.rank(), e.what());
+      std::fprintf(stderr, "htfeti: internal error on rank %d: %s\n", comm.rank(), e.what());
       MPI_Abort(MPI_COMM_WORLD, 1);
     }
   }

@@ -180,6 +180,14 @@ SolveOutput solve(std::shared_ptr<const Model> model_ptr, const SolveOptions& op
   rep["equalities"] = dual.equalities();
   rep["inequalities"] = dual.inequalities();
   rep["coarse_dimension"] = dual.coarse_dimension();
+  {
+    const auto dims = dual.cluster_kernel_dimensions();
+    int sum = 0, larger = 0;
+    for (int d : dims) sum += d, larger += d > model.physics().kernel_dimension();
+    rep["cluster_kernel_dimension_sum"] = sum;
+    // Clusters whose kernel exceeds the physics' (disconnected parts, weak primal joins).
+    rep["clusters_with_larger_kernel"] = larger;
+  }
   rep["ranks"] = comm.size();
   rep["threads"] = omp_get_max_threads();
   rep["rtol"] = options.rtol;

@@ -73,6 +73,12 @@ class DualProblem {
   long long equalities() const { return n_dual_ - n_inequalities_; }
   long long inequalities() const { return n_inequalities_; }
   int coarse_dimension() const { return coarse_first_.back(); }
+  /// The kernel dimension of every cluster (all ranks): the rows of G~ it contributes.
+  std::vector<int> cluster_kernel_dimensions() const {
+    std::vector<int> d(coarse_first_.size() - 1);
+    for (size_t c = 0; c < d.size(); ++c) d[c] = coarse_first_[c + 1] - coarse_first_[c];
+    return d;
+  }
   /// Clusters [first, last) of this rank.
   std::pair<int, int> cluster_range() const { return {c0_, c1_}; }
   const SetupTimings& setup_timings() const { return setup_; }

@@ -1,0 +1,35 @@
+// Decomposition of a whole mesh (DESIGN.md, partition/): subdomains by METIS k-way partitioning
+// of the cell dual graph (cells adjacent through a shared edge in 2D, a shared face in 3D),
+// clusters by METIS k-way partitioning of the subdomain adjacency graph (subdomains adjacent
+// when they share a node, weighted by the number of shared nodes). Subdomains are then numbered
+// cluster-major (the subdomains of a cluster are contiguous), and each node lists the
+// subdomains holding a copy in increasing id order. METIS runs with a fixed seed, so every rank
+// computes the same partition.
+#pragma once
+
+#include <vector>
+
+#include "htfeti/mesh/mesh.hpp"
+#include "htfeti/mesh/subdomain_mesh.hpp"
+
+namespace htfeti {
+
+struct MeshPartition {
+  int num_subdomains = 0;
+  int num_clusters = 0;
+  std::vector<int> cluster_first;   ///< num_clusters + 1
+  std::vector<int> cell_subdomain;  ///< per cell
+  std::vector<std::vector<int>> subdomain_cells;
+  std::vector<int> copy_offset, copy_list;  ///< per global node: subdomains holding it
+  std::vector<char> on_boundary;            ///< per global node
+  std::vector<int> node_cell_offset, node_cell_list;  ///< per global node: its cells
+};
+
+/// Throws std::invalid_argument if the numbers do not fit the mesh (an empty subdomain).
+/// cluster_size: subdomains per cluster (1: TFETI).
+MeshPartition partition_mesh(const Mesh& mesh, int subdomains, int cluster_size);
+
+/// The SubdomainMesh of subdomain s (local nodes in global order, groups restricted to it).
+SubdomainMesh extract_subdomain(const Mesh& mesh, const MeshPartition& part, int s);
+
+}  // namespace htfeti

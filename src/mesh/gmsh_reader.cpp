@@ -1,0 +1,203 @@
+#include <gmsh.h>
+
+#include <algorithm>
+#include <filesystem>
+#include <fstream>
+#include <mutex>
+#include <stdexcept>
+#include <unordered_map>
+
+#include "htfeti/mesh/mesh.hpp"
+
+namespace htfeti {
+
+namespace {
+
+// Gmsh element type numbers of the linear cells and facets htfeti supports.
+int gmsh_cell_nodes(int type) {
+  switch (type) {
+    case 1:  // line2
+      return 2;
+    case 2:  // tri3
+      return 3;
+    case 3:  // quad4
+      return 4;
+    case 4:  // tet4
+      return 4;
+    case 5:  // hex8
+      return 8;
+    case 15:  // point
+      return 1;
+    default:
+      return 0;
+  }
+}
+
+CellType cell_type_of(int gmsh_type) {
+  switch (gmsh_type) {
+    case 2:
+      return CellType::tri3;
+    case 3:
+      return CellType::quad4;
+    case 4:
+      return CellType::tet4;
+    default:
+      return CellType::hex8;
+  }
+}
+
+std::mutex gmsh_mutex;  // the Gmsh SDK keeps global state
+
+}  // namespace
+
+Mesh read_gmsh(const std::string& path) {
+  std::error_code ec;
+  if (!std::filesystem::is_regular_file(path, ec))
+    throw std::invalid_argument("mesh file '" + path + "' does not exist or is not a file");
+  {
+    std::ifstream probe(path);
+    if (!probe) throw std::invalid_argument("mesh file '" + path + "' cannot be read");
+    std::string first;
+    std::getline(probe, first);
+    if (first.rfind("$MeshFormat", 0) != 0)
+      throw std::invalid_argument("mesh file '" + path +
+                                  "' is not a Gmsh .msh file (no $MeshFormat header)");
+  }
+  std::lock_guard<std::mutex> lock(gmsh_mutex);
+  Mesh mesh;
+  gmsh::initialize();
+  struct Finalize {
+    ~Finalize() { gmsh::finalize(); }
+  } finalize;
+  gmsh::option::setNumber("General.Terminal", 0);
+  gmsh::option::setNumber("General.Verbosity", 0);
+  try {
+    gmsh::open(path);
+    int dim = -1;
+    std::vector<int> types;
+    std::vector<std::vector<std::size_t>> tags, nodes;
+    for (int d = 3; d >= 2 && dim < 0; --d) {
+      gmsh::model::mesh::getElements(types, tags, nodes, d, -1);
+      for (size_t i = 0; i < types.size(); ++i)
+        if (!tags[i].empty()) dim = d;
+    }
+    if (dim < 0)
+      throw std::invalid_argument("mesh file '" + path + "' has no 2D or 3D cells");
+    int type = -1;
+    size_t cell_count = 0;
+    for (size_t i = 0; i < types.size(); ++i) {
+      if (tags[i].empty()) continue;
+      const bool ok = dim == 2 ? (types[i] == 2 || types[i] == 3) : (types[i] == 4 || types[i] == 5);
+      std::string name;
+      int d = 0, order = 0, nn = 0, npv = 0;
+      std::vector<double> loc;
+      gmsh::model::mesh::getElementProperties(types[i], name, d, order, nn, loc, npv);
+      if (!ok)
+        throw std::invalid_argument("mesh file '" + path + "' has cells of type '" + name +
+                                    "'; htfeti supports linear tri3 and quad4 (2D), tet4 and hex8 "
+                                    "(3D)");
+      if (type >= 0 && type != types[i])
+        throw std::invalid_argument("mesh file '" + path +
+                                    "' mixes cell types; use one of tri3/quad4 (2D) or "
+                                    "tet4/hex8 (3D)");
+      type = types[i];
+      cell_count += tags[i].size();
+    }
+    mesh.dim = dim;
+    mesh.type = cell_type_of(type);
+    const int nc = gmsh_cell_nodes(type);
+    // Cells and their Gmsh tags.
+    std::vector<std::size_t> cell_nodes_tags, cell_tags;
+    for (size_t i = 0; i < types.size(); ++i) {
+      if (types[i] != type) continue;
+      cell_nodes_tags.insert(cell_nodes_tags.end(), nodes[i].begin(), nodes[i].end());
+      cell_tags.insert(cell_tags.end(), tags[i].begin(), tags[i].end());
+    }
+    // Nodes: the ones used by cells, numbered by tag.
+    std::vector<std::size_t> node_tags;
+    std::vector<double> coord, param;
+    gmsh::model::mesh::getNodes(node_tags, coord, param, -1, -1, false, false);
+    std::vector<std::size_t> used(cell_nodes_tags);
+    std::sort(used.begin(), used.end());
+    used.erase(std::unique(used.begin(), used.end()), used.end());
+    std::unordered_map<std::size_t, int> index;
+    index.reserve(used.size() * 2);
+    for (size_t i = 0; i < used.size(); ++i) index[used[i]] = static_cast<int>(i);
+    mesh.coords.assign(3 * used.size(), 0.0);
+    std::vector<char> seen(used.size(), 0);
+    for (size_t i = 0; i < node_tags.size(); ++i) {
+      auto it = index.find(node_tags[i]);
+      if (it == index.end()) continue;
+      for (int d = 0; d < 3; ++d) mesh.coords[3 * it->second + d] = coord[3 * i + d];
+      seen[it->second] = 1;
+    }
+    if (std::find(seen.begin(), seen.end(), 0) != seen.end())
+      throw std::invalid_argument("mesh file '" + path + "' has cells with undefined nodes");
+    mesh.cells.resize(cell_nodes_tags.size());
+    for (size_t i = 0; i < cell_nodes_tags.size(); ++i) mesh.cells[i] = index.at(cell_nodes_tags[i]);
+    std::unordered_map<std::size_t, int> cell_index;
+    for (size_t i = 0; i < cell_tags.size(); ++i) cell_index[cell_tags[i]] = static_cast<int>(i);
+    (void)nc;
+    (void)cell_count;
+
+    // Physical groups.
+    gmsh::vectorpair groups;
+    gmsh::model::getPhysicalGroups(groups, -1);
+    for (const auto& [gd, gt] : groups) {
+      std::string name;
+      gmsh::model::getPhysicalName(gd, gt, name);
+      if (name.empty()) name = std::to_string(gt);  // unnamed groups by their number
+      std::vector<std::size_t> gnodes;
+      std::vector<double> gcoord;
+      gmsh::model::mesh::getNodesForPhysicalGroup(gd, gt, gnodes, gcoord);
+      auto& ng = mesh.node_groups[name];
+      for (std::size_t t : gnodes) {
+        auto it = index.find(t);
+        if (it != index.end()) ng.push_back(it->second);
+      }
+      std::sort(ng.begin(), ng.end());
+      ng.erase(std::unique(ng.begin(), ng.end()), ng.end());
+      std::vector<int> ents;
+      gmsh::model::getEntitiesForPhysicalGroup(gd, gt, ents);
+      for (int e : ents) {
+        std::vector<int> et;
+        std::vector<std::vector<std::size_t>> etags, enodes;
+        gmsh::model::mesh::getElements(et, etags, enodes, gd, e);
+        for (size_t i = 0; i < et.size(); ++i) {
+          if (gd == dim) {
+            auto& cg = mesh.cell_groups[name];
+            for (std::size_t t : etags[i]) {
+              auto it = cell_index.find(t);
+              if (it != cell_index.end()) cg.push_back(it->second);
+            }
+          } else if (gd == dim - 1) {
+            const int fn = gmsh_cell_nodes(et[i]);
+            if (fn == 0) continue;
+            auto& fg = mesh.facet_groups[name];
+            if (fg.facet_nodes != 0 && fg.facet_nodes != fn)
+              throw std::invalid_argument("mesh file '" + path + "': boundary group '" + name +
+                                          "' mixes facet types");
+            fg.facet_nodes = fn;
+            for (std::size_t t : enodes[i]) {
+              auto it = index.find(t);
+              if (it == index.end())
+                throw std::invalid_argument("mesh file '" + path + "': boundary group '" + name +
+                                            "' has a facet off the mesh");
+              fg.nodes.push_back(it->second);
+            }
+          }
+        }
+      }
+    }
+  } catch (const std::invalid_argument&) {
+    throw;
+  } catch (const std::exception& e) {
+    throw std::invalid_argument("mesh file '" + path + "' could not be read: " + e.what());
+  } catch (...) {
+    throw std::invalid_argument("mesh file '" + path + "' could not be read");
+  }
+  if (mesh.cells.empty()) throw std::invalid_argument("mesh file '" + path + "' has no cells");
+  return mesh;
+}
+
+}  // namespace htfeti

@@ -1,0 +1,249 @@
+#include "htfeti/partition/partition.hpp"
+
+#include <metis.h>
+
+#include <algorithm>
+#include <array>
+#include <map>
+#include <numeric>
+#include <stdexcept>
+#include <string>
+
+namespace htfeti {
+
+namespace {
+
+using FacetKey = std::array<int, 4>;
+
+FacetKey facet_key(const int* nodes, int n) {
+  FacetKey k{-1, -1, -1, -1};
+  for (int i = 0; i < n; ++i) k[i] = nodes[i];
+  std::sort(k.begin(), k.begin() + n);
+  return k;
+}
+
+void metis_check(int status, const char* what) {
+  if (status != METIS_OK)
+    throw std::runtime_error(std::string("METIS failed while partitioning the ") + what);
+}
+
+// Boundary facets: (sorted key, cell) of every facet of every cell; a key met once is on the
+// boundary. Sorted by key.
+std::vector<std::pair<FacetKey, int>> all_facets(const Mesh& mesh) {
+  std::vector<std::pair<FacetKey, int>> f;
+  const int nc = cell_nodes(mesh.type), nf = cell_facet_count(mesh.type);
+  f.reserve(static_cast<size_t>(mesh.num_cells()) * nf);
+  int local[4], glob[4];
+  for (int e = 0; e < mesh.num_cells(); ++e)
+    for (int j = 0; j < nf; ++j) {
+      const int n = cell_facet(mesh.type, j, local);
+      for (int i = 0; i < n; ++i) glob[i] = mesh.cells[static_cast<size_t>(e) * nc + local[i]];
+      f.push_back({facet_key(glob, n), e});
+    }
+  std::sort(f.begin(), f.end());
+  return f;
+}
+
+}  // namespace
+
+MeshPartition partition_mesh(const Mesh& mesh, int subdomains, int cluster_size) {
+  if (subdomains < 1) throw std::invalid_argument("decomposition.subdomains must be positive");
+  if (cluster_size < 1) throw std::invalid_argument("decomposition.cluster_size must be positive");
+  const int ne = mesh.num_cells(), nn = mesh.num_nodes(), nc = cell_nodes(mesh.type);
+  if (subdomains > ne)
+    throw std::invalid_argument("decomposition.subdomains = " + std::to_string(subdomains) +
+                                " exceeds the " + std::to_string(ne) + " cells of the mesh");
+  MeshPartition p;
+  // 1. Subdomains: METIS on the dual graph.
+  std::vector<idx_t> part(ne, 0);
+  if (subdomains > 1) {
+    idx_t e = ne, n = nn, ncommon = mesh.dim == 2 ? 2 : (mesh.type == CellType::hex8 ? 4 : 3);
+    idx_t nparts = subdomains, objval = 0;
+    std::vector<idx_t> eptr(ne + 1), eind(mesh.cells.begin(), mesh.cells.end()), npart(nn);
+    for (int i = 0; i <= ne; ++i) eptr[i] = static_cast<idx_t>(i) * nc;
+    idx_t options[METIS_NOPTIONS];
+    METIS_SetDefaultOptions(options);
+    options[METIS_OPTION_SEED] = 1;
+    options[METIS_OPTION_NUMBERING] = 0;
+    metis_check(METIS_PartMeshDual(&e, &n, eptr.data(), eind.data(), nullptr, nullptr, &ncommon,
+                                   &nparts, nullptr, options, &objval, part.data(), npart.data()),
+                "mesh");
+  }
+  std::vector<int> count(subdomains, 0);
+  for (int e = 0; e < ne; ++e) ++count[part[e]];
+  for (int s = 0; s < subdomains; ++s)
+    if (count[s] == 0)
+      throw std::invalid_argument("METIS left subdomain " + std::to_string(s) +
+                                  " empty: use fewer subdomains for this mesh");
+
+  // Copies per node (old ids).
+  std::vector<std::vector<int>> node_subs(nn);
+  for (int e = 0; e < ne; ++e)
+    for (int a = 0; a < nc; ++a) {
+      auto& v = node_subs[mesh.cells[static_cast<size_t>(e) * nc + a]];
+      if (std::find(v.begin(), v.end(), static_cast<int>(part[e])) == v.end()) v.push_back(part[e]);
+    }
+
+  // 2. Clusters: METIS on the subdomain graph.
+  const int nclusters_target = (subdomains + cluster_size - 1) / cluster_size;
+  std::vector<idx_t> cpart(subdomains, 0);
+  if (cluster_size == 1) {
+    std::iota(cpart.begin(), cpart.end(), 0);
+  } else if (nclusters_target > 1) {
+    std::vector<std::map<int, int>> adj(subdomains);
+    for (const auto& v : node_subs)
+      for (size_t i = 0; i < v.size(); ++i)
+        for (size_t j = 0; j < v.size(); ++j)
+          if (i != j) ++adj[v[i]][v[j]];
+    std::vector<idx_t> xadj(subdomains + 1, 0), adjncy, adjwgt;
+    for (int s = 0; s < subdomains; ++s) {
+      for (const auto& [t, w] : adj[s]) adjncy.push_back(t), adjwgt.push_back(w);
+      xadj[s + 1] = static_cast<idx_t>(adjncy.size());
+    }
+    idx_t nv = subdomains, ncon = 1, nparts = nclusters_target, objval = 0;
+    idx_t options[METIS_NOPTIONS];
+    METIS_SetDefaultOptions(options);
+    options[METIS_OPTION_SEED] = 1;
+    metis_check(METIS_PartGraphKway(&nv, &ncon, xadj.data(), adjncy.data(), nullptr, nullptr,
+                                    adjwgt.data(), &nparts, nullptr, nullptr, options, &objval,
+                                    cpart.data()),
+                "subdomain graph into clusters");
+  }
+  // Drop empty clusters; number subdomains cluster-major.
+  std::vector<int> cl_count(std::max(nclusters_target, subdomains), 0), cl_new(cl_count.size(), -1);
+  for (int s = 0; s < subdomains; ++s) ++cl_count[cpart[s]];
+  int nclusters = 0;
+  for (size_t c = 0; c < cl_count.size(); ++c)
+    if (cl_count[c] > 0) cl_new[c] = nclusters++;
+  std::vector<int> order(subdomains);
+  std::iota(order.begin(), order.end(), 0);
+  std::stable_sort(order.begin(), order.end(),
+                   [&](int a, int b) { return cl_new[cpart[a]] < cl_new[cpart[b]]; });
+  std::vector<int> new_id(subdomains);
+  for (int i = 0; i < subdomains; ++i) new_id[order[i]] = i;
+  p.num_subdomains = subdomains;
+  p.num_clusters = nclusters;
+  p.cluster_first.assign(nclusters + 1, 0);
+  for (int s = 0; s < subdomains; ++s) ++p.cluster_first[cl_new[cpart[s]] + 1];
+  for (int c = 0; c < nclusters; ++c) p.cluster_first[c + 1] += p.cluster_first[c];
+  p.cell_subdomain.resize(ne);
+  p.subdomain_cells.assign(subdomains, {});
+  for (int e = 0; e < ne; ++e) {
+    p.cell_subdomain[e] = new_id[part[e]];
+    p.subdomain_cells[p.cell_subdomain[e]].push_back(e);
+  }
+  p.copy_offset.assign(nn + 1, 0);
+  for (int k = 0; k < nn; ++k) {
+    auto& v = node_subs[k];
+    for (int& s : v) s = new_id[s];
+    std::sort(v.begin(), v.end());
+    p.copy_offset[k + 1] = p.copy_offset[k] + static_cast<int>(v.size());
+  }
+  p.copy_list.reserve(p.copy_offset[nn]);
+  for (const auto& v : node_subs) p.copy_list.insert(p.copy_list.end(), v.begin(), v.end());
+  p.node_cell_offset.assign(nn + 1, 0);
+  for (int v : mesh.cells) ++p.node_cell_offset[v + 1];
+  for (int k = 0; k < nn; ++k) p.node_cell_offset[k + 1] += p.node_cell_offset[k];
+  p.node_cell_list.resize(mesh.cells.size());
+  {
+    std::vector<int> pos(p.node_cell_offset.begin(), p.node_cell_offset.end() - 1);
+    for (int e = 0; e < ne; ++e)
+      for (int a = 0; a < nc; ++a) p.node_cell_list[pos[mesh.cells[static_cast<size_t>(e) * nc + a]]++] = e;
+  }
+  // Domain boundary: nodes of facets that belong to one cell only.
+  p.on_boundary.assign(nn, 0);
+  const auto facets = all_facets(mesh);
+  for (size_t i = 0; i < facets.size();) {
+    size_t j = i;
+    while (j < facets.size() && facets[j].first == facets[i].first) ++j;
+    if (j - i == 1)
+      for (int v : facets[i].first)
+        if (v >= 0) p.on_boundary[v] = 1;
+    i = j;
+  }
+  return p;
+}
+
+SubdomainMesh extract_subdomain(const Mesh& mesh, const MeshPartition& p, int s) {
+  SubdomainMesh m;
+  const int nc = cell_nodes(mesh.type);
+  m.id = s;
+  m.cluster = static_cast<int>(std::upper_bound(p.cluster_first.begin(), p.cluster_first.end(), s) -
+                               p.cluster_first.begin()) - 1;
+  m.dim = mesh.dim;
+  m.type = mesh.type;
+  const auto& cells = p.subdomain_cells[s];
+  std::vector<int> nodes;
+  for (int e : cells)
+    for (int a = 0; a < nc; ++a) nodes.push_back(mesh.cells[static_cast<size_t>(e) * nc + a]);
+  std::sort(nodes.begin(), nodes.end());
+  nodes.erase(std::unique(nodes.begin(), nodes.end()), nodes.end());
+  auto local = [&](int g) {
+    auto it = std::lower_bound(nodes.begin(), nodes.end(), g);
+    return (it != nodes.end() && *it == g) ? static_cast<int>(it - nodes.begin()) : -1;
+  };
+  const int nn = static_cast<int>(nodes.size());
+  m.global_node.assign(nodes.begin(), nodes.end());
+  m.coords.resize(3 * static_cast<size_t>(nn));
+  m.copy_offset.assign(nn + 1, 0);
+  m.on_boundary.resize(nn);
+  for (int k = 0; k < nn; ++k) {
+    const int g = nodes[k];
+    for (int d = 0; d < 3; ++d) m.coords[3 * k + d] = mesh.coords[3 * static_cast<size_t>(g) + d];
+    m.copy_list.insert(m.copy_list.end(), p.copy_list.begin() + p.copy_offset[g],
+                       p.copy_list.begin() + p.copy_offset[g + 1]);
+    m.copy_offset[k + 1] = static_cast<int>(m.copy_list.size());
+    m.on_boundary[k] = p.on_boundary[g];
+  }
+  m.cells.reserve(cells.size() * nc);
+  std::vector<int> cell_local(0);
+  for (int e : cells)
+    for (int a = 0; a < nc; ++a) m.cells.push_back(local(mesh.cells[static_cast<size_t>(e) * nc + a]));
+  for (const auto& [name, gn] : mesh.node_groups) {
+    std::vector<int> l;
+    for (int g : gn) {
+      const int k = local(g);
+      if (k >= 0) l.push_back(k);
+    }
+    if (!l.empty()) m.node_groups[name] = std::move(l);
+  }
+  for (const auto& [name, cg] : mesh.cell_groups) {
+    std::vector<int> l;
+    for (int e : cg)
+      if (p.cell_subdomain[e] == s)
+        l.push_back(static_cast<int>(std::lower_bound(cells.begin(), cells.end(), e) - cells.begin()));
+    if (!l.empty()) m.cell_groups[name] = std::move(l);
+  }
+  // A boundary facet belongs to the subdomain of the cell it bounds: all its nodes are local and
+  // one of the subdomain's cells holds all of them.
+  for (const auto& [name, fg] : mesh.facet_groups) {
+    SubdomainMesh::FacetGroup out;
+    out.facet_nodes = fg.facet_nodes;
+    const int fn = fg.facet_nodes;
+    for (size_t i = 0; i + fn <= fg.nodes.size(); i += fn) {
+      int l[4];
+      bool all = true;
+      for (int a = 0; a < fn; ++a) {
+        l[a] = local(fg.nodes[i + a]);
+        all = all && l[a] >= 0;
+      }
+      if (!all) continue;
+      // Owned by the lowest subdomain among those whose cells contain the facet.
+      int owner = -1;
+      const int g0 = fg.nodes[i];
+      for (int c = p.node_cell_offset[g0]; c < p.node_cell_offset[g0 + 1]; ++c) {
+        const int e = p.node_cell_list[c];
+        int hits = 0;
+        for (int a = 0; a < nc; ++a)
+          for (int b = 0; b < fn; ++b) hits += mesh.cells[static_cast<size_t>(e) * nc + a] == fg.nodes[i + b];
+        if (hits == fn && (owner < 0 || p.cell_subdomain[e] < owner)) owner = p.cell_subdomain[e];
+      }
+      if (owner != s) continue;
+      out.nodes.insert(out.nodes.end(), l, l + fn);
+    }
+    if (!out.nodes.empty()) m.facet_groups[name] = std::move(out);
+  }
+  return m;
+}
+
+}  // namespace htfeti

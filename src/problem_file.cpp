@@ -1,0 +1,678 @@
+#include "htfeti/problem_file.hpp"
+
+#include <toml++/toml.h>
+
+#include <algorithm>
+#include <charconv>
+#include <cmath>
+#include <filesystem>
+#include <set>
+#include <sstream>
+#include <stdexcept>
+
+#include "htfeti/expression.hpp"
+#include "htfeti/mesh/mesh.hpp"
+#include "htfeti/partition/partition.hpp"
+
+namespace htfeti {
+
+std::vector<int> parse_int_list(const std::string& text, const std::string& what) {
+  std::vector<int> out;
+  size_t pos = 0;
+  while (true) {
+    const size_t comma = text.find(',', pos);
+    const std::string item = text.substr(pos, comma == std::string::npos ? std::string::npos : comma - pos);
+    int v = 0;
+    const auto r = std::from_chars(item.data(), item.data() + item.size(), v);
+    if (item.empty() || r.ec != std::errc() || r.ptr != item.data() + item.size() || item[0] == '+' ||
+        item[0] == '-')
+      throw std::invalid_argument(what + " must be a positive integer or a list like 2,4,2 (got '" +
+                                  text + "')");
+    if (v <= 0) throw std::invalid_argument(what + " must be positive (got '" + text + "')");
+    out.push_back(v);
+    if (comma == std::string::npos) break;
+    pos = comma + 1;
+  }
+  return out;
+}
+
+namespace {
+
+[[noreturn]] void bad(const std::string& where, const std::string& msg) {
+  throw std::invalid_argument("problem file: " + where + ": " + msg);
+}
+
+void check_keys(const toml::table& t, const std::string& where,
+                std::initializer_list<const char*> allowed) {
+  for (auto&& [k, v] : t) {
+    const std::string key(k.str());
+    if (std::none_of(allowed.begin(), allowed.end(), [&](const char* a) { return key == a; })) {
+      std::string list;
+      for (const char* a : allowed) list += (list.empty() ? "" : ", ") + std::string(a);
+      bad(where.empty() ? key : where + "." + key, "unknown key (expected one of: " + list + ")");
+    }
+  }
+}
+
+const toml::table* table_of(const toml::table& root, const char* name, bool required) {
+  const toml::node* n = root.get(name);
+  if (!n) {
+    if (required) bad(std::string("[") + name + "]", "missing table");
+    return nullptr;
+  }
+  if (!n->is_table()) bad(name, "must be a table");
+  return n->as_table();
+}
+
+double get_double(const toml::table& t, const std::string& where, const char* key, double def,
+                  bool required = false) {
+  const toml::node* n = t.get(key);
+  if (!n) {
+    if (required) bad(where + "." + key, "missing");
+    return def;
+  }
+  if (!n->is_number()) bad(where + "." + key, "must be a number");
+  const double v = n->value<double>().value();
+  if (!std::isfinite(v)) bad(where + "." + key, "must be finite");
+  return v;
+}
+
+long long get_int(const toml::table& t, const std::string& where, const char* key, long long def) {
+  const toml::node* n = t.get(key);
+  if (!n) return def;
+  if (!n->is_integer()) bad(where + "." + key, "must be an integer");
+  return n->value<long long>().value();
+}
+
+std::string get_string(const toml::table& t, const std::string& where, const char* key,
+                       const std::string& def, bool required = false) {
+  const toml::node* n = t.get(key);
+  if (!n) {
+    if (required) bad(where + "." + key, "missing");
+    return def;
+  }
+  if (!n->is_string()) bad(where + "." + key, "must be a string");
+  return n->value<std::string>().value();
+}
+
+bool get_bool(const toml::table& t, const std::string& where, const char* key, bool def) {
+  const toml::node* n = t.get(key);
+  if (!n) return def;
+  if (!n->is_boolean()) bad(where + "." + key, "must be true or false");
+  return n->value<bool>().value();
+}
+
+std::vector<double> get_numbers(const toml::node& n, const std::string& where) {
+  std::vector<double> out;
+  if (n.is_number()) {
+    out.push_back(n.value<double>().value());
+  } else if (n.is_array()) {
+    for (const auto& e : *n.as_array()) {
+      if (!e.is_number()) bad(where, "must be an array of numbers");
+      out.push_back(e.value<double>().value());
+    }
+  } else {
+    bad(where, "must be a number or an array of numbers");
+  }
+  for (double v : out)
+    if (!std::isfinite(v)) bad(where, "must be finite");
+  return out;
+}
+
+std::array<double, 3> get_vector(const toml::table& t, const std::string& where, const char* key,
+                                 int dim, bool required) {
+  const toml::node* n = t.get(key);
+  std::array<double, 3> v{0, 0, 0};
+  if (!n) {
+    if (required) bad(where + "." + key, "missing");
+    return v;
+  }
+  if (!n->is_array()) bad(where + "." + key, "must be an array of " + std::to_string(dim) + " numbers");
+  const auto x = get_numbers(*n, where + "." + key);
+  if (static_cast<int>(x.size()) != dim)
+    bad(where + "." + key, "must have " + std::to_string(dim) + " components (the mesh is " +
+                               std::to_string(dim) + "D)");
+  for (int d = 0; d < dim; ++d) v[d] = x[d];
+  return v;
+}
+
+}  // namespace
+
+ProblemSpec read_problem_file(const std::string& path, SolveOptions& solver, OutputOptions& output) {
+  ProblemSpec spec;
+  spec.path = path;
+  toml::table root;
+  try {
+    root = toml::parse_file(path);
+  } catch (const toml::parse_error& e) {
+    std::ostringstream msg;
+    msg << "problem file '" << path << "': " << e.description() << " (line " << e.source().begin.line
+        << ")";
+    throw std::invalid_argument(msg.str());
+  } catch (const std::exception& e) {
+    throw std::invalid_argument("problem file '" + path + "' cannot be read: " + e.what());
+  }
+  check_keys(root, "", {"mesh", "physics", "dirichlet", "load", "contact", "decomposition",
+                        "solver", "output"});
+  // [mesh]
+  const toml::table& mesh = *table_of(root, "mesh", true);
+  check_keys(mesh, "mesh", {"file", "generator", "size", "elements", "element", "builtin"});
+  if (mesh.contains("builtin")) {
+    for (const char* k : {"file", "generator", "size"})
+      if (mesh.contains(k)) bad(std::string("mesh.") + k, "cannot be combined with mesh.builtin");
+    for (const char* k : {"physics", "dirichlet", "load", "contact"})
+      if (root.contains(k)) bad(k, "a built-in problem defines its own physics and conditions");
+    spec.builtin = get_string(mesh, "mesh", "builtin", "");
+    auto& o = spec.builtin_options;
+    try {
+      o.problem = parse_problem(spec.builtin);
+      o.element = parse_element(get_string(mesh, "mesh", "element", "q1"));
+    } catch (const std::invalid_argument& e) {
+      bad("[mesh]", e.what());
+    }
+    const long long n = get_int(mesh, "mesh", "elements", 128);
+    if (n <= 0 || n > 1000000000) bad("mesh.elements", "must be a positive integer");
+    o.elements = static_cast<int>(n);
+    spec.subdomains = {8};
+  } else {
+  const bool has_file = mesh.contains("file"), has_gen = mesh.contains("generator");
+  if (has_file == has_gen) bad("[mesh]", "give exactly one of 'file' and 'generator'");
+  if (has_file) {
+    for (const char* k : {"size", "elements", "element"})
+      if (mesh.contains(k)) bad(std::string("mesh.") + k, "is for generator = \"box\" only");
+    const std::filesystem::path f = get_string(mesh, "mesh", "file", "");
+    spec.mesh_file = f.is_absolute() ? f.string()
+                                     : (std::filesystem::path(path).parent_path() / f).string();
+  } else {
+    if (get_string(mesh, "mesh", "generator", "") != "box")
+      bad("mesh.generator", "must be \"box\"");
+    const std::string el = get_string(mesh, "mesh", "element", "", true);
+    try {
+      spec.box.cell = parse_cell_type(el);
+    } catch (const std::invalid_argument& e) {
+      bad("mesh.element", e.what());
+    }
+    spec.box.dim = cell_dimension(spec.box.cell);
+    const toml::node* sz = mesh.get("size");
+    if (!sz) bad("mesh.size", "missing");
+    const auto size = get_numbers(*sz, "mesh.size");
+    if (static_cast<int>(size.size()) != spec.box.dim)
+      bad("mesh.size", "must have " + std::to_string(spec.box.dim) + " numbers for " + el);
+    const toml::node* ne = mesh.get("elements");
+    if (!ne || !ne->is_array()) bad("mesh.elements", "missing, or not an array of integers");
+    int d = 0;
+    for (const auto& e : *ne->as_array()) {
+      if (!e.is_integer() || d >= 3) bad("mesh.elements", "must be an array of positive integers");
+      spec.box.elements[d++] = static_cast<int>(e.value<long long>().value());
+    }
+    if (d != spec.box.dim) bad("mesh.elements", "must have " + std::to_string(spec.box.dim) + " integers");
+    for (int i = 0; i < spec.box.dim; ++i) {
+      if (!(size[i] > 0)) bad("mesh.size", "must be positive");
+      if (spec.box.elements[i] <= 0) bad("mesh.elements", "must be positive");
+      spec.box.size[i] = size[i];
+    }
+  }
+  // [physics]
+  const toml::table& ph = *table_of(root, "physics", true);
+  const std::string type = get_string(ph, "physics", "type", "", true);
+  try {
+    spec.physics.kind = parse_physics(type);
+  } catch (const std::invalid_argument& e) {
+    bad("physics.type", e.what());
+  }
+  spec.physics.dim = has_gen ? spec.box.dim : 3;  // set from the mesh later for files
+  if (spec.physics.kind == PhysicsKind::laplace) {
+    check_keys(ph, "physics", {"type", "source"});
+    if (const toml::node* s = ph.get("source")) {
+      if (s->is_number()) {
+        spec.source = std::to_string(s->value<double>().value());
+        std::ostringstream o;
+        o.precision(17);
+        o << s->value<double>().value();
+        spec.source = o.str();
+      } else if (s->is_string()) {
+        spec.source = s->value<std::string>().value();
+      } else {
+        bad("physics.source", "must be a number or an expression string");
+      }
+      try {
+        Expression check(spec.source);
+      } catch (const std::invalid_argument& e) {
+        bad("physics.source", e.what());
+      }
+    }
+  } else {
+    check_keys(ph, "physics", {"type", "young", "poisson", "density", "gravity"});
+    spec.physics.material.young = get_double(ph, "physics", "young", 0, true);
+    spec.physics.material.poisson = get_double(ph, "physics", "poisson", 0, true);
+    spec.physics.density = get_double(ph, "physics", "density", 0);
+    if (const toml::node* g = ph.get("gravity")) {
+      const auto gv = get_numbers(*g, "physics.gravity");
+      if (gv.size() < 2 || gv.size() > 3) bad("physics.gravity", "must have 2 or 3 components");
+      for (size_t i = 0; i < gv.size(); ++i) spec.physics.gravity[i] = gv[i];
+    }
+    try {
+      Physics p = spec.physics;
+      p.dim = 3;
+      p.validate();
+    } catch (const std::invalid_argument& e) {
+      bad("[physics]", e.what());
+    }
+  }
+  auto array_of_tables = [&](const char* name) {
+    std::vector<const toml::table*> out;
+    const toml::node* n = root.get(name);
+    if (!n) return out;
+    if (!n->is_array_of_tables()) bad(name, std::string("must be written [[") + name + "]]");
+    for (const auto& e : *n->as_array()) out.push_back(e.as_table());
+    return out;
+  };
+  const int dofs = spec.physics.kind == PhysicsKind::laplace ? 1 : 3;
+  int i = 0;
+  for (const toml::table* t : array_of_tables("dirichlet")) {
+    const std::string where = "dirichlet #" + std::to_string(++i);
+    check_keys(*t, where, {"group", "value", "components"});
+    ProblemSpec::Dirichlet d;
+    d.group = get_string(*t, where, "group", "", true);
+    if (const toml::node* v = t->get("value")) {
+      const auto x = get_numbers(*v, where + ".value");
+      if (x.size() == 1)
+        d.value = {x[0], x[0], x[0]};
+      else if (static_cast<int>(x.size()) <= 3 && dofs > 1)
+        for (size_t j = 0; j < x.size(); ++j) d.value[j] = x[j];
+      else
+        bad(where + ".value", "must be one number or one per displacement component");
+    }
+    if (const toml::node* c = t->get("components")) {
+      if (!c->is_array()) bad(where + ".components", "must be an array");
+      for (const auto& e : *c->as_array()) {
+        int comp = -1;
+        if (e.is_integer()) comp = static_cast<int>(e.value<long long>().value());
+        if (e.is_string()) {
+          const std::string s = e.value<std::string>().value();
+          comp = s == "x" ? 0 : s == "y" ? 1 : s == "z" ? 2 : -1;
+        }
+        if (comp < 0 || comp >= dofs) bad(where + ".components", "entries must be 0..2 or \"x\", \"y\", \"z\"");
+        d.components.push_back(comp);
+      }
+    }
+    spec.dirichlet.push_back(d);
+  }
+  i = 0;
+  for (const toml::table* t : array_of_tables("load")) {
+    const std::string where = "load #" + std::to_string(++i);
+    check_keys(*t, where, {"group", "traction", "source", "force"});
+    ProblemSpec::Load l;
+    l.group = get_string(*t, where, "group", "", true);
+    const int kinds = t->contains("traction") + t->contains("source") + t->contains("force");
+    if (kinds != 1) bad(where, "give exactly one of traction, source, force");
+    if (t->contains("source")) {
+      l.kind = ProblemSpec::Load::source;
+      l.value[0] = get_double(*t, where, "source", 0);
+    } else {
+      l.kind = t->contains("traction") ? ProblemSpec::Load::traction : ProblemSpec::Load::force;
+      const auto x = get_numbers(*t->get(l.kind == ProblemSpec::Load::traction ? "traction" : "force"),
+                                 where);
+      if (x.size() > 3) bad(where, "a vector has at most 3 components");
+      for (size_t j = 0; j < x.size(); ++j) l.value[j] = x[j];
+    }
+    spec.loads.push_back(l);
+  }
+  i = 0;
+  for (const toml::table* t : array_of_tables("contact")) {
+    const std::string where = "contact #" + std::to_string(++i);
+    check_keys(*t, where, {"group", "direction", "gap"});
+    ProblemSpec::Contact c;
+    c.group = get_string(*t, where, "group", "", true);
+    const toml::node* dn = t->get("direction");
+    if (!dn) bad(where + ".direction", "missing");
+    const auto dir = get_numbers(*dn, where + ".direction");
+    if (dir.size() > 3) bad(where + ".direction", "has at most 3 components");
+    double norm = 0;
+    for (size_t j = 0; j < dir.size(); ++j) c.direction[j] = dir[j], norm += dir[j] * dir[j];
+    for (size_t j = dir.size(); j < 3; ++j) c.direction[j] = 0;
+    if (!(norm > 0)) bad(where + ".direction", "must not be zero");
+    for (double& v : c.direction) v /= std::sqrt(norm);
+    if (const toml::node* g = t->get("gap")) {
+      if (g->is_number()) {
+        std::ostringstream o;
+        o.precision(17);
+        o << g->value<double>().value();
+        c.gap = o.str();
+      } else if (g->is_string()) {
+        c.gap = g->value<std::string>().value();
+      } else {
+        bad(where + ".gap", "must be a number or an expression string");
+      }
+    }
+    try {
+      Expression check(c.gap);
+    } catch (const std::invalid_argument& e) {
+      bad(where + ".gap", e.what());
+    }
+    spec.contact.push_back(c);
+  }
+  }
+  if (const toml::table* dec = table_of(root, "decomposition", false)) {
+    check_keys(*dec, "decomposition", {"subdomains", "cluster_size", "glue"});
+    if (const toml::node* s = dec->get("subdomains")) {
+      spec.subdomains.clear();
+      if (s->is_integer()) {
+        spec.subdomains.push_back(static_cast<int>(s->value<long long>().value()));
+      } else if (s->is_array()) {
+        for (const auto& e : *s->as_array()) {
+          if (!e.is_integer()) bad("decomposition.subdomains", "must be integers");
+          spec.subdomains.push_back(static_cast<int>(e.value<long long>().value()));
+        }
+      } else {
+        bad("decomposition.subdomains", "must be an integer or an array of integers");
+      }
+      for (int v : spec.subdomains)
+        if (v <= 0) bad("decomposition.subdomains", "must be positive");
+    }
+    const long long m = get_int(*dec, "decomposition", "cluster_size", 1);
+    if (m <= 0 || m > 1000000) bad("decomposition.cluster_size", "must be a positive integer");
+    spec.cluster_size = static_cast<int>(m);
+    try {
+      spec.glue = parse_glue(get_string(*dec, "decomposition", "glue", "averages"));
+    } catch (const std::invalid_argument& e) {
+      bad("decomposition.glue", e.what());
+    }
+  }
+  if (const toml::table* s = table_of(root, "solver", false)) {
+    check_keys(*s, "solver", {"rtol", "max_iterations", "ordering", "dual_operator", "keep_factors",
+                              "rho_factor", "M0_factor", "eta_factor", "beta", "gamma", "progress"});
+    solver.rtol = get_double(*s, "solver", "rtol", solver.rtol);
+    const long long mi = get_int(*s, "solver", "max_iterations", solver.max_iterations);
+    if (mi < 0 || mi > 100000000) bad("solver.max_iterations", "must be a non-negative integer");
+    solver.max_iterations = static_cast<int>(mi);
+    try {
+      if (s->contains("ordering")) solver.feti.ordering = parse_ordering(get_string(*s, "solver", "ordering", ""));
+      if (s->contains("dual_operator"))
+        solver.feti.dual_operator = parse_dual_operator(get_string(*s, "solver", "dual_operator", ""));
+    } catch (const std::invalid_argument& e) {
+      bad("[solver]", e.what());
+    }
+    solver.feti.keep_factors = get_bool(*s, "solver", "keep_factors", solver.feti.keep_factors);
+    solver.smalbe.rho_factor = get_double(*s, "solver", "rho_factor", solver.smalbe.rho_factor);
+    solver.smalbe.M0_factor = get_double(*s, "solver", "M0_factor", solver.smalbe.M0_factor);
+    solver.smalbe.eta_factor = get_double(*s, "solver", "eta_factor", solver.smalbe.eta_factor);
+    solver.smalbe.beta = get_double(*s, "solver", "beta", solver.smalbe.beta);
+    solver.smalbe.gamma = get_double(*s, "solver", "gamma", solver.smalbe.gamma);
+    solver.progress = get_bool(*s, "solver", "progress", solver.progress);
+    try {
+      validate_solver(solver);
+    } catch (const std::invalid_argument& e) {
+      bad("[solver]", e.what());
+    }
+  }
+  if (const toml::table* o = table_of(root, "output", false)) {
+    check_keys(*o, "output", {"report", "vtu", "vtu_ascii"});
+    for (const char* key : {"report", "vtu"}) {
+      const toml::node* n = o->get(key);
+      if (!n) continue;
+      std::string& target = key[0] == 'r' ? output.report : output.vtu;
+      bool& flag = key[0] == 'r' ? output.write_report : output.write_vtu;
+      if (n->is_boolean()) {
+        if (n->value<bool>().value()) bad(std::string("output.") + key, "give a file name or false");
+        flag = false;
+      } else if (n->is_string()) {
+        target = n->value<std::string>().value();
+        flag = true;
+      } else {
+        bad(std::string("output.") + key, "must be a file name or false");
+      }
+    }
+    output.vtu_ascii = get_bool(*o, "output", "vtu_ascii", output.vtu_ascii);
+  }
+  return spec;
+}
+
+namespace {
+
+std::string list_groups(const std::set<std::string>& names) {
+  std::string s;
+  for (const auto& n : names) s += (s.empty() ? "" : ", ") + n;
+  return s.empty() ? "(none)" : s;
+}
+
+// Laplace or elasticity with conditions on named groups, on a generated box (split into boxes
+// of subdomains) or on a whole mesh (generated or read) split by METIS.
+class GroupModel final : public Model {
+ public:
+  explicit GroupModel(const ProblemSpec& spec) : spec_(spec), source_(spec.source) {
+    physics_ = spec.physics;
+    glue_ = spec.glue;
+    const bool box_split = spec.mesh_file.empty() && spec.subdomains.size() > 1;
+    if (!spec.mesh_file.empty()) {
+      mesh_ = std::make_shared<Mesh>(read_gmsh(spec.mesh_file));
+      physics_.dim = mesh_->dim;
+    } else {
+      physics_.dim = spec.box.dim;
+    }
+    physics_.validate();
+    if (box_split) {
+      if (static_cast<int>(spec.subdomains.size()) != spec.box.dim)
+        throw std::invalid_argument("decomposition.subdomains must have " +
+                                    std::to_string(spec.box.dim) + " numbers for a " +
+                                    std::to_string(spec.box.dim) + "D box (or one for METIS)");
+      BoxGridOptions o = spec.box;
+      for (int d = 0; d < o.dim; ++d) o.subdomains[d] = spec.subdomains[d];
+      o.cluster_size = spec.cluster_size;
+      grid_ = std::make_shared<BoxGrid>(o);
+      if (glue_ != Glue::corners && spec.cluster_size > 1)
+        for (int d = 0; d < o.dim; ++d)
+          if (grid_->H(d) < 2)
+            throw std::invalid_argument(
+                "gluing by averages needs at least 2 elements per subdomain side; use glue = "
+                "\"corners\" or fewer subdomains");
+    } else {
+      if (!mesh_) {  // a generated box split by METIS: generate it whole
+        BoxGridOptions o = spec.box;
+        o.subdomains = {1, 1, 1};
+        o.cluster_size = 1;
+        const SubdomainMesh whole = BoxGrid(o).mesh(0);
+        auto m = std::make_shared<Mesh>();
+        m->dim = whole.dim;
+        m->type = whole.type;
+        m->coords = whole.coords;
+        m->cells = whole.cells;
+        m->node_groups = whole.node_groups;
+        for (const auto& [name, fg] : whole.facet_groups) m->facet_groups[name] = {fg.facet_nodes, fg.nodes};
+        mesh_ = m;
+      }
+      part_ = std::make_shared<MeshPartition>(
+          partition_mesh(*mesh_, spec.subdomains.at(0), spec.cluster_size));
+    }
+    check_groups();
+  }
+
+  int num_subdomains() const override {
+    return grid_ ? static_cast<int>(grid_->num_subdomains()) : part_->num_subdomains;
+  }
+  int num_clusters() const override {
+    return grid_ ? static_cast<int>(grid_->num_clusters()) : part_->num_clusters;
+  }
+  int cluster_first(int c) const override {
+    return grid_ ? c * grid_->subdomains_per_cluster() : part_->cluster_first[c];
+  }
+  long long num_nodes() const override { return grid_ ? grid_->num_nodes() : mesh_->num_nodes(); }
+  long long primal_dimension() const override {
+    long long n = grid_ ? grid_->num_subdomains() * grid_->nodes_per_subdomain()
+                        : static_cast<long long>(part_->copy_list.size());
+    return n * physics_.dofs_per_node();
+  }
+  SubdomainMesh mesh(int s) const override {
+    return grid_ ? grid_->mesh(s) : extract_subdomain(*mesh_, *part_, s);
+  }
+  SourceFunction source() const override {
+    if (physics_.kind != PhysicsKind::laplace || spec_.source == "0") return {};
+    const Expression e = source_;
+    return [e](const std::array<double, 3>& p) mutable { return e(p); };
+  }
+  void apply_conditions(const SubdomainMesh& m, SubdomainInput& in) const override {
+    const int dpn = physics_.dofs_per_node();
+    auto point = [&](int k) {
+      return std::array<double, 3>{m.coords[3 * k], m.coords[3 * k + 1], m.coords[3 * k + 2]};
+    };
+    // Loads.
+    for (const auto& l : spec_.loads) {
+      if (l.kind == ProblemSpec::Load::traction) {
+        auto it = m.facet_groups.find(l.group);
+        if (it != m.facet_groups.end()) add_traction(m, it->second, physics_, l.value, in.system.f);
+        continue;
+      }
+      auto it = m.cell_groups.find(l.group);
+      if (it == m.cell_groups.end()) continue;
+      const int nc = cell_nodes(m.type);
+      double x[24];
+      for (int e : it->second) {
+        const int* cn = m.cells.data() + static_cast<size_t>(e) * nc;
+        for (int a = 0; a < nc; ++a)
+          for (int d = 0; d < 3; ++d) x[3 * a + d] = m.coords[3 * static_cast<size_t>(cn[a]) + d];
+        const double share = cell_measure(m.type, x) / nc;
+        for (int a = 0; a < nc; ++a)
+          for (int d = 0; d < dpn; ++d)
+            in.system.f[cn[a] * dpn + d] +=
+                (l.kind == ProblemSpec::Load::source ? l.value[0] : l.value[d]) * share;
+      }
+    }
+    // Dirichlet dofs (the first condition on a dof wins).
+    std::set<std::pair<int, int>> fixed;
+    for (const auto& d : spec_.dirichlet) {
+      auto it = m.node_groups.find(d.group);
+      if (it == m.node_groups.end()) continue;
+      std::vector<int> comps = d.components;
+      if (comps.empty())
+        for (int c = 0; c < dpn; ++c) comps.push_back(c);
+      for (int k : it->second)
+        for (int c : comps)
+          if (c < dpn && fixed.insert({k, c}).second) in.dirichlet.push_back({k, c, d.value[c]});
+    }
+    // Contact rows on the nodes of the contact groups, one per node (the first condition wins);
+    // dropped where a Dirichlet condition fixes every component the direction involves.
+    std::set<int> done;
+    for (const auto& c : spec_.contact) {
+      auto it = m.node_groups.find(c.group);
+      if (it == m.node_groups.end()) continue;
+      const Expression gap(c.gap);
+      for (int k : it->second) {
+        if (!done.insert(k).second) continue;
+        bool all_fixed = true;
+        for (int d = 0; d < dpn; ++d)
+          if (c.direction[d] != 0 && !fixed.count({k, d})) all_fixed = false;
+        if (all_fixed) continue;
+        ContactRow r;
+        r.node = k;
+        r.side = 1;
+        r.node_a = m.global_node[k];
+        r.copies_a = m.num_copies(k);
+        r.copies_b = 0;
+        r.owner_subdomain = *std::min_element(m.copies(k), m.copies(k) + m.num_copies(k));
+        r.direction = c.direction;
+        if (dpn == 1) r.direction = {1, 0, 0};
+        r.point = point(k);
+        r.gap = gap(r.point);
+        in.contact.push_back(r);
+      }
+    }
+  }
+  nlohmann::json describe() const override {
+    nlohmann::json j;
+    j["problem"] = spec_.path;
+    nlohmann::json mesh;
+    if (!spec_.mesh_file.empty()) {
+      mesh = {{"file", spec_.mesh_file}, {"element", to_string(mesh_->type)},
+              {"nodes", mesh_->num_nodes()}, {"cells", mesh_->num_cells()}};
+    } else {
+      mesh = {{"generator", "box"},
+              {"element", to_string(spec_.box.cell)},
+              {"size", std::vector<double>(spec_.box.size.begin(), spec_.box.size.begin() + spec_.box.dim)},
+              {"elements",
+               std::vector<int>(spec_.box.elements.begin(), spec_.box.elements.begin() + spec_.box.dim)}};
+    }
+    j["mesh"] = mesh;
+    j["element"] = mesh["element"];
+    nlohmann::json ph = {{"type", to_string(physics_.kind)}, {"dim", physics_.dim}};
+    if (physics_.kind == PhysicsKind::elasticity) {
+      ph["young"] = physics_.material.young;
+      ph["poisson"] = physics_.material.poisson;
+      ph["density"] = physics_.density;
+      ph["gravity"] = std::vector<double>(physics_.gravity.begin(), physics_.gravity.begin() + physics_.dim);
+    } else {
+      ph["source"] = spec_.source;
+    }
+    j["physics"] = ph;
+    j["partitioner"] = grid_ ? "box" : "metis";
+    j["subdomains"] = num_subdomains();
+    j["clusters"] = num_clusters();
+    j["cluster_size"] = spec_.cluster_size;
+    j["glue"] = spec_.cluster_size > 1 ? to_string(glue_) : "none";
+    if (grid_) {
+      j["subdomains_per_axis"] = std::vector<int>(spec_.subdomains.begin(), spec_.subdomains.end());
+      j["H_over_h"] = grid_->H(0);
+    }
+    return j;
+  }
+
+ private:
+  void check_groups() const {
+    std::set<std::string> nodes, facets, cells;
+    if (grid_) {
+      static const char* faces[6] = {"x0", "x1", "y0", "y1", "z0", "z1"};
+      for (int i = 0; i < 2 * grid_->dim(); ++i) nodes.insert(faces[i]), facets.insert(faces[i]);
+    } else {
+      for (const auto& [n, v] : mesh_->node_groups) nodes.insert(n);
+      for (const auto& [n, v] : mesh_->facet_groups) facets.insert(n);
+      for (const auto& [n, v] : mesh_->cell_groups) cells.insert(n);
+    }
+    const std::string where = spec_.mesh_file.empty() ? "the generated box" : spec_.mesh_file;
+    auto require = [&](const std::string& g, const std::set<std::string>& in, const std::string& what) {
+      if (!in.count(g))
+        throw std::invalid_argument("problem file: " + what + ": group '" + g + "' does not exist in " +
+                                    where + " (its groups: " + list_groups(in) + ")");
+    };
+    int i = 0;
+    for (const auto& d : spec_.dirichlet) require(d.group, nodes, "dirichlet #" + std::to_string(++i));
+    i = 0;
+    for (const auto& l : spec_.loads) {
+      ++i;
+      if (l.kind == ProblemSpec::Load::traction)
+        require(l.group, facets, "load #" + std::to_string(i) + " (a traction needs a boundary group)");
+      else
+        require(l.group, cells, "load #" + std::to_string(i) + " (a source or force needs a volume group)");
+      if (l.kind == ProblemSpec::Load::source && physics_.kind != PhysicsKind::laplace)
+        throw std::invalid_argument("problem file: load #" + std::to_string(i) +
+                                    ": 'source' is for Laplace; use 'force' for elasticity");
+      if (l.kind == ProblemSpec::Load::force && physics_.kind != PhysicsKind::elasticity)
+        throw std::invalid_argument("problem file: load #" + std::to_string(i) +
+                                    ": 'force' is for elasticity; use 'source' for Laplace");
+    }
+    i = 0;
+    for (const auto& c : spec_.contact) require(c.group, nodes, "contact #" + std::to_string(++i));
+  }
+
+  ProblemSpec spec_;
+  Expression source_;
+  std::shared_ptr<Mesh> mesh_;
+  std::shared_ptr<MeshPartition> part_;
+  std::shared_ptr<BoxGrid> grid_;
+};
+
+}  // namespace
+
+std::unique_ptr<Model> make_model(const ProblemSpec& spec) {
+  if (!spec.builtin.empty()) {
+    DecompositionOptions o = spec.builtin_options;
+    if (spec.subdomains.size() != 1)
+      throw std::invalid_argument("decomposition.subdomains: one number (per side) for a built-in");
+    o.subdomains = spec.subdomains[0];
+    o.cluster_size = spec.cluster_size;
+    o.glue = spec.glue;
+    Decomposition check(o);
+    return make_builtin_model(o);
+  }
+  return std::make_unique<GroupModel>(spec);
+}
+
+}  // namespace htfeti

@@ -1,0 +1,212 @@
+// The general pipeline against the undecomposed problem: Laplace on unstructured Gmsh meshes with
+// a hole (tri3, tet4) split by METIS, plane-strain elasticity on the 2D mesh, hex8 elasticity on a
+// generated box, each with TFETI and H-TFETI-DP (averages, corners). The reference is the same
+// problem as one subdomain (no decomposition), Dirichlet dofs eliminated, solved by Eigen's sparse
+// LU. Runs under mpiexec -n 1, 2, 3.
+#include <gtest/gtest.h>
+
+#include <Eigen/SparseLU>
+#include <map>
+
+#include "helpers.hpp"
+#include "htfeti/mesh/mesh.hpp"
+#include "htfeti/problem_file.hpp"
+#include "htfeti/solver.hpp"
+
+using namespace htfeti;
+
+namespace {
+
+const std::string kMeshes = HTFETI_SOURCE_DIR "/examples/meshes/";
+
+struct Reference {
+  Eigen::VectorXd u;  ///< per global dof (node * dofs_per_node + component)
+  double energy = 0;
+};
+
+// The undecomposed problem: the model's spec with one subdomain.
+Reference solve_directly(ProblemSpec spec) {
+  spec.subdomains = std::vector<int>(spec.subdomains.size() > 1 && spec.mesh_file.empty() ? spec.box.dim : 1, 1);
+  spec.cluster_size = 1;
+  const auto model = make_model(spec);
+  const SubdomainInput in = model->input(0);
+  const SubdomainMesh mesh = model->mesh(0);
+  const int dpn = model->physics().dofs_per_node(), n = static_cast<int>(in.system.f.size());
+  // Local numbering of the single subdomain = global node order (sorted global ids).
+  std::vector<double> fixed(n, std::nan(""));
+  for (const auto& d : in.dirichlet) fixed[d.node * dpn + d.component] = d.value;
+  std::vector<int> free_of(n, -1);
+  int nf = 0;
+  for (int i = 0; i < n; ++i)
+    if (std::isnan(fixed[i])) free_of[i] = nf++;
+  std::vector<Eigen::Triplet<double>> trip;
+  Eigen::VectorXd b = Eigen::VectorXd::Zero(nf);
+  for (int i = 0; i < n; ++i)
+    if (free_of[i] >= 0) b[free_of[i]] = in.system.f[i];
+  for (int col = 0; col < n; ++col)
+    for (Eigen::SparseMatrix<double>::InnerIterator it(in.system.K, col); it; ++it) {
+      const int row = static_cast<int>(it.row());
+      if (free_of[row] < 0) continue;
+      if (free_of[col] >= 0)
+        trip.emplace_back(free_of[row], free_of[col], it.value());
+      else
+        b[free_of[row]] -= it.value() * fixed[col];
+    }
+  Eigen::SparseMatrix<double> A(nf, nf);
+  A.setFromTriplets(trip.begin(), trip.end());
+  Eigen::SparseLU<Eigen::SparseMatrix<double>> lu(A);
+  EXPECT_EQ(lu.info(), Eigen::Success);
+  const Eigen::VectorXd x = lu.solve(b);
+  Reference ref;
+  ref.u.resize(static_cast<Eigen::Index>(model->num_nodes()) * dpn);
+  for (int k = 0; k < mesh.num_nodes(); ++k)
+    for (int d = 0; d < dpn; ++d) {
+      const int i = k * dpn + d;
+      ref.u[mesh.global_node[k] * dpn + d] = free_of[i] >= 0 ? x[free_of[i]] : fixed[i];
+    }
+  Eigen::VectorXd u(n);
+  for (int i = 0; i < n; ++i) u[i] = free_of[i] >= 0 ? x[free_of[i]] : fixed[i];
+  ref.energy = 0.5 * u.dot(in.system.K * u) - in.system.f.dot(u);
+  return ref;
+}
+
+ProblemSpec laplace_on(const std::string& mesh, const std::string& zero_group,
+                       const std::string& one_group) {
+  ProblemSpec s;
+  s.mesh_file = kMeshes + mesh;
+  s.physics.kind = PhysicsKind::laplace;
+  s.source = "1 + x*y";
+  s.dirichlet.push_back({zero_group, {0, 0, 0}, {}});
+  s.dirichlet.push_back({one_group, {0.5, 0.5, 0.5}, {}});
+  return s;
+}
+
+ProblemSpec plane_strain_plate() {
+  ProblemSpec s;
+  s.mesh_file = kMeshes + "plate-with-hole.msh";
+  s.physics.kind = PhysicsKind::elasticity;
+  s.physics.material = {2.1e5, 0.3};
+  s.physics.density = 1.0;
+  s.physics.gravity = {0, -9.81, 0};
+  s.dirichlet.push_back({"left", {0, 0, 0}, {}});
+  s.loads.push_back({"right", ProblemSpec::Load::traction, {100.0, 20.0, 0}});
+  return s;
+}
+
+ProblemSpec hex8_box() {
+  ProblemSpec s;
+  s.box.dim = 3;
+  s.box.cell = CellType::hex8;
+  s.box.size = {4, 1, 1};
+  s.box.elements = {16, 8, 8};
+  s.physics.kind = PhysicsKind::elasticity;
+  s.physics.material = {2.1e7, 0.3};
+  s.physics.density = 7850;
+  s.physics.gravity = {0, 0, -9.8066};
+  s.dirichlet.push_back({"x0", {0, 0, 0}, {}});
+  s.dirichlet.push_back({"x1", {0.001, 0, 0}, {0}});  // a prescribed displacement in x only
+  s.loads.push_back({"z1", ProblemSpec::Load::traction, {0, 1e3, -1e4}});
+  return s;
+}
+
+struct Case {
+  const char* name;
+  ProblemSpec (*spec)();
+  std::vector<int> subdomains;
+  int cluster_size;
+  Glue glue;
+};
+
+ProblemSpec laplace_plate() { return laplace_on("plate-with-hole.msh", "left", "hole"); }
+ProblemSpec laplace_bracket() { return laplace_on("bracket.msh", "x0", "hole"); }
+
+class AgainstUndecomposed : public ::testing::TestWithParam<Case> {};
+
+TEST_P(AgainstUndecomposed, SameSolution) {
+  const Case c = GetParam();
+  Comm comm;
+  ProblemSpec spec = c.spec();
+  spec.subdomains = c.subdomains;
+  spec.cluster_size = c.cluster_size;
+  spec.glue = c.glue;
+  std::shared_ptr<const Model> model = make_model(spec);
+  SolveOptions opt;
+  opt.rtol = 1e-12;
+  opt.max_iterations = 5000;
+  const auto out = solve(model, opt, comm);
+  ASSERT_TRUE(out.converged) << out.report["stop_reason"];
+  const Reference ref = solve_directly(spec);
+  EXPECT_LT(test::relative_error(*model, *out.dual, out.u, ref.u), 1e-8);
+  const double energy = out.report["objective"];
+  EXPECT_NEAR(energy, ref.energy, 1e-8 * std::abs(ref.energy));
+  // The coarse space: the clusters' kernels; at least one kernel of the physics per cluster,
+  // exactly that for TFETI on connected subdomains and for boxes of subdomains.
+  const int k = model->physics().kernel_dimension();
+  const int coarse = out.report["coarse_dimension"];
+  EXPECT_GE(coarse, k * model->num_clusters());
+  if (!spec.mesh_file.empty() && c.cluster_size == 1) {
+    EXPECT_EQ(coarse, k * model->num_subdomains() * 1) << "disconnected METIS parts?";
+  }
+  if (spec.mesh_file.empty()) {
+    EXPECT_EQ(coarse, k * model->num_clusters());
+  }
+  EXPECT_EQ(coarse, out.report["cluster_kernel_dimension_sum"].get<int>());
+}
+
+INSTANTIATE_TEST_SUITE_P(
+    Meshes, AgainstUndecomposed,
+    ::testing::Values(Case{"laplace_tri3_tfeti", laplace_plate, {8}, 1, Glue::averages},
+                      Case{"laplace_tri3_averages", laplace_plate, {12}, 4, Glue::averages},
+                      Case{"laplace_tri3_corners", laplace_plate, {12}, 4, Glue::corners},
+                      Case{"laplace_tet4_tfeti", laplace_bracket, {6}, 1, Glue::averages},
+                      Case{"laplace_tet4_averages", laplace_bracket, {8}, 4, Glue::averages},
+                      Case{"laplace_tet4_corners", laplace_bracket, {8}, 4, Glue::corners},
+                      Case{"plane_strain_tfeti", plane_strain_plate, {8}, 1, Glue::averages},
+                      Case{"plane_strain_averages", plane_strain_plate, {12}, 3, Glue::averages},
+                      Case{"hex8_box_tfeti", hex8_box, {4, 2, 2}, 1, Glue::averages},
+                      Case{"hex8_box_averages", hex8_box, {4, 2, 2}, 2, Glue::averages},
+                      Case{"hex8_box_metis", hex8_box, {6}, 3, Glue::averages}),
+    [](const auto& info) { return std::string(info.param.name); });
+
+TEST(Kernels, RigidBodyMotionsAreTheKernelAndKPlusIsAGeneralizedInverse) {
+  for (auto make : {plane_strain_plate, hex8_box}) {
+    ProblemSpec spec = make();
+    spec.subdomains = spec.mesh_file.empty() ? std::vector<int>{4, 2, 2} : std::vector<int>{8};
+    const auto model = make_model(spec);
+    Subdomain sd = test::make_subdomain(*model, 1);
+    const int expect = model->dim() == 2 ? 3 : 6;
+    ASSERT_EQ(sd.kernel_dimension(), expect);
+    const Eigen::MatrixXd K(sd.K());
+    const Eigen::MatrixXd& R = sd.kernel();
+    EXPECT_LT((K * R).norm(), 1e-12 * K.norm());
+    EXPECT_LT((R.transpose() * R - Eigen::MatrixXd::Identity(expect, expect)).norm(), 1e-12);
+    sd.factorize(Ordering::amd);
+    Eigen::MatrixXd KpK(K.rows(), K.cols());
+    for (int j = 0; j < K.cols(); ++j) {
+      Eigen::VectorXd col = K.col(j);
+      sd.apply_pinv(col.data(), KpK.col(j).data());
+    }
+    EXPECT_LT((K * KpK - K).norm(), 1e-10 * K.norm());  // K K^+ K = K
+  }
+}
+
+TEST(GmshReader, FormatsAgree) {
+  Comm comm;
+  if (comm.rank() != 0) return;
+  const Mesh a = read_gmsh(kMeshes + "plate-with-hole.msh");
+  for (const char* f : {"plate-with-hole-22.msh", "plate-with-hole-41bin.msh"}) {
+    const Mesh b = read_gmsh(std::string(HTFETI_BINARY_DIR) + "/" + f);
+    EXPECT_EQ(a.num_nodes(), b.num_nodes()) << f;
+    EXPECT_EQ(a.cells, b.cells) << f;
+    EXPECT_LT(std::abs(Eigen::Map<const Eigen::VectorXd>(a.coords.data(), a.coords.size()).sum() -
+                       Eigen::Map<const Eigen::VectorXd>(b.coords.data(), b.coords.size()).sum()),
+              1e-9);
+    for (const auto& [name, nodes] : a.node_groups) EXPECT_EQ(nodes, b.node_groups.at(name)) << name;
+  }
+  EXPECT_EQ(a.dim, 2);
+  EXPECT_EQ(a.type, CellType::tri3);
+  EXPECT_EQ(a.facet_groups.at("left").facet_nodes, 2);
+  EXPECT_GT(a.cell_groups.at("plate").size(), 100u);
+}
+
+}  // namespace

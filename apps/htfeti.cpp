@@ -310,6 +310,9 @@ int run(int argc, char** argv, const Comm& comm) {
     if (out_opt.write_report) check_output_path(out_opt.report, "--report");
     if (out_opt.write_vtu) {
       check_output_path(out_opt.vtu, "--vtu");
+      const auto ext = std::filesystem::path(out_opt.vtu).extension();
+      if (ext != ".vtu" && ext != ".pvtu")
+        throw std::invalid_argument("--vtu '" + out_opt.vtu + "' must end in .vtu or .pvtu");
       for (const auto& f : vtu_files(out_opt.vtu, comm.size())) {
         check_output_path(f, "--vtu");
         if (out_opt.write_report &&

@@ -7,7 +7,7 @@ build=${1:-$here/build}
 
 pkgs=(cmake g++ make pkg-config libeigen3-dev libsuitesparse-dev libmetis-dev
       libopenblas0-openmp libopenmpi-dev openmpi-bin libcli11-dev nlohmann-json3-dev
-      libgtest-dev libfmt-dev)
+      libgtest-dev libfmt-dev libgmsh-dev gmsh libtomlplusplus-dev libmuparser-dev)
 missing=()
 for p in "${pkgs[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")

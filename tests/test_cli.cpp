@@ -152,3 +152,115 @@ TEST_F(Cli, ReportsDoNotDependOnTheNumberOfThreads) {
     EXPECT_EQ(reports[0]["outer_iterations"], reports[1]["outer_iterations"]) << config;
   }
 }
+
+namespace {
+
+void write_file(const std::string& name, const std::string& text) {
+  std::ofstream f(name);
+  f << text;
+}
+
+// A small valid problem: Laplace on a generated square with contact below an obstacle.
+const std::string kGood = R"(
+[mesh]
+generator = "box"
+size = [1.0, 1.0]
+elements = [8, 8]
+element = "quad4"
+[physics]
+type = "laplace"
+source = -10.0
+[[dirichlet]]
+group = "x0"
+value = 0.0
+[[contact]]
+group = "y0"
+direction = [1.0]
+gap = "0.05 + 0.1*x"
+[decomposition]
+subdomains = [2, 2]
+cluster_size = 2
+[solver]
+rtol = 1e-8
+)";
+
+std::string with(const std::string& from, const std::string& to) {
+  std::string s = kGood;
+  const auto pos = s.find(from);
+  return pos == std::string::npos ? s : s.replace(pos, from.size(), to);
+}
+
+// Files in the current directory other than the inputs.
+std::vector<std::string> outputs() {
+  std::vector<std::string> out;
+  for (const auto& e : fs::directory_iterator("."))
+    if (e.path().extension() != ".toml" && e.path().extension() != ".msh" &&
+        e.path().filename() != "cli_stderr.txt")
+      out.push_back(e.path().filename().string());
+  return out;
+}
+
+}  // namespace
+
+TEST_F(Cli, ProblemFileRunsAndCommandLineOverridesIt) {
+  write_file("good.toml", kGood);
+  ASSERT_EQ(run(bin + " solve good.toml --report r.json --vtu u.vtu"), 0) << stderr_text();
+  std::ifstream f("r.json");
+  const auto r = nlohmann::json::parse(f);
+  EXPECT_EQ(r["subdomains"], 4);
+  EXPECT_EQ(r["clusters"], 1);
+  EXPECT_GT(r["inequalities"].get<int>(), 0);
+  EXPECT_TRUE(fs::exists("u.vtu"));
+  ASSERT_EQ(run(bin + " solve good.toml --subdomains 4,2 -m 1 --report r2.json --no-vtu"), 0);
+  std::ifstream f2("r2.json");
+  const auto r2 = nlohmann::json::parse(f2);
+  EXPECT_EQ(r2["subdomains"], 8);
+  EXPECT_EQ(r2["clusters"], 8);
+  EXPECT_NEAR(r2["objective"].get<double>(), r["objective"].get<double>(),
+              1e-7 * std::abs(r["objective"].get<double>()));
+}
+
+TEST_F(Cli, BadProblemFilesExitWithCode2NamingTheKeyAndWriteNothing) {
+  write_file("broken.msh", "$MeshFormat\n4.1 0 8\n$EndMeshFormat\n$Nodes\ngarbage\n");
+  write_file("notgmsh.msh", "hello\n");
+  const std::pair<std::string, std::string> cases[] = {
+      {with("[solver]", "[solver]\ncolour = 1"), "solver.colour"},
+      {with("type = \"laplace\"", "type = \"laplace\"\nsorce = 1"), "physics.sorce"},
+      {with("source = -10.0", "source = true"), "physics.source"},
+      {with("rtol = 1e-8", "rtol = \"tight\""), "solver.rtol"},
+      {with("elements = [8, 8]", "elements = [8.5, 8]"), "mesh.elements"},
+      {with("group = \"x0\"", "group = \"left\""), "'left'"},
+      {with("group = \"y0\"", "group = \"floor\""), "'floor'"},
+      {with("gap = \"0.05 + 0.1*x\"", "gap = \"0.05 + sin(\""), "contact #1.gap"},
+      {with("gap = \"0.05 + 0.1*x\"", "gap = \"q*x\""), "contact #1.gap"},
+      {"[mesh]\nfile = \"missing.msh\"\n[physics]\ntype = \"laplace\"\n", "missing.msh"},
+      {"[mesh]\nfile = \"broken.msh\"\n[physics]\ntype = \"laplace\"\n", "broken.msh"},
+      {"[mesh]\nfile = \"notgmsh.msh\"\n[physics]\ntype = \"laplace\"\n", "notgmsh.msh"},
+      {with("subdomains = [2, 2]", "subdomains = [3, 2]"), "divisible"},
+      {with("cluster_size = 2", "cluster_size = 0"), "cluster_size"},
+      {with("[decomposition]", "[decomposition]\nglue = \"faces\""), "glue"},
+      {"[mesh\n", "line"},
+      {with("type = \"laplace\"", "type = \"elasticity\"\nyoung = -1\npoisson = 0.3"), "young"},
+      {with("type = \"laplace\"", "type = \"elasticity\"\nyoung = 1\npoisson = 0.5"), "poisson"},
+  };
+  int i = 0;
+  for (const auto& [text, needle] : cases) {
+    const std::string name = "bad" + std::to_string(i++) + ".toml";
+    write_file(name, text);
+    EXPECT_EQ(run(bin + " solve " + name + " --report r.json --vtu u.vtu"), 2) << name << "\n" << text;
+    const std::string err = stderr_text();
+    EXPECT_NE(err.find(needle), std::string::npos) << name << ": " << err;
+    EXPECT_EQ(std::count(err.begin(), err.end(), '\n'), 1) << err;  // one line
+    EXPECT_TRUE(outputs().empty()) << name;
+  }
+  // Strict integers and usable output paths, checked before any work.
+  write_file("good.toml", kGood);
+  const char* bad_args[] = {"--subdomains 0x2,2", "--subdomains ' 2,2'", "--subdomains 2,-2",
+                            "--report ''",        "--report nodir/r.json", "--report .",
+                            "--vtu r.json --report r.json"};
+  for (const char* a : bad_args) {
+    EXPECT_EQ(run(bin + " solve good.toml " + a), 2) << a;
+    EXPECT_TRUE(outputs().empty()) << a;
+  }
+  EXPECT_EQ(run(bin + " solve good.toml --problem membranes"), 2);
+}

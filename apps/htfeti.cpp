@@ -129,7 +129,8 @@ int run(int argc, char** argv, const Comm& comm) {
                         "a problem file (TOML, docs/user-guide.md); options given on the command "
                         "line override its keys");
   auto* o_problem =
-      solve_cmd->add_option("--problem", problem, "built-in: poisson2d | membranes | membranes-coercive")
+      solve_cmd->add_option("--problem", problem,
+                            "built-in: poisson2d | membranes | membranes-coercive | cube-obstacle")
           ->capture_default_str();
   auto* o_elements =
       solve_cmd
@@ -208,6 +209,13 @@ int run(int argc, char** argv, const Comm& comm) {
                                  "several ranks; binary)")
                     ->capture_default_str();
   solve_cmd->add_flag("--no-vtu", no_vtu, "do not write VTU output");
+  double amplitude = 1.0;
+  auto* o_amplitude =
+      solve_cmd
+          ->add_option("--obstacle-amplitude", amplitude,
+                       "cube-obstacle: the obstacle is u_z >= -A sin(pi x / 50) (A = 1: every "
+                       "bottom node ends in contact; larger A: partial contact)")
+          ->capture_default_str();
   auto* o_ascii = solve_cmd->add_flag("--vtu-ascii", out_opt.vtu_ascii, "write the VTU as ASCII");
   auto* o_progress =
       solve_cmd->add_flag("--progress", opt.progress, "print one line per (outer) iteration");
@@ -290,7 +298,22 @@ int run(int argc, char** argv, const Comm& comm) {
       opt = from_file;
       validate_solver(opt);
       model = make_model(spec);
+    } else if (problem == "cube-obstacle") {
+      const auto e = parse_int_list(o_elements->count() ? elements_text : "10,20,10", "--elements");
+      const auto sd = parse_int_list(o_subdomains->count() ? subdomains_text : "2,4,2", "--subdomains");
+      if (o_element->count()) throw std::invalid_argument("cube-obstacle uses hex8 elements");
+      const ProblemSpec spec = cube_obstacle_spec(e, sd, opt.decomposition.cluster_size, amplitude);
+      SolveOptions checked = opt;
+      checked.feti.ordering = parse_ordering(ordering);
+      checked.feti.dual_operator = parse_dual_operator(dual_operator);
+      opt = checked;
+      validate_solver(opt);
+      ProblemSpec with_glue = spec;
+      with_glue.glue = parse_glue(glue);
+      model = make_model(with_glue);
     } else {
+      if (o_amplitude->count())
+        throw std::invalid_argument("--obstacle-amplitude is for --problem cube-obstacle");
       opt.decomposition.problem = parse_problem(problem);
       opt.decomposition.element = parse_element(element);
       opt.decomposition.glue = parse_glue(glue);

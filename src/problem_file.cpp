@@ -661,6 +661,38 @@ class GroupModel final : public Model {
 
 }  // namespace
 
+ProblemSpec cube_obstacle_spec(const std::vector<int>& elements, const std::vector<int>& subdomains,
+                               int cluster_size, double amplitude, CellType cell) {
+  auto three = [](const std::vector<int>& v, const char* what) {
+    if (v.size() == 1) return std::vector<int>{v[0], v[0], v[0]};
+    if (v.size() != 3) throw std::invalid_argument(std::string(what) + " needs 1 or 3 numbers for cube-obstacle");
+    return v;
+  };
+  if (!std::isfinite(amplitude) || amplitude < 0)
+    throw std::invalid_argument("--obstacle-amplitude must be finite and non-negative");
+  ProblemSpec s;
+  s.path = "cube-obstacle";
+  s.box.dim = 3;
+  s.box.cell = cell;
+  s.box.size = {100, 100, 100};
+  const auto e = three(elements, "--elements");
+  for (int d = 0; d < 3; ++d) s.box.elements[d] = e[d];
+  s.physics.kind = PhysicsKind::elasticity;
+  s.physics.dim = 3;
+  s.physics.material = {2.1e7, 0.3};
+  s.physics.density = 7850;
+  s.physics.gravity = {0, 0, -9.8066};
+  s.dirichlet.push_back({"x0", {0, 0, 0}, {}});
+  std::ostringstream gap;
+  gap.precision(17);
+  gap << amplitude << "*sin(pi*x/50)";
+  s.contact.push_back({"z0", {0, 0, -1}, gap.str()});
+  s.subdomains = three(subdomains, "--subdomains");
+  s.cluster_size = cluster_size;
+  s.glue = Glue::averages;
+  return s;
+}
+
 std::unique_ptr<Model> make_model(const ProblemSpec& spec) {
   if (!spec.builtin.empty()) {
     DecompositionOptions o = spec.builtin_options;

@@ -83,6 +83,15 @@ ProblemSpec read_problem_file(const std::string& path, SolveOptions& solver, Out
 /// Parses strictly a list of positive integers "8" or "2,4,2" (no signs, spaces, hex).
 std::vector<int> parse_int_list(const std::string& text, const std::string& what);
 
+/// The cube-obstacle benchmark (DESIGN.md; the paper's Table 4, ESPRESO's former obstacle
+/// benchmark): the cube [0,100]^3 of hex8 elements (nx, ny, nz), clamped on x = 0, under its own
+/// weight (density 7850, gravity -9.8066 in z), E = 2.1e7, nu = 0.3, in frictionless contact on
+/// z = 0 with a rigid obstacle u_z >= -amplitude sin(pi x / 50) (direction (0,0,-1), gap
+/// amplitude sin(pi x / 50)); subdomains (sx, sy, sz), clusters of m x m x m.
+ProblemSpec cube_obstacle_spec(const std::vector<int>& elements, const std::vector<int>& subdomains,
+                               int cluster_size, double amplitude = 1.0,
+                               CellType cell = CellType::hex8);
+
 /// Builds the model (reads and partitions the mesh). Throws std::invalid_argument for input
 /// that does not fit (missing groups, sizes).
 std::unique_ptr<Model> make_model(const ProblemSpec& spec);

@@ -300,7 +300,7 @@ void Cluster::apply_dual(const std::vector<Eigen::VectorXd>& lam,
 long Cluster::dense_doubles() const {
   long n = 0;
   for (const auto& w : W_) n += w.size();
-  return n + lu_.matrixLU().size();
+  return rhs_.size() > 0 ? n + lu_.matrixLU().size() : n;
 }
 
 void Cluster::solve(std::vector<Eigen::VectorXd>& x) {

@@ -181,8 +181,15 @@ DualProblem::DualProblem(const FetiLayout& layout,
     local_dofs += sd->size();
   }
   min_nodes = comm_.min(min_nodes);
+  // Dense local blocks F_i take 8 n_i^2 bytes (n_i: multipliers of subdomain i); automatic picks
+  // them only when they fit the same per-rank budget as the factors (3D subdomains have large
+  // interfaces: 1,806 multipliers and 26 MB per subdomain at H_s/h = 10).
+  double explicit_bytes = 0;
+  for (const auto& m : mult_) explicit_bytes += 8.0 * m.size() * m.size();
+  explicit_bytes = comm_.max(explicit_bytes);
   explicit_ = options.dual_operator == DualOperator::explicit_ ||
-              (options.dual_operator == DualOperator::automatic && min_nodes >= kExplicitMinNodes);
+              (options.dual_operator == DualOperator::automatic && min_nodes >= kExplicitMinNodes &&
+               explicit_bytes <= options.factor_budget_bytes);
 
   ordering_ = options.ordering;
   const double factor_bytes_estimate = 8.0 * 100.0 * local_dofs;

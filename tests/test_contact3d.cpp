@@ -1,0 +1,220 @@
+// 3D elastic contact with a rigid obstacle against independent solutions, under mpiexec -n 1, 2, 4:
+// - the cube-obstacle problem (hex8 and tet4, small meshes) against the undecomposed problem
+//   solved by a primal-dual active set method on the assembled KKT system (Dirichlet dofs
+//   eliminated, Eigen's sparse LU), with full contact (amplitude 1) and partial contact (a deeper
+//   obstacle), TFETI and H-TFETI-DP;
+// - a column on a frictionless rigid plane under its own weight with lateral rollers against the
+//   analytic solution u_z = -(rho g / M)(H z - z^2 / 2), M = E (1 - nu) / ((1 + nu)(1 - 2 nu)),
+//   and the uniform contact pressure rho g H.
+#include <gtest/gtest.h>
+
+#include <Eigen/SparseLU>
+#include <set>
+
+#include "helpers.hpp"
+#include "htfeti/problem_file.hpp"
+#include "htfeti/solver.hpp"
+
+using namespace htfeti;
+
+namespace {
+
+struct QpReference {
+  Eigen::VectorXd u;  ///< per global dof
+  double energy = 0;
+  int active = 0, inactive = 0;
+  int iterations = 0;
+};
+
+// min 1/2 u'Ku - f'u  s.t.  n_i . u_(node i) <= gap_i, by a primal-dual active set method.
+QpReference solve_contact_directly(ProblemSpec spec) {
+  spec.subdomains = {1, 1, 1};
+  spec.cluster_size = 1;
+  const auto model = make_model(spec);
+  const SubdomainInput in = model->input(0);
+  const SubdomainMesh mesh = model->mesh(0);
+  const int dpn = model->physics().dofs_per_node(), n = static_cast<int>(in.system.f.size());
+  std::vector<double> fixed(n, std::nan(""));
+  for (const auto& d : in.dirichlet) fixed[d.node * dpn + d.component] = d.value;
+  std::vector<int> free_of(n, -1);
+  int nf = 0;
+  for (int i = 0; i < n; ++i)
+    if (std::isnan(fixed[i])) free_of[i] = nf++;
+  std::vector<Eigen::Triplet<double>> kt;
+  Eigen::VectorXd b = Eigen::VectorXd::Zero(nf);
+  for (int i = 0; i < n; ++i)
+    if (free_of[i] >= 0) b[free_of[i]] = in.system.f[i];
+  double kmax = 0;
+  for (int col = 0; col < n; ++col)
+    for (Eigen::SparseMatrix<double>::InnerIterator it(in.system.K, col); it; ++it) {
+      const int row = static_cast<int>(it.row());
+      kmax = std::max(kmax, std::abs(it.value()));
+      if (free_of[row] < 0) continue;
+      if (free_of[col] >= 0)
+        kt.emplace_back(free_of[row], free_of[col], it.value());
+      else
+        b[free_of[row]] -= it.value() * fixed[col];
+    }
+  // Constraint rows a_i . u_f <= g_i (fixed dofs moved to the right-hand side).
+  const int m = static_cast<int>(in.contact.size());
+  std::vector<std::vector<std::pair<int, double>>> a(m);
+  Eigen::VectorXd g(m);
+  for (int i = 0; i < m; ++i) {
+    const auto& c = in.contact[i];
+    g[i] = c.gap;
+    for (int d = 0; d < dpn; ++d) {
+      if (c.direction[d] == 0) continue;
+      const int dof = c.node * dpn + d;
+      if (free_of[dof] >= 0)
+        a[i].push_back({free_of[dof], c.direction[d]});
+      else
+        g[i] -= c.direction[d] * fixed[dof];
+    }
+  }
+  std::vector<char> active(m, 0);
+  Eigen::VectorXd x, lambda = Eigen::VectorXd::Zero(m);
+  QpReference ref;
+  for (int it = 0; it < 200; ++it) {
+    std::vector<int> act;
+    for (int i = 0; i < m; ++i)
+      if (active[i]) act.push_back(i);
+    const int na = static_cast<int>(act.size());
+    std::vector<Eigen::Triplet<double>> t = kt;
+    Eigen::VectorXd rhs(nf + na);
+    rhs.head(nf) = b;
+    for (int j = 0; j < na; ++j) {
+      for (const auto& [col, v] : a[act[j]]) {
+        t.emplace_back(nf + j, col, v);
+        t.emplace_back(col, nf + j, v);
+      }
+      rhs[nf + j] = g[act[j]];
+    }
+    Eigen::SparseMatrix<double> A(nf + na, nf + na);
+    A.setFromTriplets(t.begin(), t.end());
+    Eigen::SparseLU<Eigen::SparseMatrix<double>> lu(A);
+    EXPECT_EQ(lu.info(), Eigen::Success);
+    const Eigen::VectorXd sol = lu.solve(rhs);
+    x = sol.head(nf);
+    lambda.setZero();
+    for (int j = 0; j < na; ++j) lambda[act[j]] = sol[nf + j];
+    bool changed = false;
+    for (int i = 0; i < m; ++i) {
+      double ax = 0;
+      for (const auto& [col, v] : a[i]) ax += v * x[col];
+      const bool now = lambda[i] + kmax * (ax - g[i]) > 0;
+      changed = changed || now != static_cast<bool>(active[i]);
+      active[i] = now;
+    }
+    ref.iterations = it + 1;
+    if (!changed) break;
+  }
+  Eigen::VectorXd u(n);
+  for (int i = 0; i < n; ++i) u[i] = free_of[i] >= 0 ? x[free_of[i]] : fixed[i];
+  ref.energy = 0.5 * u.dot(in.system.K * u) - in.system.f.dot(u);
+  ref.u.resize(static_cast<Eigen::Index>(model->num_nodes()) * dpn);
+  for (int k = 0; k < mesh.num_nodes(); ++k)
+    for (int d = 0; d < dpn; ++d) ref.u[mesh.global_node[k] * dpn + d] = u[k * dpn + d];
+  for (int i = 0; i < m; ++i) (lambda[i] > 1e-12 * kmax ? ref.active : ref.inactive)++;
+  return ref;
+}
+
+struct Case {
+  const char* name;
+  CellType cell;
+  double amplitude;
+  std::vector<int> subdomains;
+  int cluster_size;
+  bool partial;
+};
+
+class CubeObstacle : public ::testing::TestWithParam<Case> {};
+
+TEST_P(CubeObstacle, MatchesTheActiveSetSolution) {
+  const Case c = GetParam();
+  Comm comm;
+  const ProblemSpec spec = cube_obstacle_spec({12, 6, 6}, c.subdomains, c.cluster_size, c.amplitude, c.cell);
+  std::shared_ptr<const Model> model = make_model(spec);
+  SolveOptions opt;
+  // SMALBE-M compares ||G lambda|| (force units, lambda ~ 1e9 here) with rtol ||b||: round-off in
+  // Q lambda bounds the attainable rtol near 1e-8 for E = 2.1e7.
+  opt.rtol = 1e-8;
+  opt.max_iterations = 2000;
+  const auto out = solve(model, opt, comm);
+  ASSERT_TRUE(out.converged) << out.report["stop_reason"];
+  const QpReference ref = solve_contact_directly(spec);
+  ASSERT_GT(ref.active, 0);
+  if (c.partial) {
+    ASSERT_GT(ref.inactive, 0) << "the case should have partial contact";
+  } else {
+    ASSERT_EQ(ref.inactive, 0) << "the case should have full contact";
+  }
+  const double energy = out.report["objective"];
+  EXPECT_NEAR(energy, ref.energy, 1e-8 * std::abs(ref.energy));
+  EXPECT_LT(test::relative_error(*model, *out.dual, out.u, ref.u), 1e-6);
+  const auto& kkt = out.report["kkt"];
+  const double umax = ref.u.cwiseAbs().maxCoeff();
+  EXPECT_LT(kkt["max_violation"].get<double>(), 1e-6 * umax);
+  EXPECT_GE(kkt["min_multiplier"].get<double>(), -1e-8 * std::abs(energy) / umax);
+  EXPECT_EQ(out.report["coarse_dimension"].get<int>(), 6 * model->num_clusters());
+}
+
+INSTANTIATE_TEST_SUITE_P(
+    Small, CubeObstacle,
+    ::testing::Values(Case{"hex8_full_tfeti", CellType::hex8, 1.0, {2, 2, 2}, 1, false},
+                      Case{"hex8_full_htfeti", CellType::hex8, 1.0, {4, 2, 2}, 2, false},
+                      Case{"hex8_partial_tfeti", CellType::hex8, 40.0, {2, 2, 2}, 1, true},
+                      Case{"hex8_partial_htfeti", CellType::hex8, 40.0, {4, 2, 2}, 2, true},
+                      Case{"tet4_full_tfeti", CellType::tet4, 1.0, {2, 2, 2}, 1, false},
+                      Case{"tet4_partial_htfeti", CellType::tet4, 40.0, {4, 2, 2}, 2, true}),
+    [](const auto& info) { return std::string(info.param.name); });
+
+TEST(Column, OwnWeightOnARigidPlaneIsTheAnalyticSolution) {
+  Comm comm;
+  const double E = 1000, nu = 0.25, rho = 2, g = 3, H = 10;
+  ProblemSpec s;
+  s.box.dim = 3;
+  s.box.cell = CellType::hex8;
+  s.box.size = {1, 1, H};
+  s.box.elements = {2, 2, 10};
+  s.physics.kind = PhysicsKind::elasticity;
+  s.physics.dim = 3;
+  s.physics.material = {E, nu};
+  s.physics.density = rho;
+  s.physics.gravity = {0, 0, -g};
+  for (const char* f : {"x0", "x1"}) s.dirichlet.push_back({f, {0, 0, 0}, {0}});  // rollers
+  for (const char* f : {"y0", "y1"}) s.dirichlet.push_back({f, {0, 0, 0}, {1}});
+  s.contact.push_back({"z0", {0, 0, -1}, "0"});
+  s.subdomains = {1, 1, 5};
+  s.cluster_size = 1;
+  std::shared_ptr<const Model> model = make_model(s);
+  SolveOptions opt;
+  opt.rtol = 1e-10;
+  const auto out = solve(model, opt, comm);
+  ASSERT_TRUE(out.converged);
+  const double M = E * (1 - nu) / ((1 + nu) * (1 - 2 * nu));
+  double err = 0, scale = 0;
+  for (size_t i = 0; i < out.u.size(); ++i) {
+    const SubdomainMesh m = model->mesh(out.dual->subdomains()[i]->id());
+    for (int k = 0; k < m.num_nodes(); ++k) {
+      const double z = m.coords[3 * k + 2];
+      const double exact = -(rho * g / M) * (H * z - z * z / 2);
+      err = std::max(err, std::abs(out.u[i][3 * k + 2] - exact));
+      err = std::max({err, std::abs(out.u[i][3 * k]), std::abs(out.u[i][3 * k + 1])});
+      scale = std::max(scale, std::abs(exact));
+    }
+  }
+  EXPECT_LT(comm.max(err), 1e-8 * comm.max(scale));
+  // Uniform pressure rho g H: nodal forces are the pressure times each node's share of the area.
+  const auto& c = out.report["contact"];
+  ASSERT_EQ(c["multiplier"].size(), 9u);
+  double total = 0;
+  for (size_t j = 0; j < 9; ++j) {
+    const double x = c["x"][j], y = c["y"][j];
+    const double share = (x == 0.5 ? 0.5 : 0.25) * (y == 0.5 ? 0.5 : 0.25);
+    EXPECT_NEAR(c["multiplier"][j].get<double>(), rho * g * H * share, 1e-8 * rho * g * H) << j;
+    total += c["multiplier"][j].get<double>();
+  }
+  EXPECT_NEAR(total, rho * g * H * 1.0, 1e-8 * rho * g * H);
+}
+
+}  // namespace

@@ -243,6 +243,25 @@ SolveOutput solve(std::shared_ptr<const Model> model_ptr, const SolveOptions& op
     MPI_Bcast(s.data(), static_cast<int>(len), MPI_CHAR, 0, comm.raw());
     rep["contact"] = nlohmann::json::parse(s);
   }
+  {
+    // Nodal displacement magnitudes: max and mean over the global nodes (a node's copies are
+    // weighted by 1 / copies, so each node counts once).
+    const int dpn = model.physics().dofs_per_node();
+    double umax = 0, usum = 0, nodes = 0;
+    for (size_t i = 0; i < out.u.size(); ++i) {
+      const SubdomainMesh m = model.mesh(dual.subdomains()[i]->id());
+      for (int k = 0; k < m.num_nodes(); ++k) {
+        double n2 = 0;
+        for (int d = 0; d < dpn; ++d) n2 += out.u[i][k * dpn + d] * out.u[i][k * dpn + d];
+        const double w = 1.0 / m.num_copies(k);
+        umax = std::max(umax, std::sqrt(n2));
+        usum += w * std::sqrt(n2);
+        nodes += w;
+      }
+    }
+    rep["displacement"] = {{"max_norm", comm.max(umax)},
+                           {"mean_norm", comm.sum(usum) / comm.sum(nodes)}};
+  }
   out.lambda = std::move(lambda);
   out.converged = converged;
   return out;

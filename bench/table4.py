@@ -1,0 +1,52 @@
+#!/usr/bin/env python3
+"""The paper's Table 4 in its shape: the cube-obstacle contact problem (3D elasticity, hex8) with
+clusters of 4 x 4 x 4 subdomains at H_s/h = 10, for k x k x k clusters, TFETI against H-TFETI-DP
+(face averages of the six rigid body motions), SMALBE-M + MPRGP at eps = 1e-4.
+
+k = 1, 2, 3: 64, 512, 1,728 subdomains; 0.2, 1.6, 5.3 M unknowns (k = 3 needs about 12 GB).
+The paper's row 1 (4 x 4 x 4 clusters, 4,096 subdomains, 12.5 M unknowns) needs ~26 GiB of
+factors alone: not on this machine.
+
+Usage: bench/table4.py [--ks 1 2] [--threads 2] [--ranks 1] [--hh 10]
+Writes bench/results/table4.json and prints the table next to the paper's numbers."""
+import argparse
+
+from common import save, solve
+
+# Paper, Table 4 row 1 (k = 4): TFETI 169 iterations, H-TFETI-DP 117.
+PAPER = {"tfeti_iterations": 169, "htfeti_iterations": 117, "subdomains": 4096, "clusters": 64}
+
+p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+p.add_argument("--ks", type=int, nargs="+", default=[1, 2])
+p.add_argument("--hh", type=int, default=10, help="H_s/h")
+p.add_argument("--m", type=int, default=4, help="subdomains per cluster side")
+p.add_argument("--ranks", type=int, default=1)
+p.add_argument("--threads", type=int, default=2)
+p.add_argument("--extra", default="", help="further htfeti solve arguments, quoted")
+a = p.parse_args()
+
+runs = []
+print(f"cube-obstacle, clusters of {a.m}^3 subdomains, H_s/h = {a.hh}, {a.ranks} ranks x "
+      f"{a.threads} threads")
+print("| clusters | subdomains | unknowns | method | coarse | outer | matvecs | F applications | "
+      "setup s | factorization s | solve s | total s | peak RSS GB | max |u| |")
+print("|---|---:|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
+for k in a.ks:
+    s = k * a.m
+    n = s * a.hh
+    for method, m in (("TFETI", 1), ("H-TFETI-DP", a.m)):
+        r = solve(["--problem", "cube-obstacle", "--elements", n, "--subdomains", s,
+                   "--cluster-size", m, *a.extra.split()], ranks=a.ranks, threads=a.threads)
+        r["method"] = method
+        r["k"] = k
+        runs.append(r)
+        save("table4.json", {"command": "(partial)", "paper": PAPER, "runs": runs})
+        t = r["timings"]
+        print(f"| {k}x{k}x{k} | {r['subdomains']} | {r['primal_dimension']} | {method} | "
+              f"{r['coarse_dimension']} | {r['outer_iterations']} | {r['matvecs']} | "
+              f"{r['F_applications']} | {t['setup']:.1f} | {t['factorization']:.1f} | "
+              f"{t['solve']:.1f} | {t['total']:.1f} | "
+              f"{r['memory']['peak_rss_mb_max_rank'] / 1024:.1f} | "
+              f"{r['displacement']['max_norm']:.4f} |", flush=True)
+cmd = f"bench/table4.py --ks {' '.join(map(str, a.ks))} --hh {a.hh} --ranks {a.ranks} --threads {a.threads}"
+print("\n" + save("table4.json", {"command": cmd, "paper": PAPER, "runs": runs}))

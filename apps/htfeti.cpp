@@ -118,7 +118,7 @@ int run(int argc, char** argv, const Comm& comm) {
   auto* solve_cmd = app.add_subcommand(
       "solve", "solve a problem file (PROBLEM.toml) or a built-in problem (--problem NAME)");
   std::string problem_file, problem = "membranes", element = "q1", glue = "averages",
-                            ordering = "amd";
+                            ordering = "auto";
   std::string dual_operator = "auto", elements_text = "128", subdomains_text = "8";
   OutputOptions out_opt;
   bool no_report = false, no_vtu = false;
@@ -168,9 +168,9 @@ int run(int argc, char** argv, const Comm& comm) {
           ->check(CLI::NonNegativeNumber);
   auto* o_ordering = solve_cmd
                          ->add_option("--ordering", ordering,
-                                      "fill-reducing ordering of subdomain factors: amd | metis "
-                                      "(implicit operator; the explicit one orders the interface "
-                                      "last by constrained AMD)")
+                                      "fill-reducing ordering of subdomain factors: amd | metis | "
+                                      "auto (AMD in 2D, METIS in 3D); implicit operator only: the "
+                                      "explicit one orders the interface last by constrained AMD")
                          ->capture_default_str();
   auto* o_dual =
       solve_cmd

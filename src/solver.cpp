@@ -191,7 +191,7 @@ SolveOutput solve(std::shared_ptr<const Model> model_ptr, const SolveOptions& op
   rep["ranks"] = comm.size();
   rep["threads"] = omp_get_max_threads();
   rep["rtol"] = options.rtol;
-  rep["ordering"] = to_string(options.feti.ordering);
+  rep["ordering"] = dual.ordering_in_effect();
   rep["dual_operator"] = dual.explicit_operator() ? "explicit" : "implicit";
   rep["factors_released"] = dual.factors_released();
   rep["converged"] = converged;

@@ -189,9 +189,11 @@ DualProblem::DualProblem(const FetiLayout& layout,
   explicit_bytes = comm_.max(explicit_bytes);
   explicit_ = options.dual_operator == DualOperator::explicit_ ||
               (options.dual_operator == DualOperator::automatic && min_nodes >= kExplicitMinNodes &&
-               explicit_bytes <= options.factor_budget_bytes);
+               explicit_bytes <= options.explicit_budget_bytes);
 
-  ordering_ = options.ordering;
+  ordering_ = options.ordering == Ordering::automatic
+                  ? (layout_.dim == 3 ? Ordering::metis : Ordering::amd)
+                  : options.ordering;
   const double factor_bytes_estimate = 8.0 * 100.0 * local_dofs;
   factors_released_ =
       explicit_ && !options.keep_factors && factor_bytes_estimate > options.factor_budget_bytes;
@@ -219,7 +221,7 @@ DualProblem::DualProblem(const FetiLayout& layout,
     }
     try {
       clusters_[c] = std::make_unique<Cluster>(c0_ + c, std::move(ptrs), std::move(primal[c]),
-                                               options.ordering, std::move(b), std::move(nmult),
+                                               ordering_, std::move(b), std::move(nmult),
                                                explicit_);
       // The cluster's part of d = B~ K~^+ f, while its factors are at hand.
       cluster_rhs_from_ext(c, true, 0.0);
@@ -235,10 +237,7 @@ DualProblem::DualProblem(const FetiLayout& layout,
     }
   }
   comm_.agree(error, input_error);
-  if (!factors_released_)  // keep K_i for the energy unless memory is short
-    ;
-  else
-    for (auto& sd : subs_) sd->release_matrix();
+  for (auto& sd : subs_) sd->release_matrix();  // factored; energy() and refactoring rebuild K_i
   setup_.factorization = now() - t;
   for (const auto& c : clusters_) setup_.cluster_setup += c->setup_seconds();
   lam_.resize(ncl);
@@ -654,6 +653,24 @@ std::vector<DualProblem::Vec> DualProblem::contact_forces(const Vec& lambda) {
     out[s] = Vec::Zero(subs_[s]->size());
     for (const auto& r : rows_[s])
       if (r.side != 0) out[s][r.dof] -= r.value * ext_in_[r.k];
+  }
+  return out;
+}
+
+std::vector<DualProblem::Vec> DualProblem::contact_gap_field(const std::vector<Vec>& u) {
+  Vec bu;
+  apply_B(u, bu);
+  const int n_own = layout_dual_.n_owned();
+  Vec rem = Vec::Zero(layout_dual_.n_ext());
+  for (int k = 0; k < n_own; ++k)
+    if (kind_[k] == MultiplierKind::contact) rem[k] = (c_[k] - bu[k]) / contact_scale_[k];
+  layout_dual_.forward(rem.data());
+  std::vector<Vec> out(subs_.size());
+  for (size_t s = 0; s < subs_.size(); ++s) {
+    const int dpn = subs_[s]->dofs_per_node();
+    out[s] = Vec::Constant(subs_[s]->size() / dpn, std::numeric_limits<double>::quiet_NaN());
+    for (const auto& r : rows_[s])
+      if (r.side != 0) out[s][r.dof / dpn] = rem[r.k];
   }
   return out;
 }

@@ -11,10 +11,13 @@ namespace htfeti {
 Ordering parse_ordering(const std::string& name) {
   if (name == "amd") return Ordering::amd;
   if (name == "metis") return Ordering::metis;
-  throw std::invalid_argument("unknown ordering '" + name + "' (expected amd or metis)");
+  if (name == "auto") return Ordering::automatic;
+  throw std::invalid_argument("unknown ordering '" + name + "' (expected amd, metis or auto)");
 }
 
-std::string to_string(Ordering ordering) { return ordering == Ordering::amd ? "amd" : "metis"; }
+std::string to_string(Ordering ordering) {
+  return ordering == Ordering::amd ? "amd" : ordering == Ordering::metis ? "metis" : "auto";
+}
 
 struct SparseCholesky::Impl {
   cholmod_common common;

@@ -123,10 +123,11 @@ std::string write_vtu(const std::string& path, const Model& model, DualProblem& 
   const int dpn = ph.dofs_per_node();
   const bool elastic = ph.kind == PhysicsKind::elasticity;
   const auto forces = dual.contact_forces(lambda);
+  const auto gaps = dual.contact_gap_field(u);
   const bool contact = dual.has_inequalities();
   std::string error;
   try {
-    std::vector<double> xyz, uu, cf, vm;
+    std::vector<double> xyz, uu, cf, cg, vm;
     std::vector<std::int64_t> conn, offs;
     std::vector<std::uint8_t> types;
     std::vector<std::int32_t> sub_id, clu_id, rank_id;
@@ -142,8 +143,10 @@ std::string write_vtu(const std::string& path, const Model& model, DualProblem& 
         } else {
           for (int d = 0; d < 3; ++d) uu.push_back(d < dpn ? u[i][k * dpn + d] : 0.0);
         }
-        if (contact)
+        if (contact) {
           for (int d = 0; d < 3; ++d) cf.push_back(d < dpn ? forces[i][k * dpn + d] : 0.0);
+          cg.push_back(gaps[i][k]);
+        }
       }
       const Eigen::MatrixXd D = elastic ? elasticity_matrix(m.dim, ph.material) : Eigen::MatrixXd();
       for (int e = 0; e < ne; ++e) {
@@ -169,7 +172,10 @@ std::string write_vtu(const std::string& path, const Model& model, DualProblem& 
       base += nn;
     }
     std::vector<Array> pa{make_array("u", "Float64", elastic ? 3 : 1, uu)};
-    if (contact) pa.push_back(make_array("contact_force", "Float64", 3, cf));
+    if (contact) {
+      pa.push_back(make_array("contact_force", "Float64", 3, cf));
+      pa.push_back(make_array("contact_gap", "Float64", 1, cg));
+    }
     std::vector<Array> ca{make_array("subdomain", "Int32", 1, sub_id),
                           make_array("cluster", "Int32", 1, clu_id),
                           make_array("rank", "Int32", 1, rank_id)};
@@ -187,7 +193,8 @@ std::string write_vtu(const std::string& path, const Model& model, DualProblem& 
            "GhostLevel=\"0\">\n<PPointData>\n<PDataArray type=\"Float64\" Name=\"u\""
         << (elastic ? " NumberOfComponents=\"3\"" : "") << "/>\n";
       if (contact)
-        o << "<PDataArray type=\"Float64\" Name=\"contact_force\" NumberOfComponents=\"3\"/>\n";
+        o << "<PDataArray type=\"Float64\" Name=\"contact_force\" NumberOfComponents=\"3\"/>\n"
+          << "<PDataArray type=\"Float64\" Name=\"contact_gap\"/>\n";
       o << "</PPointData>\n<PCellData>\n<PDataArray type=\"Int32\" Name=\"subdomain\"/>\n"
            "<PDataArray type=\"Int32\" Name=\"cluster\"/>\n<PDataArray type=\"Int32\" "
            "Name=\"rank\"/>\n";

@@ -34,7 +34,7 @@
 namespace htfeti {
 
 struct FetiOptions {
-  Ordering ordering = Ordering::amd;  ///< fill-reducing ordering of the subdomain factors
+  Ordering ordering = Ordering::automatic;  ///< fill-reducing ordering of the subdomain factors
   /// implicit, explicit, or automatic: explicit when every subdomain has at least
   /// kExplicitMinNodes nodes (docs/performance.md: measured break-even).
   DualOperator dual_operator = DualOperator::automatic;
@@ -45,6 +45,9 @@ struct FetiOptions {
   /// keep_factors = true always keeps them.
   bool keep_factors = false;
   double factor_budget_bytes = 4.0 * (1LL << 30);  ///< see keep_factors
+  /// automatic picks the explicit operator only when its dense blocks (8 n_i^2 bytes per
+  /// subdomain, n_i its multipliers) fit this budget on every rank.
+  double explicit_budget_bytes = 4.0 * (1LL << 30);
 };
 
 constexpr int kExplicitMinNodes = 25;
@@ -135,8 +138,17 @@ class DualProblem {
   /// local subdomain; summed over a node's copies it is the nodal contact force). Collective.
   std::vector<Vec> contact_forces(const Vec& lambda);
 
+  /// The remaining gap gap - n.(u_a - u_b) of each contact row at its nodes' copies, per local
+  /// subdomain one value per node (NaN on nodes without a contact row). Collective.
+  std::vector<Vec> contact_gap_field(const std::vector<Vec>& u);
+
   long factor_nonzeros() const;  ///< summed over this rank's subdomains
   bool explicit_operator() const { return explicit_; }
+  /// The ordering of the subdomain factors in effect (automatic resolved; the explicit operator
+  /// orders the interface last by constrained AMD whatever is asked).
+  std::string ordering_in_effect() const {
+    return explicit_ ? "camd (interface last)" : to_string(ordering_);
+  }
   /// Whether the subdomain factors are freed after setup and rebuilt for the reconstruction.
   bool factors_released() const { return factors_released_; }
   long explicit_doubles() const;       ///< doubles in the explicit blocks on this rank

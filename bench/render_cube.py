@@ -1,8 +1,8 @@
-"""Renders the deformed cube-obstacle solution with ParaView (pvpython / pvbatch).
+"""Renders the deformed cube-obstacle solution with ParaView (pvbatch; Debian package paraview).
 
 Usage (after `htfeti solve --problem cube-obstacle --elements 20,20,20 --subdomains 2,2,2
 --obstacle-amplitude 10 --vtu cube.vtu`):
-    xvfb-run -a pvpython bench/render_cube.py cube.vtu docs/img/cube-obstacle.png
+    xvfb-run -a pvbatch bench/render_cube.py cube.vtu docs/img/cube-obstacle.png 10
 Warps the mesh by the displacement (scale 1: the cube sags by its own weight onto the obstacle),
 colours it by the von Mises stress, and draws the obstacle surface z = -A sin(pi x / 50)."""
 import math
@@ -40,7 +40,7 @@ calc.Function = f"coordsX*iHat + coordsY*jHat + (-{amplitude}*sin(3.141592653589
 o = Show(calc, view)
 o.DiffuseColor = [0.6, 0.6, 0.6]
 o.Opacity = 0.6
-ColorBy(o, None)
+o.ColorArrayName = [None, ""]
 view.CameraPosition = [260, -220, 160]
 view.CameraFocalPoint = [50, 50, 35]
 view.CameraViewUp = [0, 0, 1]

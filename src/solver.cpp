@@ -20,15 +20,20 @@ double now() {
   return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
 }
 
-class CommReducer final : public qp::Reducer {
+// Reductions of dual vectors in a fixed order (per owner cluster, then in cluster order), so
+// that iterates do not depend on the number of ranks.
+class DualReducer final : public qp::Reducer {
  public:
-  explicit CommReducer(const Comm& c) : c_(c) {}
+  DualReducer(const Comm& c, const DualProblem& d) : c_(c), d_(d) {}
   double sum(double v) const override { return c_.sum(v); }
   double max(double v) const override { return c_.max(v); }
   double min(double v) const override { return c_.min(v); }
+  double dot(const qp::Vec& a, const qp::Vec& b) const override { return d_.dot(a, b); }
+  double sum_entries(const qp::Vec& v) const override { return d_.sum(v); }
 
  private:
   const Comm& c_;
+  const DualProblem& d_;
 };
 
 }  // namespace
@@ -64,7 +69,6 @@ SolveOutput solve(std::shared_ptr<const Model> model_ptr, const SolveOptions& op
   SolveOutput out;
   out.model = std::move(model_ptr);
   const Model& model = *out.model;
-  const CommReducer red(comm);
   const bool verbose = options.progress && comm.rank() == 0;
 
   double t0 = now();
@@ -75,6 +79,7 @@ SolveOutput solve(std::shared_ptr<const Model> model_ptr, const SolveOptions& op
   out.dual = std::make_unique<DualProblem>(
       model.layout(), [&model](int s) { return model.input(s); }, comm, options.feti);
   DualProblem& dual = *out.dual;
+  const DualReducer red(comm, dual);
   const double t_setup = now() - t0;
   if (verbose)
     std::fprintf(stderr, "  setup done in %.2f s (dual dimension %lld, coarse %d, %s operator)\n",

@@ -127,11 +127,13 @@ DualProblem::DualProblem(const FetiLayout& layout,
   contact_gap_.assign(n_own, 0.0);
   contact_point_.assign(n_own, {0, 0, 0});
   long long my_inequalities = 0;
+  block_.assign(n_own, 0);
   for (size_t i = 0; i < keys.size(); ++i) {
     const int k = layout_dual_.ext_index(index[i]);
     owner_[k] = key_owner[i];
     if (k < n_own) {
       const LocalRow& r = *key_row[i];
+      block_[k] = layout_.cluster_of(r.owner_subdomain);
       kind_[k] = r.kind;
       c_[k] = r.rhs;
       contact_scale_[k] = r.scale;
@@ -156,7 +158,7 @@ DualProblem::DualProblem(const FetiLayout& layout,
     });
     for (const auto& [k, r] : ordered)
       for (const auto& [dof, v] : r->entries)
-        rows_[s].push_back({k, dof, v, r->side});
+        rows_[s].push_back({k, -1, dof, v, r->side});
     lr = {};
   }
   local_rows = {};
@@ -169,11 +171,31 @@ DualProblem::DualProblem(const FetiLayout& layout,
     std::vector<int> local_of(n_ext, -1);
     for (int s = 0; s < nsub; ++s) {
       for (const auto& r : rows_[s]) mult_[s].push_back(r.k);
-      std::sort(mult_[s].begin(), mult_[s].end());
+      // By global index (not extended index, whose owned/ghost split depends on the ranks): the
+      // local numbering fixes the summation order of the dense blocks F_i.
+      std::sort(mult_[s].begin(), mult_[s].end(), [&](int a, int b) {
+        return layout_dual_.global(a) < layout_dual_.global(b);
+      });
       mult_[s].erase(std::unique(mult_[s].begin(), mult_[s].end()), mult_[s].end());
       for (size_t j = 0; j < mult_[s].size(); ++j) local_of[mult_[s][j]] = static_cast<int>(j);
-      for (const auto& r : rows_[s]) local_b[s].push_back({local_of[r.k], r.dof, r.value});
+      for (auto& r : rows_[s]) {
+        r.j = local_of[r.k];
+        local_b[s].push_back({r.j, r.dof, r.value});
+      }
     }
+  }
+  // Ordered sums over subdomains (F, B u, d) and the owner cluster of every owned entry.
+  {
+    std::vector<int> pk;
+    std::vector<long long> pc;
+    flat_off_.assign(nsub + 1, 0);
+    for (int s = 0; s < nsub; ++s) {
+      for (int k : mult_[s]) pk.push_back(k), pc.push_back(s0 + s);
+      flat_off_[s + 1] = static_cast<int>(pk.size());
+    }
+    sub_sum_ = OrderedSum(comm_, layout_dual_, pk, pc, owner_);
+    flat_ = Vec::Zero(static_cast<int>(pk.size()));
+    partial_.assign(layout_.num_clusters, 0.0);
   }
   double min_nodes = std::numeric_limits<double>::infinity(), local_dofs = 0;
   for (const auto& sd : subs_) {
@@ -277,13 +299,36 @@ DualProblem::DualProblem(const FetiLayout& layout,
           if (acc[r.k] == 0.0) hit.push_back(r.k);
           acc[r.k] += r.value * clusters_[c]->kernel_entry(i, r.dof, j);
         }
-      std::sort(hit.begin(), hit.end());
+      std::sort(hit.begin(), hit.end(), [&](int a, int b) {  // global order, as on one rank
+        return layout_dual_.global(a) < layout_dual_.global(b);
+      });
       hit.erase(std::unique(hit.begin(), hit.end()), hit.end());
       for (int k : hit) {
         if (acc[k] != 0.0) g_rows_[c][j].push_back({k, acc[k]});
         acc[k] = 0.0;
       }
     }
+  }
+  {  // G~^T by ordered sums over clusters: one pair per (cluster, multiplier)
+    std::vector<int> pk;
+    std::vector<long long> pc;
+    g_pairs_.resize(ncl);
+    for (int c = 0; c < ncl; ++c) {
+      std::vector<int> ks;
+      for (const auto& row : g_rows_[c])
+        for (const auto& [k, g] : row) ks.push_back(k);
+      std::sort(ks.begin(), ks.end());
+      ks.erase(std::unique(ks.begin(), ks.end()), ks.end());
+      const int base = static_cast<int>(pk.size());
+      for (int k : ks) pk.push_back(k), pc.push_back(c0_ + c);
+      g_pairs_[c].resize(g_rows_[c].size());
+      for (size_t j = 0; j < g_rows_[c].size(); ++j)
+        for (const auto& [k, g] : g_rows_[c][j])
+          g_pairs_[c][j].push_back(
+              {base + static_cast<int>(std::lower_bound(ks.begin(), ks.end(), k) - ks.begin()), g});
+    }
+    clu_sum_ = OrderedSum(comm_, layout_dual_, pk, pc, owner_);
+    gflat_ = Vec::Zero(static_cast<int>(pk.size()));
   }
   ext_in_ = Vec::Zero(n_ext);
   ext_out_ = Vec::Zero(n_ext);
@@ -293,7 +338,6 @@ DualProblem::DualProblem(const FetiLayout& layout,
 
   scatter_contrib();  // d: the clusters' parts were computed with their setup
   contrib_ = {};      // needed for nothing else
-  layout_dual_.reverse_add(ext_out_.data());
   d_ = ext_out_.head(n_own) - c_;
   e_ = Vec::Zero(coarse_dimension());
   for (int c = 0; c < ncl; ++c)
@@ -338,12 +382,38 @@ void DualProblem::b_of_x(int c) {
 }
 
 void DualProblem::scatter_contrib() {
-  ext_out_.setZero();
+  flat_.setZero();
   for (size_t s = 0; s < subs_.size(); ++s) {
     const auto& rows = rows_[s];
     const double* in = contrib_[s].data();
-    for (size_t j = 0; j < rows.size(); ++j) ext_out_[rows[j].k] += in[j];
+    for (size_t j = 0; j < rows.size(); ++j) flat_[flat_off_[s] + rows[j].j] += in[j];
   }
+  combine_subdomains();
+}
+
+void DualProblem::combine_subdomains() { sub_sum_.combine(flat_.data(), ext_out_.data()); }
+
+double DualProblem::reduce_blocks(std::vector<double>& partial) const {
+  // Every cluster's partial sum is non-zero on one rank only, so the allreduce adds exact zeros;
+  // the partial sums are then added in cluster order on every rank.
+  if (comm_.size() > 1)
+    MPI_Allreduce(MPI_IN_PLACE, partial.data(), static_cast<int>(partial.size()), MPI_DOUBLE,
+                  MPI_SUM, comm_.raw());
+  double s = 0;
+  for (double v : partial) s += v;
+  return s;
+}
+
+double DualProblem::dot(const Vec& a, const Vec& b) const {
+  std::fill(partial_.begin(), partial_.end(), 0.0);
+  for (Eigen::Index i = 0; i < a.size(); ++i) partial_[block_[i]] += a[i] * b[i];
+  return reduce_blocks(partial_);
+}
+
+double DualProblem::sum(const Vec& v) const {
+  std::fill(partial_.begin(), partial_.end(), 0.0);
+  for (Eigen::Index i = 0; i < v.size(); ++i) partial_[block_[i]] += v[i];
+  return reduce_blocks(partial_);
 }
 
 template <class Body>
@@ -374,14 +444,10 @@ void DualProblem::apply_F(const Vec& lambda, Vec& y) {
     }
     clusters_[c]->apply_dual(lam_[c], out_[c]);  // the bottleneck
   }
-  ext_out_.setZero();  // F lambda, summed in a fixed order
-  for (int c = 0; c < nc; ++c)
-    for (int i = 0; i < members(c); ++i) {
-      const auto& mult = mult_[sub_of(c, i)];
-      const Vec& o = out_[c][i];
-      for (size_t j = 0; j < mult.size(); ++j) ext_out_[mult[j]] += o[j];
-    }
-  layout_dual_.reverse_add(ext_out_.data());
+  for (int c = 0; c < nc; ++c)  // F lambda, summed over subdomains in a fixed order
+    for (int i = 0; i < members(c); ++i)
+      flat_.segment(flat_off_[sub_of(c, i)], out_[c][i].size()) = out_[c][i];
+  combine_subdomains();
   y = ext_out_.head(layout_dual_.n_owned());
 }
 
@@ -400,15 +466,15 @@ void DualProblem::apply_G(const Vec& lambda, Vec& coarse) {
 }
 
 void DualProblem::gt_into_ext(const Vec& coarse) {
-  ext_out_.setZero();
+  gflat_.setZero();
   for (size_t c = 0; c < clusters_.size(); ++c) {
     const int base = coarse_first_[clusters_[c]->id()];
-    for (size_t j = 0; j < g_rows_[c].size(); ++j) {
+    for (size_t j = 0; j < g_pairs_[c].size(); ++j) {
       const double z = coarse[base + static_cast<int>(j)];
-      for (const auto& [k, g] : g_rows_[c][j]) ext_out_[k] += g * z;
+      for (const auto& [p, g] : g_pairs_[c][j]) gflat_[p] += g * z;
     }
   }
-  layout_dual_.reverse_add(ext_out_.data());
+  clu_sum_.combine(gflat_.data(), ext_out_.data());
 }
 
 void DualProblem::apply_Gt(const Vec& coarse, Vec& lambda) {
@@ -433,6 +499,7 @@ void DualProblem::assemble_coarse(const std::vector<double>& weight, SparseChole
     double g;
   };
   struct Triplet {
+    long long k;
     int a, b;
     double v;
   };
@@ -446,9 +513,11 @@ void DualProblem::assemble_coarse(const std::vector<double>& weight, SparseChole
     MPI_Type_create_resized(tmp, 0, sizeof(Item), &item_type);
     MPI_Type_free(&tmp);
     MPI_Type_commit(&item_type);
-    MPI_Aint disp2[3] = {offsetof(Triplet, a), offsetof(Triplet, b), offsetof(Triplet, v)};
-    MPI_Datatype types2[3] = {MPI_INT, MPI_INT, MPI_DOUBLE};
-    MPI_Type_create_struct(3, bl, disp2, types2, &tmp);
+    int bl2[4] = {1, 1, 1, 1};
+    MPI_Aint disp2[4] = {offsetof(Triplet, k), offsetof(Triplet, a), offsetof(Triplet, b),
+                         offsetof(Triplet, v)};
+    MPI_Datatype types2[4] = {MPI_LONG_LONG, MPI_INT, MPI_INT, MPI_DOUBLE};
+    MPI_Type_create_struct(4, bl2, disp2, types2, &tmp);
     MPI_Type_create_resized(tmp, 0, sizeof(Triplet), &trip_type);
     MPI_Type_free(&tmp);
     MPI_Type_commit(&trip_type);
@@ -484,7 +553,7 @@ void DualProblem::assemble_coarse(const std::vector<double>& weight, SparseChole
         for (size_t b = a; b < j; ++b) {
           int ca = rbuf[a].row, cb = rbuf[b].row;
           if (ca > cb) std::swap(ca, cb);
-          mine.push_back({ca, cb, w * rbuf[a].g * rbuf[b].g});
+          mine.push_back({rbuf[i].k, ca, cb, w * rbuf[a].g * rbuf[b].g});
         }
     i = j;
   }
@@ -497,6 +566,10 @@ void DualProblem::assemble_coarse(const std::vector<double>& weight, SparseChole
                  comm_.raw());
   MPI_Type_free(&item_type);
   MPI_Type_free(&trip_type);
+  // Sum each entry's products in multiplier order whatever rank formed them.
+  std::sort(all.begin(), all.end(), [](const Triplet& x, const Triplet& y) {
+    return x.a != y.a ? x.a < y.a : x.b != y.b ? x.b < y.b : x.k < y.k;
+  });
   std::vector<Eigen::Triplet<double>> trip;
   trip.reserve(all.size());
   for (const auto& t : all) trip.emplace_back(t.a, t.b, t.v);
@@ -514,10 +587,10 @@ void DualProblem::assemble_coarse(const std::vector<double>& weight, SparseChole
 }
 
 void DualProblem::apply_B(const std::vector<Vec>& u, Vec& out) {
-  ext_out_.setZero();
+  flat_.setZero();
   for (size_t s = 0; s < subs_.size(); ++s)
-    for (const auto& r : rows_[s]) ext_out_[r.k] += r.value * u[s][r.dof];
-  layout_dual_.reverse_add(ext_out_.data());
+    for (const auto& r : rows_[s]) flat_[flat_off_[s] + r.j] += r.value * u[s][r.dof];
+  combine_subdomains();
   out = ext_out_.head(layout_dual_.n_owned());
 }
 
@@ -569,19 +642,25 @@ std::vector<DualProblem::Vec> DualProblem::reconstruct(const Vec& lambda) {
 }
 
 double DualProblem::energy(const std::vector<Vec>& u) const {
+  // Per-subdomain energies summed in subdomain order (rank-count independent).
+  std::vector<double> e(layout_.num_subdomains, 0.0);
+  for (size_t s = 0; s < subs_.size(); ++s) e[subs_[s]->id()] = subs_[s]->energy(u[s]);
+  if (comm_.size() > 1)
+    MPI_Allreduce(MPI_IN_PLACE, e.data(), static_cast<int>(e.size()), MPI_DOUBLE, MPI_SUM, comm_.raw());
   double q = 0;
-  for (size_t s = 0; s < subs_.size(); ++s) q += subs_[s]->energy(u[s]);
-  return comm_.sum(q);
+  for (double v : e) q += v;
+  return q;
 }
 
 DualProblem::Kkt DualProblem::kkt(const std::vector<Vec>& u, const Vec& lambda) {
   Vec bu;
   apply_B(u, bu);
-  double eq = 0, viol = 0, minmult = std::numeric_limits<double>::infinity(), compl_ = 0;
+  double viol = 0, minmult = std::numeric_limits<double>::infinity(), compl_ = 0;
   bool any_contact = false;
+  Vec sq = Vec::Zero(layout_dual_.n_owned());
   for (int k = 0; k < layout_dual_.n_owned(); ++k) {
     if (kind_[k] != MultiplierKind::contact) {
-      eq += (bu[k] - c_[k]) * (bu[k] - c_[k]);
+      sq[k] = (bu[k] - c_[k]) * (bu[k] - c_[k]);
       continue;
     }
     any_contact = true;
@@ -593,7 +672,7 @@ DualProblem::Kkt DualProblem::kkt(const std::vector<Vec>& u, const Vec& lambda) 
     compl_ = std::max(compl_, std::abs(force * gap));
   }
   Kkt r;
-  r.equality_residual = std::sqrt(comm_.sum(eq));
+  r.equality_residual = std::sqrt(sum(sq));
   r.max_violation = comm_.max(viol);
   r.min_multiplier = comm_.sum(any_contact ? 1.0 : 0.0) > 0 ? comm_.min(minmult) : 0.0;
   r.complementarity = comm_.max(compl_);
@@ -604,13 +683,14 @@ DualProblem::ContactData DualProblem::contact_data(const std::vector<Vec>& u, co
   // n.(avg u_a) from the entries on node a (coefficients scale n_i / k_a), n.(avg u_b) likewise.
   const int n_own = layout_dual_.n_owned();
   Vec a = Vec::Zero(layout_dual_.n_ext()), b = Vec::Zero(layout_dual_.n_ext());
-  for (size_t s = 0; s < subs_.size(); ++s)
-    for (const auto& r : rows_[s]) {
-      if (r.side > 0) a[r.k] += r.value * u[s][r.dof];
-      if (r.side < 0) b[r.k] -= r.value * u[s][r.dof];
-    }
-  layout_dual_.reverse_add(a.data());
-  layout_dual_.reverse_add(b.data());
+  for (int side : {1, -1}) {
+    flat_.setZero();
+    for (size_t s = 0; s < subs_.size(); ++s)
+      for (const auto& r : rows_[s])
+        if (r.side == side) flat_[flat_off_[s] + r.j] += side * r.value * u[s][r.dof];
+    combine_subdomains();
+    (side > 0 ? a : b).head(n_own) = ext_out_.head(n_own);
+  }
   std::vector<double> mine;
   for (int k = 0; k < n_own; ++k)
     if (kind_[k] == MultiplierKind::contact) {

@@ -93,4 +93,69 @@ void DualLayout::reverse_add(double* ext) {
       ext[neighbours_[i].send[j]] += rbuf_[i][j];
 }
 
+OrderedSum::OrderedSum(const Comm& comm, const DualLayout& layout, const std::vector<int>& k,
+                       const std::vector<long long>& contributor, const std::vector<int>& owner)
+    : comm_(comm.raw()), n_owned_(layout.n_owned()), k_(k) {
+  const int P = comm.size(), me = comm.rank();
+  const int n = static_cast<int>(k.size());
+  std::vector<std::vector<int>> ghost(P);
+  for (int p = 0; p < n; ++p) {
+    if (k[p] < n_owned_)
+      local_order_.push_back(p);
+    else
+      ghost[owner[k[p]]].push_back(p);
+  }
+  std::stable_sort(local_order_.begin(), local_order_.end(),
+                   [&](int a, int b) { return contributor[a] < contributor[b]; });
+  std::vector<int> scount(P, 0), rcount(P, 0);
+  for (int r = 0; r < P; ++r) {
+    if (r == me && !ghost[r].empty()) throw std::logic_error("OrderedSum: ghost owned by itself");
+    std::sort(ghost[r].begin(), ghost[r].end(), [&](int a, int b) {
+      const long long ga = layout.global(k[a]), gb = layout.global(k[b]);
+      return ga != gb ? ga < gb : contributor[a] < contributor[b];
+    });
+    scount[r] = static_cast<int>(ghost[r].size());
+  }
+  MPI_Alltoall(scount.data(), 1, MPI_INT, rcount.data(), 1, MPI_INT, comm_);
+  std::vector<int> sd(P + 1, 0), rd(P + 1, 0);
+  for (int r = 0; r < P; ++r) sd[r + 1] = sd[r] + scount[r], rd[r + 1] = rd[r] + rcount[r];
+  std::vector<long long> sg(sd[P]), rg(rd[P]);
+  for (int r = 0; r < P; ++r)
+    for (int i = 0; i < scount[r]; ++i) sg[sd[r] + i] = layout.global(k[ghost[r][i]]);
+  MPI_Alltoallv(sg.data(), scount.data(), sd.data(), MPI_LONG_LONG, rg.data(), rcount.data(),
+                rd.data(), MPI_LONG_LONG, comm_);
+  for (int r = 0; r < P; ++r) {
+    if (scount[r] == 0 && rcount[r] == 0) continue;
+    Neighbour nb{r, ghost[r], {}};
+    for (int i = rd[r]; i < rd[r + 1]; ++i) {
+      const int e = layout.ext_index(rg[i]);
+      if (e < 0 || e >= n_owned_) throw std::logic_error("OrderedSum: a value for an unowned entry");
+      nb.recv.push_back(e);
+    }
+    neighbours_.push_back(std::move(nb));
+  }
+  for (const auto& nb : neighbours_) {
+    sbuf_.emplace_back(nb.send.size());
+    rbuf_.emplace_back(nb.recv.size());
+  }
+  req_.resize(2 * neighbours_.size());
+}
+
+void OrderedSum::combine(const double* values, double* ext) {
+  const int nn = static_cast<int>(neighbours_.size());
+  for (int i = 0; i < nn; ++i) {
+    const auto& nb = neighbours_[i];
+    MPI_Irecv(rbuf_[i].data(), static_cast<int>(nb.recv.size()), MPI_DOUBLE, nb.rank, 13, comm_,
+              &req_[i]);
+    for (size_t j = 0; j < nb.send.size(); ++j) sbuf_[i][j] = values[nb.send[j]];
+    MPI_Isend(sbuf_[i].data(), static_cast<int>(nb.send.size()), MPI_DOUBLE, nb.rank, 13, comm_,
+              &req_[nn + i]);
+  }
+  for (int e = 0; e < n_owned_; ++e) ext[e] = 0.0;
+  for (int p : local_order_) ext[k_[p]] += values[p];
+  MPI_Waitall(2 * nn, req_.data(), MPI_STATUSES_IGNORE);
+  for (int i = 0; i < nn; ++i)  // neighbours in rank order: their contributors come later
+    for (size_t j = 0; j < neighbours_[i].recv.size(); ++j) ext[neighbours_[i].recv[j]] += rbuf_[i][j];
+}
+
 }  // namespace htfeti

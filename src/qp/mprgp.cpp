@@ -43,7 +43,7 @@ MprgpResult mprgp(Operator& A, const Vec& b, const Vec& l, Vec& x, Vec& g, const
   p = phi;
   for (int it = 0;; ++it) {
     res.iterations = it;
-    res.projected_gradient = std::sqrt(red.sum(phi.squaredNorm() + beta.squaredNorm()));
+    res.projected_gradient = std::sqrt(red.dot(phi, phi) + red.dot(beta, beta));
     if (stop(x, g, res.projected_gradient)) {
       res.reason = StopReason::converged;
       return res;
@@ -53,11 +53,11 @@ MprgpResult mprgp(Operator& A, const Vec& b, const Vec& l, Vec& x, Vec& g, const
       return res;
     }
     // Proportionality test ||beta||^2 <= Gamma^2 phi~'phi.
-    double phi_red_phi = 0;
+    // Ap is free here (both branches below compute it before use): the entries of phi~'phi.
     for (Eigen::Index i = 0; i < n; ++i)
-      if (phi[i] != 0.0) phi_red_phi += std::min((x[i] - l[i]) / opt.alpha, phi[i]) * phi[i];
-    const double beta2 = red.sum(beta.squaredNorm());
-    phi_red_phi = red.sum(phi_red_phi);
+      Ap[i] = phi[i] != 0.0 ? std::min((x[i] - l[i]) / opt.alpha, phi[i]) * phi[i] : 0.0;
+    const double beta2 = red.dot(beta, beta);
+    const double phi_red_phi = red.sum_entries(Ap);
     if (beta2 <= opt.gamma * opt.gamma * phi_red_phi) {
       A.apply(p, Ap);
       const double pAp = red.dot(p, Ap);

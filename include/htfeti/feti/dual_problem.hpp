@@ -89,6 +89,11 @@ class DualProblem {
   long long global_index(int i) const { return layout_dual_.global(i); }
 
   void apply_F(const Vec& lambda, Vec& y);
+  /// Global sums that do not depend on the number of ranks: per owner cluster (the cluster of the
+  /// lowest subdomain a multiplier touches) a partial sum over its entries in global order, the
+  /// partial sums combined in cluster order. Collective.
+  double dot(const Vec& a, const Vec& b) const;
+  double sum(const Vec& v) const;
   /// coarse = G~ lambda (all clusters, on every rank).
   void apply_G(const Vec& lambda, Vec& coarse);
   /// lambda = G~^T coarse.
@@ -158,6 +163,7 @@ class DualProblem {
  private:
   struct Row {
     int k;  // extended dual index
+    int j;  // index among the subdomain's multipliers (mult_[s][j] == k)
     int dof;
     double value;
     int side;  // contact rows: +1 on node a, -1 on node b; 0 otherwise
@@ -172,6 +178,9 @@ class DualProblem {
   void assemble_coarse(const std::vector<double>& weight, SparseCholesky& factor);
   // B~ applied to per-subdomain vectors; sums are on owners afterwards (reverse_add done).
   void apply_B(const std::vector<Vec>& u, Vec& out);
+  // flat_ (one value per (subdomain, multiplier) pair) -> ext_out_ owned part, ordered sums.
+  void combine_subdomains();
+  double reduce_blocks(std::vector<double>& partial) const;
   int members(int c) const { return sub_first_[c + 1] - sub_first_[c]; }
   int sub_of(int c, int i) const { return sub_first_[c] + i; }
 
@@ -186,6 +195,12 @@ class DualProblem {
   std::vector<std::unique_ptr<Cluster>> clusters_;
   std::vector<std::vector<Row>> rows_;  // B~ rows per local subdomain
   DualLayout layout_dual_;
+  OrderedSum sub_sum_, clu_sum_;       // contributions by subdomain / by cluster (G~^T)
+  std::vector<int> flat_off_;          // per local subdomain: its first pair in flat_
+  Vec flat_, gflat_;                   // work: one value per pair
+  std::vector<std::vector<std::vector<std::pair<int, double>>>> g_pairs_;  // G~ rows by pair
+  std::vector<int> block_;             // per owned entry: its owner cluster
+  mutable std::vector<double> partial_;  // per cluster partial sums
   std::vector<int> owner_;                // owner rank of each extended entry
   std::vector<MultiplierKind> kind_;      // per owned entry
   Vec c_;                                 // per owned entry: right-hand side of B~ u (<)= c

@@ -45,4 +45,38 @@ class DualLayout {
   std::vector<MPI_Request> req_;
 };
 
+/// Sums of contributions to dual entries in a fixed order, so that results do not depend on the
+/// number of ranks: every contribution is a (extended index, contributor) pair with one value,
+/// contributors are globally ordered ids (subdomains or clusters), and each owned entry becomes
+/// the sequential sum of its contributions in increasing contributor order, exactly as on one
+/// rank. This works because ranks own contiguous contributor ranges and the owner of an entry
+/// holds its lowest contributor: the owner adds its own contributions first, then those of the
+/// neighbours in rank order, one value per contributor (never a neighbour's partial sum).
+/// Cost: the same messages as DualLayout::reverse_add, one double per remote pair.
+class OrderedSum {
+ public:
+  OrderedSum() = default;
+  /// k[p], contributor[p]: the pairs, in the order the values will be given. owner[k]: the rank
+  /// owning extended entry k. Collective.
+  OrderedSum(const Comm& comm, const DualLayout& layout, const std::vector<int>& k,
+             const std::vector<long long>& contributor, const std::vector<int>& owner);
+  int pairs() const { return static_cast<int>(k_.size()); }
+  /// ext[0 .. n_owned) = the ordered sums of values (ghost entries untouched). Allocates nothing.
+  void combine(const double* values, double* ext);
+
+ private:
+  struct Neighbour {
+    int rank;
+    std::vector<int> send;  // pair indices sent to this owner, in (global index, contributor) order
+    std::vector<int> recv;  // owned extended indices the received values go to, same order
+  };
+  MPI_Comm comm_ = MPI_COMM_NULL;
+  int n_owned_ = 0;
+  std::vector<int> k_;
+  std::vector<int> local_order_;  // pairs with an owned entry, by contributor (stable)
+  std::vector<Neighbour> neighbours_;
+  std::vector<std::vector<double>> sbuf_, rbuf_;
+  std::vector<MPI_Request> req_;
+};
+
 }  // namespace htfeti

@@ -47,14 +47,18 @@ class FunctionOperator final : public Operator {
   std::function<void(const Vec&, Vec&)> f_;
 };
 
-/// Global reductions of rank-local scalars.
+/// Global reductions. dot() and sum_entries() reduce distributed vectors; an implementation may
+/// form them in a fixed order so that results do not depend on the number of ranks (the FETI
+/// reducer does); sum(), max() and min() reduce rank-local scalars.
 class Reducer {
  public:
   virtual ~Reducer() = default;
   virtual double sum(double v) const = 0;
   virtual double max(double v) const = 0;
   virtual double min(double v) const = 0;
-  double dot(const Vec& a, const Vec& b) const { return sum(a.dot(b)); }
+  virtual double dot(const Vec& a, const Vec& b) const { return sum(a.dot(b)); }
+  /// The sum of all entries of a distributed vector.
+  virtual double sum_entries(const Vec& v) const { return sum(v.sum()); }
   double norm(const Vec& a) const { return std::sqrt(dot(a, a)); }
 };
 

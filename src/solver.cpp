@@ -251,21 +251,28 @@ SolveOutput solve(std::shared_ptr<const Model> model_ptr, const SolveOptions& op
   {
     // Nodal displacement magnitudes: max and mean over the global nodes (a node's copies are
     // weighted by 1 / copies, so each node counts once).
-    const int dpn = model.physics().dofs_per_node();
-    double umax = 0, usum = 0, nodes = 0;
+    // Per-subdomain partial sums added in subdomain order (rank-count independent).
+    const int dpn = model.physics().dofs_per_node(), ns = model.num_subdomains();
+    double umax = 0;
+    std::vector<double> usum(2 * static_cast<size_t>(ns), 0.0);
     for (size_t i = 0; i < out.u.size(); ++i) {
-      const SubdomainMesh m = model.mesh(dual.subdomains()[i]->id());
+      const int id = dual.subdomains()[i]->id();
+      const SubdomainMesh m = model.mesh(id);
       for (int k = 0; k < m.num_nodes(); ++k) {
         double n2 = 0;
         for (int d = 0; d < dpn; ++d) n2 += out.u[i][k * dpn + d] * out.u[i][k * dpn + d];
         const double w = 1.0 / m.num_copies(k);
         umax = std::max(umax, std::sqrt(n2));
-        usum += w * std::sqrt(n2);
-        nodes += w;
+        usum[2 * id] += w * std::sqrt(n2);
+        usum[2 * id + 1] += w;
       }
     }
-    rep["displacement"] = {{"max_norm", comm.max(umax)},
-                           {"mean_norm", comm.sum(usum) / comm.sum(nodes)}};
+    if (comm.size() > 1)
+      MPI_Allreduce(MPI_IN_PLACE, usum.data(), static_cast<int>(usum.size()), MPI_DOUBLE, MPI_SUM,
+                    comm.raw());
+    double total = 0, nodes = 0;
+    for (int id = 0; id < ns; ++id) total += usum[2 * id], nodes += usum[2 * id + 1];
+    rep["displacement"] = {{"max_norm", comm.max(umax)}, {"mean_norm", total / nodes}};
   }
   out.lambda = std::move(lambda);
   out.converged = converged;

@@ -119,23 +119,6 @@ std::vector<double> get_numbers(const toml::node& n, const std::string& where) {
   return out;
 }
 
-std::array<double, 3> get_vector(const toml::table& t, const std::string& where, const char* key,
-                                 int dim, bool required) {
-  const toml::node* n = t.get(key);
-  std::array<double, 3> v{0, 0, 0};
-  if (!n) {
-    if (required) bad(where + "." + key, "missing");
-    return v;
-  }
-  if (!n->is_array()) bad(where + "." + key, "must be an array of " + std::to_string(dim) + " numbers");
-  const auto x = get_numbers(*n, where + "." + key);
-  if (static_cast<int>(x.size()) != dim)
-    bad(where + "." + key, "must have " + std::to_string(dim) + " components (the mesh is " +
-                               std::to_string(dim) + "D)");
-  for (int d = 0; d < dim; ++d) v[d] = x[d];
-  return v;
-}
-
 }  // namespace
 
 ProblemSpec read_problem_file(const std::string& path, SolveOptions& solver, OutputOptions& output) {

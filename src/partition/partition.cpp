@@ -17,8 +17,12 @@ using FacetKey = std::array<int, 4>;
 
 FacetKey facet_key(const int* nodes, int n) {
   FacetKey k{-1, -1, -1, -1};
-  for (int i = 0; i < n; ++i) k[i] = nodes[i];
-  std::sort(k.begin(), k.begin() + n);
+  n = std::min(n, 4);
+  for (int i = 0; i < n; ++i) {  // insertion sort of at most 4 entries
+    int v = nodes[i], j = i;
+    for (; j > 0 && k[j - 1] > v; --j) k[j] = k[j - 1];
+    k[j] = v;
+  }
   return k;
 }
 

@@ -5,6 +5,7 @@
 #include <omp.h>
 
 #include <CLI/CLI.hpp>
+#include <algorithm>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -110,7 +111,21 @@ void print_summary(const nlohmann::json& r) {
       t["solve"].get<double>(), t["reconstruction"].get<double>());
 }
 
+// Integers are read strictly: decimal digits only (CLI11 alone accepts "0x10" and " 16").
+const CLI::Validator kStrictInt(
+    [](std::string& s) {
+      const bool ok = !s.empty() && s.size() < 10 &&
+                      std::all_of(s.begin(), s.end(), [](char c) { return c >= '0' && c <= '9'; });
+      return ok ? std::string() : "'" + s + "' is not a non-negative decimal integer";
+    },
+    "INT");
+
 int run(int argc, char** argv, const Comm& comm) {
+  if (argc > 1) {
+    const std::string first = argv[1];
+    if (first != "solve" && first != "spectrum" && first.rfind("-", 0) != 0)
+      return fail(comm, "unknown command '" + first + "' (expected solve or spectrum)", 2);
+  }
   CLI::App app{
       "htfeti: TFETI and H-TFETI-DP domain decomposition for elliptic problems and "
       "contact (variational inequalities)"};
@@ -149,6 +164,7 @@ int run(int argc, char** argv, const Comm& comm) {
                                 "m: clusters of m x m (x m) subdomains (1 = TFETI; N_s divisible "
                                 "by m); METIS: subdomains per cluster")
                    ->capture_default_str()
+                   ->check(kStrictInt)
                    ->check(CLI::PositiveNumber);
   auto* o_glue = solve_cmd
                      ->add_option("--glue", glue,
@@ -165,7 +181,7 @@ int run(int argc, char** argv, const Comm& comm) {
           ->add_option("--max-it", opt.max_iterations,
                        "iteration limit: PCG iterations, or SMALBE-M outer iterations (0: 1000 / 200)")
           ->capture_default_str()
-          ->check(CLI::NonNegativeNumber);
+          ->check(kStrictInt);
   auto* o_ordering = solve_cmd
                          ->add_option("--ordering", ordering,
                                       "fill-reducing ordering of subdomain factors: amd | metis | "
@@ -228,9 +244,11 @@ int run(int argc, char** argv, const Comm& comm) {
   std::string spec_element = "p1";
   bool spec_json = false;
   spec_cmd->add_option("--cluster-size,-m", spec_m, "m: subdomains per cluster side")
-      ->capture_default_str();
+      ->capture_default_str()
+      ->check(kStrictInt);
   spec_cmd->add_option("--elements,-n", spec_n, "n: elements per cluster side (h = 1/n)")
-      ->capture_default_str();
+      ->capture_default_str()
+      ->check(kStrictInt);
   spec_cmd->add_option("--element", spec_element, "q1 | p1 (Table 1 matches p1)")
       ->capture_default_str();
   spec_cmd->add_flag("--json", spec_json, "print one JSON object");
@@ -289,6 +307,8 @@ int run(int argc, char** argv, const Comm& comm) {
                                       " numbers for this box");
         for (int d = 0; d < spec.box.dim; ++d) spec.box.elements[d] = e[d];
       }
+      if (o_amplitude->count())
+        throw std::invalid_argument("--obstacle-amplitude is for --problem cube-obstacle");
       if (o_element->count() && spec.builtin.empty())
         throw std::invalid_argument("--element is for the built-in problems; set mesh.element");
       if (o_element->count()) spec.builtin_options.element = parse_element(element);

@@ -263,6 +263,11 @@ TEST_F(Cli, BadProblemFilesExitWithCode2NamingTheKeyAndWriteNothing) {
     EXPECT_TRUE(outputs().empty()) << a;
   }
   EXPECT_EQ(run(bin + " solve good.toml --problem membranes"), 2);
+  EXPECT_EQ(run(bin + " solve good.toml --obstacle-amplitude 2"), 2);
+  EXPECT_EQ(run(bin + " solve good.toml -m 0x2"), 2);
+  EXPECT_EQ(run(bin + " frobnicate"), 2);
+  EXPECT_NE(stderr_text().find("frobnicate"), std::string::npos);
+  EXPECT_TRUE(outputs().empty());
 }
 
 TEST_F(Cli, ContactResultsAreIdenticalOnOneToFourRanks) {

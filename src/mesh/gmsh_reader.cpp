@@ -46,6 +46,16 @@ CellType cell_type_of(int gmsh_type) {
   }
 }
 
+// Names of Gmsh element types for messages. (Not gmsh::model::mesh::getElementProperties: it runs
+// Gmsh's own Eigen code, whose template instances clash with ours in sanitizer builds.)
+std::string gmsh_type_name(int type) {
+  static const char* names[] = {"?",      "line2",  "tri3",   "quad4",  "tet4",   "hex8",
+                                "prism6", "pyr5",   "line3",  "tri6",   "quad9",  "tet10",
+                                "hex27",  "prism18", "pyr14", "point",  "quad8",  "hex20"};
+  if (type >= 0 && type < static_cast<int>(sizeof(names) / sizeof(names[0]))) return names[type];
+  return "type " + std::to_string(type);
+}
+
 std::mutex gmsh_mutex;  // the Gmsh SDK keeps global state
 
 }  // namespace
@@ -88,10 +98,7 @@ Mesh read_gmsh(const std::string& path) {
     for (size_t i = 0; i < types.size(); ++i) {
       if (tags[i].empty()) continue;
       const bool ok = dim == 2 ? (types[i] == 2 || types[i] == 3) : (types[i] == 4 || types[i] == 5);
-      std::string name;
-      int d = 0, order = 0, nn = 0, npv = 0;
-      std::vector<double> loc;
-      gmsh::model::mesh::getElementProperties(types[i], name, d, order, nn, loc, npv);
+      const std::string name = gmsh_type_name(types[i]);
       if (!ok)
         throw std::invalid_argument("mesh file '" + path + "' has cells of type '" + name +
                                     "'; htfeti supports linear tri3 and quad4 (2D), tet4 and hex8 "

@@ -1,9 +1,20 @@
 #!/usr/bin/env bash
-# Sets up (Debian packages, Release build) and runs the whole test suite with CTest.
+# Sets up (Debian packages, Release build) and runs the whole test suite with CTest, then the
+# sanitizer job (scripts/sanitize.sh: ASan + UBSan build, unit and MPI suites under it; about
+# 9 minutes on 2 cores). `scripts/test.sh --quick` skips the sanitizer job; other arguments go
+# to ctest.
 set -euo pipefail
 here=$(cd "$(dirname "$0")/.." && pwd)
+quick=0
+if [ "${1:-}" = "--quick" ]; then
+  quick=1
+  shift
+fi
 "$here/scripts/setup.sh"
 # Open MPI refuses to start as root without these.
 export OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1
-cd "$here/build"
-ctest --output-on-failure --timeout 900 "$@"
+(cd "$here/build" && ctest --output-on-failure --timeout 900 "$@")
+if [ "$quick" = 0 ]; then
+  echo "sanitizer job (ASan + UBSan):"
+  "$here/scripts/sanitize.sh"
+fi

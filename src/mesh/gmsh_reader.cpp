@@ -1,4 +1,5 @@
 #include <gmsh.h>
+#include <omp.h>
 
 #include <algorithm>
 #include <filesystem>
@@ -75,10 +76,16 @@ Mesh read_gmsh(const std::string& path) {
   }
   std::lock_guard<std::mutex> lock(gmsh_mutex);
   Mesh mesh;
+  // gmsh::initialize() sets OpenMP's thread count to its own default (1): restore ours after.
+  const int threads = omp_get_max_threads();
   gmsh::initialize();
   struct Finalize {
-    ~Finalize() { gmsh::finalize(); }
-  } finalize;
+    int threads;
+    ~Finalize() {
+      gmsh::finalize();
+      omp_set_num_threads(threads);
+    }
+  } finalize{threads};
   gmsh::option::setNumber("General.Terminal", 0);
   gmsh::option::setNumber("General.Verbosity", 0);
   try {

@@ -322,15 +322,12 @@ int run(int argc, char** argv, const Comm& comm) {
       const auto e = parse_int_list(o_elements->count() ? elements_text : "10,20,10", "--elements");
       const auto sd = parse_int_list(o_subdomains->count() ? subdomains_text : "2,4,2", "--subdomains");
       if (o_element->count()) throw std::invalid_argument("cube-obstacle uses hex8 elements");
-      const ProblemSpec spec = cube_obstacle_spec(e, sd, opt.decomposition.cluster_size, amplitude);
-      SolveOptions checked = opt;
-      checked.feti.ordering = parse_ordering(ordering);
-      checked.feti.dual_operator = parse_dual_operator(dual_operator);
-      opt = checked;
+      ProblemSpec spec = cube_obstacle_spec(e, sd, opt.decomposition.cluster_size, amplitude);
+      spec.glue = parse_glue(glue);
+      opt.feti.ordering = parse_ordering(ordering);
+      opt.feti.dual_operator = parse_dual_operator(dual_operator);
       validate_solver(opt);
-      ProblemSpec with_glue = spec;
-      with_glue.glue = parse_glue(glue);
-      model = make_model(with_glue);
+      model = make_model(spec);
     } else {
       if (o_amplitude->count())
         throw std::invalid_argument("--obstacle-amplitude is for --problem cube-obstacle");

@@ -18,13 +18,15 @@ def env(threads=1):
     return e
 
 
-def solve(args, ranks=1, threads=1, extra_env=None):
-    """Runs htfeti solve with the given argument list; returns the report as a dict."""
-    if not os.path.exists(BIN):
-        sys.exit("build/htfeti is missing: run scripts/setup.sh first")
+def solve(args, ranks=1, threads=1, extra_env=None, binary=None):
+    """Runs htfeti solve (build/htfeti, or `binary`) with the given argument list; returns the
+    report as a dict."""
+    binary = binary or BIN
+    if not os.path.exists(binary):
+        sys.exit(f"{binary} is missing: run scripts/setup.sh first")
     with tempfile.TemporaryDirectory() as d:
         report = os.path.join(d, "r.json")
-        cmd = [BIN, "solve", *map(str, args), "--report", report, "--no-vtu"]
+        cmd = [binary, "solve", *map(str, args), "--report", report, "--no-vtu"]
         if ranks > 1:
             cmd = ["mpiexec", "-n", str(ranks), "--oversubscribe", "--bind-to", "none"] + cmd
         e = env(threads)

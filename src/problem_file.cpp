@@ -208,7 +208,6 @@ ProblemSpec read_problem_file(const std::string& path, SolveOptions& solver, Out
     check_keys(ph, "physics", {"type", "source"});
     if (const toml::node* s = ph.get("source")) {
       if (s->is_number()) {
-        spec.source = std::to_string(s->value<double>().value());
         std::ostringstream o;
         o.precision(17);
         o << s->value<double>().value();

@@ -3,6 +3,7 @@
 #pragma once
 
 #include <Eigen/Dense>
+#include <cmath>
 #include <map>
 #include <memory>
 #include <vector>
@@ -36,6 +37,48 @@ inline double relative_error(const Model& model, const DualProblem& dual,
         err = std::max(err, std::abs(u[i][k * dpn + d] - ref[m.global_node[k] * dpn + d]));
   }
   return dual.comm().max(err) / ref.cwiseAbs().maxCoeff();
+}
+
+/// The undecomposed system of a one-subdomain input with its Dirichlet dofs eliminated:
+/// A_ff u_f = b (b = f_f - K_fd u_d), as triplets of A_ff.
+struct EliminatedSystem {
+  std::vector<double> fixed;  ///< per dof: the Dirichlet value, NaN if free
+  std::vector<int> free_of;   ///< per dof: index among the free dofs, -1 if fixed
+  int nf = 0;
+  std::vector<Eigen::Triplet<double>> trip;
+  Eigen::VectorXd b;
+  double kmax = 0;  ///< largest |K_ij| (a scale)
+
+  /// The full vector from the free part.
+  Eigen::VectorXd expand(const Eigen::VectorXd& x) const {
+    Eigen::VectorXd u(static_cast<Eigen::Index>(fixed.size()));
+    for (size_t i = 0; i < fixed.size(); ++i) u[i] = free_of[i] >= 0 ? x[free_of[i]] : fixed[i];
+    return u;
+  }
+};
+
+inline EliminatedSystem eliminate_dirichlet(const SubdomainInput& in, int dpn) {
+  const int n = static_cast<int>(in.system.f.size());
+  EliminatedSystem e;
+  e.fixed.assign(n, std::nan(""));
+  for (const auto& d : in.dirichlet) e.fixed[d.node * dpn + d.component] = d.value;
+  e.free_of.assign(n, -1);
+  for (int i = 0; i < n; ++i)
+    if (std::isnan(e.fixed[i])) e.free_of[i] = e.nf++;
+  e.b = Eigen::VectorXd::Zero(e.nf);
+  for (int i = 0; i < n; ++i)
+    if (e.free_of[i] >= 0) e.b[e.free_of[i]] = in.system.f[i];
+  for (int col = 0; col < n; ++col)
+    for (Eigen::SparseMatrix<double>::InnerIterator it(in.system.K, col); it; ++it) {
+      const int row = static_cast<int>(it.row());
+      e.kmax = std::max(e.kmax, std::abs(it.value()));
+      if (e.free_of[row] < 0) continue;
+      if (e.free_of[col] >= 0)
+        e.trip.emplace_back(e.free_of[row], e.free_of[col], it.value());
+      else
+        e.b[e.free_of[row]] -= it.value() * e.fixed[col];
+    }
+  return e;
 }
 
 /// A vector of owned dual entries that depends only on global indices (rank-count independent).

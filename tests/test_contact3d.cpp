@@ -33,28 +33,14 @@ QpReference solve_contact_directly(ProblemSpec spec) {
   const auto model = make_model(spec);
   const SubdomainInput in = model->input(0);
   const SubdomainMesh mesh = model->mesh(0);
-  const int dpn = model->physics().dofs_per_node(), n = static_cast<int>(in.system.f.size());
-  std::vector<double> fixed(n, std::nan(""));
-  for (const auto& d : in.dirichlet) fixed[d.node * dpn + d.component] = d.value;
-  std::vector<int> free_of(n, -1);
-  int nf = 0;
-  for (int i = 0; i < n; ++i)
-    if (std::isnan(fixed[i])) free_of[i] = nf++;
-  std::vector<Eigen::Triplet<double>> kt;
-  Eigen::VectorXd b = Eigen::VectorXd::Zero(nf);
-  for (int i = 0; i < n; ++i)
-    if (free_of[i] >= 0) b[free_of[i]] = in.system.f[i];
-  double kmax = 0;
-  for (int col = 0; col < n; ++col)
-    for (Eigen::SparseMatrix<double>::InnerIterator it(in.system.K, col); it; ++it) {
-      const int row = static_cast<int>(it.row());
-      kmax = std::max(kmax, std::abs(it.value()));
-      if (free_of[row] < 0) continue;
-      if (free_of[col] >= 0)
-        kt.emplace_back(free_of[row], free_of[col], it.value());
-      else
-        b[free_of[row]] -= it.value() * fixed[col];
-    }
+  const int dpn = model->physics().dofs_per_node();
+  const test::EliminatedSystem sys = test::eliminate_dirichlet(in, dpn);
+  const std::vector<double>& fixed = sys.fixed;
+  const std::vector<int>& free_of = sys.free_of;
+  const int nf = sys.nf;
+  const Eigen::VectorXd& b = sys.b;
+  const std::vector<Eigen::Triplet<double>>& kt = sys.trip;
+  const double kmax = sys.kmax;
   // Constraint rows a_i . u_f <= g_i (fixed dofs moved to the right-hand side).
   const int m = static_cast<int>(in.contact.size());
   std::vector<std::vector<std::pair<int, double>>> a(m);
@@ -108,8 +94,7 @@ QpReference solve_contact_directly(ProblemSpec spec) {
     ref.iterations = it + 1;
     if (!changed) break;
   }
-  Eigen::VectorXd u(n);
-  for (int i = 0; i < n; ++i) u[i] = free_of[i] >= 0 ? x[free_of[i]] : fixed[i];
+  const Eigen::VectorXd u = sys.expand(x);
   ref.energy = 0.5 * u.dot(in.system.K * u) - in.system.f.dot(u);
   ref.u.resize(static_cast<Eigen::Index>(model->num_nodes()) * dpn);
   for (int k = 0; k < mesh.num_nodes(); ++k)

@@ -33,41 +33,17 @@ Reference solve_directly(ProblemSpec spec) {
   const auto model = make_model(spec);
   const SubdomainInput in = model->input(0);
   const SubdomainMesh mesh = model->mesh(0);
-  const int dpn = model->physics().dofs_per_node(), n = static_cast<int>(in.system.f.size());
-  // Local numbering of the single subdomain = global node order (sorted global ids).
-  std::vector<double> fixed(n, std::nan(""));
-  for (const auto& d : in.dirichlet) fixed[d.node * dpn + d.component] = d.value;
-  std::vector<int> free_of(n, -1);
-  int nf = 0;
-  for (int i = 0; i < n; ++i)
-    if (std::isnan(fixed[i])) free_of[i] = nf++;
-  std::vector<Eigen::Triplet<double>> trip;
-  Eigen::VectorXd b = Eigen::VectorXd::Zero(nf);
-  for (int i = 0; i < n; ++i)
-    if (free_of[i] >= 0) b[free_of[i]] = in.system.f[i];
-  for (int col = 0; col < n; ++col)
-    for (Eigen::SparseMatrix<double>::InnerIterator it(in.system.K, col); it; ++it) {
-      const int row = static_cast<int>(it.row());
-      if (free_of[row] < 0) continue;
-      if (free_of[col] >= 0)
-        trip.emplace_back(free_of[row], free_of[col], it.value());
-      else
-        b[free_of[row]] -= it.value() * fixed[col];
-    }
-  Eigen::SparseMatrix<double> A(nf, nf);
-  A.setFromTriplets(trip.begin(), trip.end());
+  const int dpn = model->physics().dofs_per_node();
+  const test::EliminatedSystem sys = test::eliminate_dirichlet(in, dpn);
+  Eigen::SparseMatrix<double> A(sys.nf, sys.nf);
+  A.setFromTriplets(sys.trip.begin(), sys.trip.end());
   Eigen::SparseLU<Eigen::SparseMatrix<double>> lu(A);
   EXPECT_EQ(lu.info(), Eigen::Success);
-  const Eigen::VectorXd x = lu.solve(b);
+  const Eigen::VectorXd u = sys.expand(lu.solve(sys.b));
   Reference ref;
   ref.u.resize(static_cast<Eigen::Index>(model->num_nodes()) * dpn);
   for (int k = 0; k < mesh.num_nodes(); ++k)
-    for (int d = 0; d < dpn; ++d) {
-      const int i = k * dpn + d;
-      ref.u[mesh.global_node[k] * dpn + d] = free_of[i] >= 0 ? x[free_of[i]] : fixed[i];
-    }
-  Eigen::VectorXd u(n);
-  for (int i = 0; i < n; ++i) u[i] = free_of[i] >= 0 ? x[free_of[i]] : fixed[i];
+    for (int d = 0; d < dpn; ++d) ref.u[mesh.global_node[k] * dpn + d] = u[k * dpn + d];
   ref.energy = 0.5 * u.dot(in.system.K * u) - in.system.f.dot(u);
   return ref;
 }

@@ -52,22 +52,6 @@ Eigen::MatrixXd physics_kernel(const Physics& ph, const double* xyz, int n) {
   return R;
 }
 
-Eigen::MatrixXd orthonormal_columns(const Eigen::MatrixXd& A, double tol) {
-  Eigen::MatrixXd Q(A.rows(), A.cols());
-  int r = 0;
-  for (int j = 0; j < A.cols(); ++j) {
-    Eigen::VectorXd v = A.col(j);
-    const double n0 = v.norm();
-    if (n0 == 0) continue;
-    for (int pass = 0; pass < 2; ++pass)
-      for (int i = 0; i < r; ++i) v -= Q.col(i).dot(v) * Q.col(i);
-    const double n1 = v.norm();
-    if (n1 <= tol * n0) continue;
-    Q.col(r++) = v / n1;
-  }
-  return Q.leftCols(r);
-}
-
 namespace {
 
 // Element matrix of cell e (coordinates gathered); for uniform meshes the first one is reused.

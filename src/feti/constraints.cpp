@@ -1,5 +1,7 @@
 #include "htfeti/feti/constraints.hpp"
 
+#include "htfeti/linalg/orthonormal.hpp"
+
 #include <Eigen/Dense>
 #include <algorithm>
 #include <cmath>
@@ -94,18 +96,8 @@ void object_bases(const FetiLayout& L, const DofSharing& sh, const std::vector<i
     return;
   }
   // Rank-revealing orthonormalization, then the complement from a full QR.
-  Eigen::MatrixXd Q(A.rows(), A.cols());
-  int r = 0;
-  for (int j = 0; j < A.cols(); ++j) {
-    Eigen::VectorXd v = A.col(j);
-    const double n0 = v.norm();
-    if (n0 == 0) continue;
-    for (int pass = 0; pass < 2; ++pass)
-      for (int i = 0; i < r; ++i) v -= Q.col(i).dot(v) * Q.col(i);
-    if (v.norm() <= 1e-10 * n0) continue;
-    Q.col(r++) = v.normalized();
-  }
-  W = Q.leftCols(r);
+  W = orthonormal_columns(A);
+  const int r = static_cast<int>(W.cols());
   Eigen::HouseholderQR<Eigen::MatrixXd> qr(W);
   const Eigen::MatrixXd full = qr.householderQ() * Eigen::MatrixXd::Identity(W.rows(), W.rows());
   Wc = full.rightCols(W.rows() - r);

@@ -20,6 +20,7 @@
 #include <string>
 #include <vector>
 
+#include "htfeti/linalg/orthonormal.hpp"
 #include "htfeti/mesh/subdomain_mesh.hpp"
 
 namespace htfeti {
@@ -45,10 +46,6 @@ struct Physics {
 /// The kernel of the physics at n nodes with coordinates xyz (3 per node), centred at their
 /// centroid, not normalized: n dofs_per_node x kernel_dimension (Laplace: ones).
 Eigen::MatrixXd physics_kernel(const Physics& physics, const double* xyz, int n);
-
-/// Orthonormal basis of the column space of A (modified Gram-Schmidt twice, columns dropped when
-/// their remaining norm is below tol times their original norm). Deterministic.
-Eigen::MatrixXd orthonormal_columns(const Eigen::MatrixXd& A, double tol = 1e-10);
 
 /// Source of a Laplace problem at a point (the centroid of a cell).
 using SourceFunction = std::function<double(const std::array<double, 3>&)>;

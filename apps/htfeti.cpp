@@ -1,6 +1,7 @@
 // htfeti: the command-line program. `htfeti solve` runs the pipeline on a built-in problem;
 // `htfeti spectrum` prints the extreme eigenvalues of a cluster Schur complement (Table 1).
 // Every option is declared here with its default and help text; `htfeti solve --help` lists them.
+#include <malloc.h>
 #include <mpi.h>
 #include <omp.h>
 
@@ -395,6 +396,11 @@ int run(int argc, char** argv, const Comm& comm) {
 // written), 4 a numerical failure. Errors raised by the library are agreed on by every rank, so
 // every rank leaves through the same path; anything else aborts the MPI job.
 int main(int argc, char** argv) {
+  // Blocks of 1 MiB and more (matrices, factors, dense blocks) are mapped and unmapped
+  // directly. glibc's default raises this threshold to the largest block freed so far, after
+  // which freed subdomain matrices stay in the heap, fragmented, while the factors grow: on the
+  // 512-subdomain cube the peak was 6.7 GB instead of 5.1 GB for the same live data.
+  mallopt(M_MMAP_THRESHOLD, 1 << 20);
   int provided = 0;
   MPI_Init_thread(&argc, &argv, MPI_THREAD_FUNNELED, &provided);
   init_threads();

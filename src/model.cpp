@@ -26,7 +26,7 @@ SubdomainInput Model::input(int s) const {
   AssembledSubdomain a = assemble_subdomain(m, physics_, source());
   in.system.id = s;
   in.system.dofs_per_node = physics_.dofs_per_node();
-  in.system.K = std::move(a.K);
+  in.system.K.swap(a.K);  // (Eigen's SparseMatrix copies on move)
   in.system.f = std::move(a.f);
   in.system.R = std::move(a.R);
   in.system.fixed_dofs = std::move(a.fixed_dofs);

@@ -9,6 +9,7 @@
 #include <memory>
 #include <stdexcept>
 
+#include "htfeti/parallel/memory.hpp"
 #include "htfeti/qp/pcg.hpp"
 #include "htfeti/qp/power_norm.hpp"
 
@@ -168,6 +169,7 @@ SolveOutput solve(std::shared_ptr<const Model> model_ptr, const SolveOptions& op
               {"proportioning_steps", r.proportioning_steps}};
   }
   t_solve = now() - t_solve;
+  const double peak_mb_solve = peak_rss_mb();
 
   double t_rec = now();
   out.u = dual.reconstruct(lambda);
@@ -227,7 +229,16 @@ SolveOutput solve(std::shared_ptr<const Model> model_ptr, const SolveOptions& op
   struct rusage usage {};
   getrusage(RUSAGE_SELF, &usage);
   const double rss_mb = usage.ru_maxrss / 1024.0;  // ru_maxrss is in KiB on Linux
-  rep["memory"] = {{"factor_nonzeros", comm.sum(static_cast<long long>(dual.factor_nonzeros()))},
+  // Peak resident memory of the largest rank at the end of each phase (a jump marks the phase
+  // that set the peak).
+  const nlohmann::json peak_by_phase = {{"assembly", comm.max(st.peak_mb_assembly)},
+                                        {"constraints", comm.max(st.peak_mb_constraints)},
+                                        {"factorization", comm.max(st.peak_mb_factorization)},
+                                        {"coarse_problem", comm.max(st.peak_mb_coarse)},
+                                        {"solve", comm.max(peak_mb_solve)},
+                                        {"reconstruction", comm.max(peak_rss_mb())}};
+  rep["memory"] = {{"peak_mb_by_phase", peak_by_phase},
+                   {"factor_nonzeros", comm.sum(static_cast<long long>(dual.factor_nonzeros()))},
                    {"coarse_factor_nonzeros", dual.coarse_factor_nonzeros()},
                    {"explicit_mb", comm.sum(8.0 * dual.explicit_doubles()) / 1048576.0},
                    {"cluster_dense_mb", comm.sum(8.0 * dual.cluster_dense_doubles()) / 1048576.0},

@@ -8,6 +8,8 @@
 #include "helpers.hpp"
 #include "htfeti/feti/cluster.hpp"
 #include "htfeti/feti/constraints.hpp"
+#include "htfeti/fem/physics.hpp"
+#include "htfeti/linalg/orthonormal.hpp"
 
 using namespace htfeti;
 
@@ -119,6 +121,59 @@ INSTANTIATE_TEST_SUITE_P(
                       std::make_tuple(8, 4, 2, Glue::corners_averages, ProblemKind::poisson2d),
                       std::make_tuple(12, 4, 4, Glue::averages, ProblemKind::poisson2d),
                       std::make_tuple(12, 4, 4, Glue::corners, ProblemKind::membranes_coercive)));
+
+// The sparse complement of an interface object's kernel: orthonormal rows, orthogonal to W,
+// p dpn - rank W of them, O(p log p) nonzeros; Laplace constants on an edge, plane-strain rigid
+// body motions on an edge, 3D rigid body motions on a face, on a curved face and on scattered
+// points with a collinear subset.
+class HierarchicalComplement
+    : public ::testing::TestWithParam<std::tuple<PhysicsKind, int, int>> {};
+
+TEST_P(HierarchicalComplement, OrthonormalComplementOfTheObjectKernel) {
+  const auto [kind, dim, shape] = GetParam();
+  std::vector<double> xyz;
+  if (shape == 0)  // a straight edge of 37 nodes
+    for (int i = 0; i < 37; ++i) xyz.insert(xyz.end(), {0.25 * i, 1.0, 0.0});
+  else if (shape == 1)  // a 9 x 9 face
+    for (int j = 0; j < 9; ++j)
+      for (int i = 0; i < 9; ++i) xyz.insert(xyz.end(), {1.0 * i, 2.0 * j, 5.0});
+  else if (shape == 2)  // a curved 7 x 11 face
+    for (int j = 0; j < 11; ++j)
+      for (int i = 0; i < 7; ++i)
+        xyz.insert(xyz.end(), {std::cos(0.1 * i), std::sin(0.1 * i), 0.3 * j});
+  else {  // scattered points, 5 of them on one line
+    for (int i = 0; i < 5; ++i) xyz.insert(xyz.end(), {1.0 * i, 0.0, 0.0});
+    for (int i = 0; i < 40; ++i)
+      xyz.insert(xyz.end(), {std::sin(1.3 * i), std::cos(2.1 * i), std::sin(0.7 * i + 1)});
+  }
+  const int p = static_cast<int>(xyz.size() / 3);
+  Physics ph;
+  ph.kind = kind;
+  ph.dim = dim;
+  const int dpn = ph.dofs_per_node();
+  const Eigen::MatrixXd W = orthonormal_columns(physics_kernel(ph, xyz.data(), p));
+  const SparseRows rows = hierarchical_complement(W, xyz.data(), p, dpn);
+  const int m = p * dpn;
+  ASSERT_EQ(static_cast<int>(rows.size()), m - W.cols());
+  Eigen::MatrixXd B = Eigen::MatrixXd::Zero(static_cast<int>(rows.size()), m);
+  long nnz = 0;
+  for (size_t r = 0; r < rows.size(); ++r)
+    for (const auto& [j, v] : rows[r]) B(static_cast<int>(r), j) += v, ++nnz;
+  EXPECT_LT((B * B.transpose() - Eigen::MatrixXd::Identity(B.rows(), B.rows())).norm(), 1e-13);
+  EXPECT_LT((B * W).norm(), 1e-13);
+  // Far below the dense m (m - rank W), about m (dpn 2^d-ish leaf work + rank W log2 p).
+  const double bound = m * (4.0 * dpn + W.cols() * (1 + std::log2(p)));
+  EXPECT_LT(nnz, bound) << "dense: " << m * (m - W.cols());
+}
+
+INSTANTIATE_TEST_SUITE_P(
+    Objects, HierarchicalComplement,
+    ::testing::Values(std::make_tuple(PhysicsKind::laplace, 2, 0),
+                      std::make_tuple(PhysicsKind::elasticity, 2, 0),
+                      std::make_tuple(PhysicsKind::laplace, 3, 1),
+                      std::make_tuple(PhysicsKind::elasticity, 3, 1),
+                      std::make_tuple(PhysicsKind::elasticity, 3, 2),
+                      std::make_tuple(PhysicsKind::elasticity, 3, 3)));
 
 class ClusterInverse : public ::testing::TestWithParam<std::tuple<int, int, Glue>> {};
 

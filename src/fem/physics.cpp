@@ -108,7 +108,7 @@ AssembledSubdomain assemble_subdomain(const SubdomainMesh& mesh, const Physics& 
   AssembledSubdomain out;
   const int nc = cell_nodes(mesh.type), dpn = ph.dofs_per_node(), ne = mesh.num_cells();
   const int nn = mesh.num_nodes();
-  out.K = assemble_stiffness(mesh, ph);
+  assemble_stiffness(mesh, ph).swap(out.K);
   out.f = Eigen::VectorXd::Zero(static_cast<Eigen::Index>(nn) * dpn);
   double x[24];
   const int period = mesh.uniform_period;

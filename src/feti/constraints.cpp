@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cmath>
 #include <map>
+#include <numeric>
 #include <stdexcept>
 
 namespace htfeti {
@@ -78,31 +79,86 @@ std::map<std::pair<int, int>, std::vector<int>> averaged_objects(const DofSharin
   return obj;
 }
 
-// Orthonormal kernel W on the object's dofs and an orthonormal basis of its complement.
-void object_bases(const FetiLayout& L, const DofSharing& sh, const std::vector<int>& nodes,
-                  Eigen::MatrixXd& W, Eigen::MatrixXd& Wc) {
-  const int p = static_cast<int>(nodes.size()), dpn = L.dofs_per_node;
-  std::vector<double> xyz(3 * static_cast<size_t>(p));
+// Orthonormal kernel W of the physics on the object's dofs.
+Eigen::MatrixXd object_kernel(const FetiLayout& L, const DofSharing& sh,
+                              const std::vector<int>& nodes, std::vector<double>& xyz) {
+  const int p = static_cast<int>(nodes.size());
+  xyz.resize(3 * static_cast<size_t>(p));
   for (int t = 0; t < p; ++t)
     for (int d = 0; d < 3; ++d) xyz[3 * t + d] = sh.coords[3 * static_cast<size_t>(nodes[t]) + d];
-  const Eigen::MatrixXd A = L.kernel(xyz.data(), p);
-  if (A.cols() == 1 && (A.array() == A(0, 0)).all()) {
-    // Constants: the Helmert complement (sparse-structured, as for the paper's edge rows).
-    W = Eigen::MatrixXd::Constant(p * dpn, 1, 1.0 / std::sqrt(static_cast<double>(p * dpn)));
-    const auto rows = orthonormal_complement(std::vector<double>(p * dpn, 1.0));
-    Wc.resize(p * dpn, static_cast<int>(rows.size()));
-    for (size_t j = 0; j < rows.size(); ++j)
-      for (int i = 0; i < p * dpn; ++i) Wc(i, static_cast<int>(j)) = rows[j][i];
-    return;
-  }
-  // Rank-revealing orthonormalization, then the complement from a full QR.
-  W = orthonormal_columns(A);
-  const int r = static_cast<int>(W.cols());
-  Eigen::HouseholderQR<Eigen::MatrixXd> qr(W);
-  const Eigen::MatrixXd full = qr.householderQ() * Eigen::MatrixXd::Identity(W.rows(), W.rows());
-  Wc = full.rightCols(W.rows() - r);
+  return orthonormal_columns(L.kernel(xyz.data(), p));  // rank-revealing
 }
 
+// Recursive step of hierarchical_complement: the group `idx` (node indices) is split by
+// coordinate bisection down to leaves of at most kLeafNodes nodes. Returns the group's coarse
+// basis E (orthonormal columns spanning W restricted to the group, rows = the group's dofs in
+// the order of `dofs`) and appends the group's detail rows.
+constexpr int kLeafNodes = 4;
+
+void complement_group(const Eigen::MatrixXd& W, const double* xyz, int dpn, std::vector<int> idx,
+                      std::vector<int>& dofs, Eigen::MatrixXd& E, SparseRows& details) {
+  const int g = static_cast<int>(idx.size());
+  Eigen::MatrixXd basis;  // columns spanning the group's part of W (rows: dofs)
+  if (g <= kLeafNodes) {
+    dofs.clear();
+    for (int t : idx)
+      for (int i = 0; i < dpn; ++i) dofs.push_back(t * dpn + i);
+    basis = Eigen::MatrixXd::Identity(static_cast<int>(dofs.size()), static_cast<int>(dofs.size()));
+  } else {
+    // Bisect along the axis of largest extent; ties by node index (deterministic).
+    int axis = 0;
+    double best = -1;
+    for (int d = 0; d < 3; ++d) {
+      double lo = xyz[3 * idx[0] + d], hi = lo;
+      for (int t : idx) lo = std::min(lo, xyz[3 * t + d]), hi = std::max(hi, xyz[3 * t + d]);
+      if (hi - lo > best) best = hi - lo, axis = d;
+    }
+    std::stable_sort(idx.begin(), idx.end(), [&](int a, int b) {
+      return xyz[3 * a + axis] < xyz[3 * b + axis];
+    });
+    std::vector<int> left(idx.begin(), idx.begin() + g / 2), right(idx.begin() + g / 2, idx.end());
+    std::vector<int> d1, d2;
+    Eigen::MatrixXd E1, E2;
+    complement_group(W, xyz, dpn, std::move(left), d1, E1, details);
+    complement_group(W, xyz, dpn, std::move(right), d2, E2, details);
+    dofs = d1;
+    dofs.insert(dofs.end(), d2.begin(), d2.end());
+    basis = Eigen::MatrixXd::Zero(static_cast<int>(dofs.size()), E1.cols() + E2.cols());
+    basis.topLeftCorner(E1.rows(), E1.cols()) = E1;
+    basis.bottomRightCorner(E2.rows(), E2.cols()) = E2;
+  }
+  // W restricted to the group, in the coordinates of `basis` (orthonormal columns).
+  Eigen::MatrixXd Wg(static_cast<int>(dofs.size()), W.cols());
+  for (size_t r = 0; r < dofs.size(); ++r) Wg.row(static_cast<int>(r)) = W.row(dofs[r]);
+  const Eigen::MatrixXd A = basis.transpose() * Wg;
+  Eigen::JacobiSVD<Eigen::MatrixXd> svd(A, Eigen::ComputeFullU);
+  const auto& sv = svd.singularValues();
+  int rank = 0;  // W has orthonormal columns: singular values are at most 1
+  while (rank < sv.size() && sv[rank] > 1e-12) ++rank;
+  const Eigen::MatrixXd U = basis * svd.matrixU();
+  E = U.leftCols(rank);
+  for (int j = rank; j < U.cols(); ++j) {
+    std::vector<std::pair<int, double>> row;
+    for (int r = 0; r < U.rows(); ++r)
+      if (U(r, j) != 0.0) row.push_back({dofs[r], U(r, j)});
+    details.push_back(std::move(row));
+  }
+}
+
+}  // namespace
+
+SparseRows hierarchical_complement(const Eigen::MatrixXd& W, const double* xyz, int p, int dpn) {
+  SparseRows rows;
+  std::vector<int> idx(p), dofs;
+  std::iota(idx.begin(), idx.end(), 0);
+  Eigen::MatrixXd E;
+  complement_group(W, xyz, dpn, std::move(idx), dofs, E, rows);
+  // The top group's coarse basis spans W itself: its complement in the span of the children's
+  // coarse bases was emitted as the top group's details, so `rows` holds p*dpn - rank(W) rows.
+  return rows;
+}
+
+namespace {
 }  // namespace
 
 void subdomain_rows(const FetiLayout& L, const SubdomainInput& in, std::vector<LocalRow>& out) {
@@ -189,23 +245,22 @@ void subdomain_rows(const FetiLayout& L, const SubdomainInput& in, std::vector<L
   }
   // 4. rows of averaged objects.
   const double r2 = 1.0 / std::sqrt(2.0);
-  Eigen::MatrixXd W, Wc;
+  std::vector<double> xyz;
   for (const auto& [pair, nodes] : averaged_objects(sh, cls)) {
-    object_bases(L, sh, nodes, W, Wc);
+    const Eigen::MatrixXd W = object_kernel(L, sh, nodes, xyz);
+    const SparseRows Wc = hierarchical_complement(W, xyz.data(), static_cast<int>(nodes.size()), dpn);
     // Sign: + on the first copy in the canonical order.
     const int* cp = sh.copies(nodes[0]);
     const double sign = cp[0] == me ? 1.0 : -1.0;
     long long min_node = sh.global_node[nodes[0]];
-    for (int l = 0; l < Wc.cols(); ++l) {
+    for (size_t l = 0; l < Wc.size(); ++l) {
       row = LocalRow{};
-      row.key = {1, my_cluster, pair.second - pair.first, pair.first, min_node, l};
+      row.key = {1, my_cluster, pair.second - pair.first, pair.first, min_node,
+                 static_cast<long long>(l)};
       row.kind = MultiplierKind::gluing;
       row.owner_subdomain = pair.first;
-      for (size_t t = 0; t < nodes.size(); ++t)
-        for (int i = 0; i < dpn; ++i) {
-          const double v = Wc(static_cast<int>(t) * dpn + i, l);
-          if (v != 0.0) row.entries.push_back({nodes[t] * dpn + i, sign * v * r2});
-        }
+      for (const auto& [j, v] : Wc[l])  // j = t * dpn + i: component i of the object's node t
+        row.entries.push_back({nodes[j / dpn] * dpn + j % dpn, sign * v * r2});
       out.push_back(std::move(row));
     }
   }
@@ -219,7 +274,7 @@ std::vector<std::vector<ConstraintEntry>> cluster_primal_constraints(
   const bool corners = L.glue != Glue::averages, averages = L.glue != Glue::corners;
   std::map<RowKey, std::vector<ConstraintEntry>> keyed;
   const double r2 = 1.0 / std::sqrt(2.0);
-  Eigen::MatrixXd W, Wc;
+  std::vector<double> xyz;
   for (size_t mi = 0; mi < members.size(); ++mi) {
     const SubdomainInput& in = *members[mi];
     const DofSharing& sh = in.sharing;
@@ -228,7 +283,7 @@ std::vector<std::vector<ConstraintEntry>> cluster_primal_constraints(
     const Classes cls = classify(L, sh, cluster);
     if (averages)
       for (const auto& [pair, nodes] : averaged_objects(sh, cls)) {
-        object_bases(L, sh, nodes, W, Wc);
+        const Eigen::MatrixXd W = object_kernel(L, sh, nodes, xyz);
         const double sign = sh.copies(nodes[0])[0] == me ? 1.0 : -1.0;
         for (int l = 0; l < W.cols(); ++l) {
           auto& r = keyed[{0, pair.second - pair.first, pair.first, sh.global_node[nodes[0]], l, 0}];

@@ -1,6 +1,9 @@
 #include "htfeti/feti/dual_problem.hpp"
 
+#include "htfeti/parallel/memory.hpp"
+
 #include <omp.h>
+
 
 #include <algorithm>
 #include <array>
@@ -54,7 +57,11 @@ DualProblem::DualProblem(const FetiLayout& layout,
 #pragma omp parallel for schedule(dynamic) if (!omp_in_parallel() && ms > 1)
       for (int i = 0; i < ms; ++i) {
         try {
-          in[i] = make_input(layout_.cluster_first[c0_ + c] + i);
+          SubdomainInput made = make_input(layout_.cluster_first[c0_ + c] + i);
+          Eigen::SparseMatrix<double> K;  // moved by swap: Eigen's SparseMatrix copies on move
+          K.swap(made.system.K);
+          in[i] = std::move(made);
+          in[i].system.K.swap(K);
           subdomain_rows(layout_, in[i], local_rows[sub_of(c, i)]);
         } catch (const std::invalid_argument& e) {
 #pragma omp critical
@@ -86,6 +93,7 @@ DualProblem::DualProblem(const FetiLayout& layout,
   }
   comm_.agree(error, input_error);
   setup_.assembly = now() - t;
+  setup_.peak_mb_assembly = peak_rss_mb();
 
   // 2. Global numbering of the rows by key, owners, and the extended dual layout.
   t = now();
@@ -163,6 +171,7 @@ DualProblem::DualProblem(const FetiLayout& layout,
   }
   local_rows = {};
   setup_.constraints = now() - t;
+  setup_.peak_mb_constraints = peak_rss_mb();
 
   // Local numbering of the rows of B~ on each subdomain (distinct multipliers in extended order).
   mult_.resize(nsub);
@@ -249,6 +258,9 @@ DualProblem::DualProblem(const FetiLayout& layout,
       cluster_rhs_from_ext(c, true, 0.0);
       clusters_[c]->solve(x_[c]);
       b_of_x(c);
+      // Factored: energy() and refactoring rebuild K_i. Freed per cluster, so that the peak is
+      // the factors plus the matrices of the clusters not yet factored, not both in full.
+      for (int i = 0; i < members(c); ++i) subs_[sub_of(c, i)]->release_matrix();
       if (factors_released_) clusters_[c]->release_factors();
     } catch (const std::bad_alloc&) {
 #pragma omp critical
@@ -259,8 +271,8 @@ DualProblem::DualProblem(const FetiLayout& layout,
     }
   }
   comm_.agree(error, input_error);
-  for (auto& sd : subs_) sd->release_matrix();  // factored; energy() and refactoring rebuild K_i
   setup_.factorization = now() - t;
+  setup_.peak_mb_factorization = peak_rss_mb();
   for (const auto& c : clusters_) setup_.cluster_setup += c->setup_seconds();
   lam_.resize(ncl);
   out_.resize(ncl);
@@ -353,6 +365,7 @@ DualProblem::DualProblem(const FetiLayout& layout,
     lower_[k] =
         kind_[k] == MultiplierKind::contact ? 0.0 : -std::numeric_limits<double>::infinity();
   setup_.coarse = now() - t;
+  setup_.peak_mb_coarse = peak_rss_mb();
 }
 
 void DualProblem::gather_to_ext(const Vec& owned) {
@@ -540,23 +553,56 @@ void DualProblem::assemble_coarse(const std::vector<double>& weight, SparseChole
     for (const auto& it : out[r]) sbuf[pos++] = it;
   MPI_Alltoallv(sbuf.data(), scount.data(), sdisp.data(), item_type, rbuf.data(), rcount.data(),
                 rdisp.data(), item_type, comm_.raw());
+  out = {};
+  sbuf = {};
   std::stable_sort(rbuf.begin(), rbuf.end(), [](const Item& x, const Item& y) {
     return x.k != y.k ? x.k < y.k : x.row < y.row;
   });
-  std::vector<Triplet> mine;
-  for (size_t i = 0; i < rbuf.size();) {
-    size_t j = i;
-    while (j < rbuf.size() && rbuf[j].k == rbuf[i].k) ++j;
-    const double w = weight[layout_dual_.ext_index(rbuf[i].k)];
-    if (w != 0.0)
-      for (size_t a = i; a < j; ++a)
-        for (size_t b = a; b < j; ++b) {
-          int ca = rbuf[a].row, cb = rbuf[b].row;
-          if (ca > cb) std::swap(ca, cb);
-          mine.push_back({rbuf[i].k, ca, cb, w * rbuf[a].g * rbuf[b].g});
-        }
-    i = j;
+  // Products summed per owner cluster of the multiplier (all of a cluster's multipliers live on
+  // one rank whatever the rank count), in multiplier order; the partial sums are then added in
+  // cluster order below. Rank-count independent, and O(entries of G~G~^T touched per cluster)
+  // memory instead of one triplet per product (78 per multiplier for 3D elasticity).
+  std::vector<std::pair<int, size_t>> groups;  // (owner cluster, first item of the multiplier)
+  for (size_t i = 0; i < rbuf.size(); ++i)
+    if (i == 0 || rbuf[i].k != rbuf[i - 1].k)
+      groups.push_back({block_[layout_dual_.ext_index(rbuf[i].k)], i});
+  std::stable_sort(groups.begin(), groups.end(),
+                   [](const auto& x, const auto& y) { return x.first < y.first; });
+  std::vector<Triplet> mine, products;
+  for (size_t g0 = 0; g0 < groups.size();) {
+    size_t g1 = g0;
+    while (g1 < groups.size() && groups[g1].first == groups[g0].first) ++g1;
+    products.clear();
+    for (size_t g = g0; g < g1; ++g) {
+      const size_t i = groups[g].second;
+      size_t j = i;
+      while (j < rbuf.size() && rbuf[j].k == rbuf[i].k) ++j;
+      const double w = weight[layout_dual_.ext_index(rbuf[i].k)];
+      if (w != 0.0)
+        for (size_t a = i; a < j; ++a)
+          for (size_t b = a; b < j; ++b) {
+            int ca = rbuf[a].row, cb = rbuf[b].row;
+            if (ca > cb) std::swap(ca, cb);
+            products.push_back({rbuf[i].k, ca, cb, w * rbuf[a].g * rbuf[b].g});
+          }
+    }
+    std::stable_sort(products.begin(), products.end(), [](const Triplet& x, const Triplet& y) {
+      return x.a != y.a ? x.a < y.a : x.b < y.b;  // stable: multiplier order within an entry
+    });
+    for (size_t p = 0; p < products.size();) {
+      size_t q = p;
+      double v = 0;
+      for (; q < products.size() && products[q].a == products[p].a &&
+             products[q].b == products[p].b;
+           ++q)
+        v += products[q].v;
+      mine.push_back({groups[g0].first, products[p].a, products[p].b, v});
+      p = q;
+    }
+    g0 = g1;
   }
+  rbuf = {};
+  products = {};
   int nmine = static_cast<int>(mine.size());
   std::vector<int> counts(P), disp(P + 1, 0);
   MPI_Allgather(&nmine, 1, MPI_INT, counts.data(), 1, MPI_INT, comm_.raw());
@@ -566,7 +612,8 @@ void DualProblem::assemble_coarse(const std::vector<double>& weight, SparseChole
                  comm_.raw());
   MPI_Type_free(&item_type);
   MPI_Type_free(&trip_type);
-  // Sum each entry's products in multiplier order whatever rank formed them.
+  // Sum each entry's partial sums in cluster order whatever rank formed them (k: the cluster).
+  mine = {};
   std::sort(all.begin(), all.end(), [](const Triplet& x, const Triplet& y) {
     return x.a != y.a ? x.a < y.a : x.b != y.b ? x.b < y.b : x.k < y.k;
   });

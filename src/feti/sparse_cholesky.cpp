@@ -176,3 +176,20 @@ long SparseCholesky::factor_nonzeros() const {
 }
 
 }  // namespace htfeti
+
+namespace htfeti {
+
+long SparseCholesky::factor_bytes() const {
+  const cholmod_factor* L = impl_->factor;
+  if (!L) return 0;
+  const long n = static_cast<long>(L->n), idx = sizeof(int);
+  long bytes = 3 * n * idx;  // Perm, ColCount, IPerm
+  if (L->is_super)
+    bytes += static_cast<long>(L->xsize) * 8 + static_cast<long>(L->ssize) * idx +
+             3 * static_cast<long>(L->nsuper + 1) * idx;
+  else
+    bytes += static_cast<long>(L->nzmax) * (8 + idx) + 4 * (n + 2) * idx;
+  return bytes;
+}
+
+}  // namespace htfeti

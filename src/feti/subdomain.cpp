@@ -5,7 +5,18 @@
 
 namespace htfeti {
 
-Subdomain::Subdomain(SubdomainSystem system) : sys_(std::move(system)) {
+namespace {
+// Moves a SubdomainSystem without copying K (Eigen's SparseMatrix copies on "move").
+SubdomainSystem take(SubdomainSystem& s) {
+  Eigen::SparseMatrix<double> K;
+  K.swap(s.K);
+  SubdomainSystem out = std::move(s);
+  out.K.swap(K);
+  return out;
+}
+}  // namespace
+
+Subdomain::Subdomain(SubdomainSystem system) : sys_(take(system)) {
   const int n = size();
   if (sys_.K.rows() != n && !sys_.assemble)
     throw std::logic_error("Subdomain: K and f sizes differ");
@@ -62,7 +73,7 @@ Eigen::MatrixXd Subdomain::dual_block(const std::vector<BEntry>& b, int nmult) c
 
 Eigen::SparseMatrix<double> Subdomain::reduced_matrix() {
   const int nn = size();
-  if (sys_.K.rows() != nn) sys_.K = sys_.assemble();  // released earlier
+  if (sys_.K.rows() != nn) sys_.assemble().swap(sys_.K);  // released earlier
   const int nr = nn - static_cast<int>(sys_.fixed_dofs.size());
   std::vector<Eigen::Triplet<double>> trip;
   trip.reserve(sys_.K.nonZeros());

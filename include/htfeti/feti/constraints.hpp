@@ -21,7 +21,8 @@
 //     c * lambda is the nodal contact force;
 //  4. per averaged object with p nodes: W = the orthonormalized kernel of the physics on the
 //     object's nodes (constants, rigid body motions); the rows (w, -w)/sqrt(2) for w in an
-//     orthonormal basis of the complement of W in R^(p dofs). The primal constraints of the object
+//     orthonormal basis of the complement of W in R^(p dofs) with O(p log p) nonzeros
+//     (hierarchical_complement). The primal constraints of the object
 //     are (W, -W)/sqrt(2), so Ker B~ = Ker B Z (the averages of the jump are enforced primally).
 // Corner primal constraints: the Helmert differences of the copies of a vertex in one cluster.
 //
@@ -32,7 +33,10 @@
 
 #include <array>
 #include <cstdint>
+#include <utility>
 #include <vector>
+
+#include <Eigen/Dense>
 
 #include "htfeti/feti/input.hpp"
 
@@ -73,5 +77,19 @@ std::vector<std::vector<ConstraintEntry>> cluster_primal_constraints(
 
 /// Rows of an orthonormal basis of the complement of s (s_i != 0) in R^t: t - 1 rows of length t.
 std::vector<std::vector<double>> orthonormal_complement(const std::vector<double>& s);
+
+/// Sparse rows: (index, value) pairs per row.
+using SparseRows = std::vector<std::vector<std::pair<int, double>>>;
+
+/// An orthonormal basis of the complement of span(W) in R^(p dpn) (W: orthonormal columns, rows
+/// node-major, p nodes at xyz, 3 coordinates each), with O(p log p) nonzeros instead of the
+/// O(p^2) of a dense basis: a multiwavelet construction on a binary tree of the nodes (coordinate
+/// bisection down to leaves of at most 4 nodes). Each group keeps an orthonormal basis of W
+/// restricted to it (its coarse basis); the rest of the span of its children's coarse bases
+/// (of the leaf's own dofs for a leaf) becomes rows supported on the group. The rows are
+/// orthonormal, orthogonal to W, and p dpn - rank(W) in number: the same row space as any
+/// orthonormal complement, so the dual problem changes only by an orthogonal transformation of
+/// the object's multipliers. Deterministic (both subdomains of an object compute the same rows).
+SparseRows hierarchical_complement(const Eigen::MatrixXd& W, const double* xyz, int p, int dpn);
 
 }  // namespace htfeti

@@ -57,6 +57,9 @@ struct SetupTimings {
   double assembly = 0, factorization = 0, constraints = 0, coarse = 0;
   double cluster_setup =
       0;  ///< part of factorization: primal-constraint systems (summed over clusters)
+  /// Peak resident memory of the rank (MiB) at the end of each setup phase.
+  double peak_mb_assembly = 0, peak_mb_constraints = 0, peak_mb_factorization = 0,
+         peak_mb_coarse = 0;
 };
 
 class DualProblem {

@@ -41,6 +41,8 @@ class SparseCholesky {
   int rows() const;
   /// Nonzeros of the factor L (memory is about 8 bytes per nonzero plus the pattern).
   long factor_nonzeros() const;
+  /// Bytes held by the factor: values, row indices and the supernode/permutation arrays.
+  long factor_bytes() const;
 
  private:
   void factorize_impl(const Eigen::SparseMatrix<double>& A, const std::vector<int>* last);

@@ -29,7 +29,9 @@ class Subdomain {
   /// The assembled K_i; empty after release_matrix().
   const Eigen::SparseMatrix<double>& K() const { return sys_.K; }
   /// Frees K_i (the factor remains); energy() and factorize() rebuild it when needed.
-  void release_matrix() { sys_.K = Eigen::SparseMatrix<double>(); }
+  /// (Eigen 3.4's SparseMatrix has no move operations and keeps its storage on assignment from
+  /// an empty matrix: swap is what frees it.)
+  void release_matrix() { Eigen::SparseMatrix<double>().swap(sys_.K); }
   /// q_i(u) = 1/2 u'K_i u - f_i'u (rebuilds K_i temporarily if it was freed).
   double energy(const Eigen::VectorXd& u) const;
   const Eigen::VectorXd& f() const { return sys_.f; }
@@ -59,6 +61,8 @@ class Subdomain {
   void apply_pinv(const double* x, double* y);
   /// Nonzeros of the last factorization (also after release_factor()).
   long factor_nonzeros() const { return factor_nonzeros_; }
+  /// Bytes of the current factorization (0 after release_factor()).
+  long factor_bytes() const { return chol_.factor_bytes(); }
   /// Frees the factorization (apply_pinv needs factorize() again).
   void release_factor();
 

@@ -93,6 +93,12 @@ void print_summary(const nlohmann::json& r) {
       r["primal_dimension"].get<long long>(), r["dual_dimension"].get<long long>(),
       r["equalities"].get<long long>(), r["inequalities"].get<long long>(),
       r["coarse_dimension"].get<int>(), r["ranks"].get<int>(), r["threads"].get<int>());
+  const int free_motions = std::max(r["unrestrained_rigid_motions"].get<int>(),
+                                    r["unrestrained_at_solution"].get<int>());
+  if (free_motions > 0)
+    std::printf("  note: the solution is not unique: %d rigid motion(s) restrained by no Dirichlet "
+                "condition and no active contact; their components are chosen zero\n",
+                free_motions);
   std::printf("  %s (%s): %d outer, %d inner iterations, %ld matvecs\n",
               r["converged"].get<bool>() ? "converged" : "NOT converged",
               r["stop_reason"].get<std::string>().c_str(), r["outer_iterations"].get<int>(),
@@ -137,7 +143,7 @@ int run(int argc, char** argv, const Comm& comm) {
                             ordering = "auto";
   std::string dual_operator = "auto", elements_text = "128", subdomains_text = "8";
   OutputOptions out_opt;
-  bool no_report = false, no_vtu = false;
+  bool no_report = false, no_vtu = false, no_memory_check = false;
   SolveOptions opt;
   opt.decomposition.elements = 128;
   opt.decomposition.subdomains = 8;
@@ -226,6 +232,9 @@ int run(int argc, char** argv, const Comm& comm) {
                                  "several ranks; binary)")
                     ->capture_default_str();
   solve_cmd->add_flag("--no-vtu", no_vtu, "do not write VTU output");
+  solve_cmd->add_flag("--no-memory-check", no_memory_check,
+                      "skip the memory estimate before setup (exit 2 when the estimate exceeds "
+                      "the available memory)");
   double amplitude = 1.0;
   auto* o_amplitude =
       solve_cmd
@@ -348,6 +357,7 @@ int run(int argc, char** argv, const Comm& comm) {
     }
     if (no_report) out_opt.write_report = false;
     if (no_vtu) out_opt.write_vtu = false;
+    if (no_memory_check) opt.check_memory = false;
     if (out_opt.write_report) check_output_path(out_opt.report, "--report");
     if (out_opt.write_vtu) {
       check_output_path(out_opt.vtu, "--vtu");

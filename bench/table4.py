@@ -23,9 +23,19 @@ p.add_argument("--m", type=int, default=4, help="subdomains per cluster side")
 p.add_argument("--ranks", type=int, default=1)
 p.add_argument("--threads", type=int, default=2)
 p.add_argument("--extra", default="", help="further htfeti solve arguments, quoted")
+p.add_argument("--methods", nargs="+", default=["TFETI", "H-TFETI-DP"],
+               choices=["TFETI", "H-TFETI-DP"])
+p.add_argument("--merge", action="store_true",
+               help="keep the other rows of bench/results/table4.json (replace equal k and method)")
 a = p.parse_args()
 
 runs = []
+if a.merge:
+    import json, os
+    old = os.path.join(os.path.dirname(os.path.abspath(__file__)), "results", "table4.json")
+    if os.path.exists(old):
+        runs = [r for r in json.load(open(old))["runs"]
+                if not (r["k"] in a.ks and r["method"] in a.methods)]
 print(f"cube-obstacle, clusters of {a.m}^3 subdomains, H_s/h = {a.hh}, {a.ranks} ranks x "
       f"{a.threads} threads")
 print("| clusters | subdomains | unknowns | method | coarse | outer | matvecs | F applications | "
@@ -35,6 +45,8 @@ for k in a.ks:
     s = k * a.m
     n = s * a.hh
     for method, m in (("TFETI", 1), ("H-TFETI-DP", a.m)):
+        if method not in a.methods:
+            continue
         r = solve(["--problem", "cube-obstacle", "--elements", n, "--subdomains", s,
                    "--cluster-size", m, *a.extra.split()], ranks=a.ranks, threads=a.threads)
         r["method"] = method
@@ -48,5 +60,8 @@ for k in a.ks:
               f"{t['solve']:.1f} | {t['total']:.1f} | "
               f"{r['memory']['peak_rss_mb_max_rank'] / 1024:.1f} | "
               f"{r['displacement']['max_norm']:.4f} |", flush=True)
+runs.sort(key=lambda r: (r["k"], r["method"] != "TFETI"))
 cmd = f"bench/table4.py --ks {' '.join(map(str, a.ks))} --hh {a.hh} --ranks {a.ranks} --threads {a.threads}"
+if a.merge:
+    cmd = "bench/table4.py --ks 1 2 3 (rows merged from separate runs, see docs/results.md)"
 print("\n" + save("table4.json", {"command": cmd, "paper": PAPER, "runs": runs}))

@@ -9,6 +9,7 @@
 #include <memory>
 #include <stdexcept>
 
+#include "htfeti/memory_estimate.hpp"
 #include "htfeti/parallel/memory.hpp"
 #include "htfeti/qp/pcg.hpp"
 #include "htfeti/qp/power_norm.hpp"
@@ -72,6 +73,8 @@ SolveOutput solve(std::shared_ptr<const Model> model_ptr, const SolveOptions& op
   const Model& model = *out.model;
   const bool verbose = options.progress && comm.rank() == 0;
 
+  MemoryEstimate estimate;
+  if (options.check_memory) estimate = check_memory(model, options.feti, comm);
   double t0 = now();
   if (verbose)
     std::fprintf(stderr,
@@ -195,6 +198,11 @@ SolveOutput solve(std::shared_ptr<const Model> model_ptr, const SolveOptions& op
     // Clusters whose kernel exceeds the physics' (disconnected parts, weak primal joins).
     rep["clusters_with_larger_kernel"] = larger;
   }
+  // Rigid motions fixed by no constraint (pure Neumann parts; in the reconstruction also bodies
+  // whose contact multipliers are all zero): the solution is not unique, and its coefficients
+  // along those motions are chosen zero (DualProblem::CoarseFactor).
+  rep["unrestrained_rigid_motions"] = dual.unrestrained_rigid_motions();
+  rep["unrestrained_at_solution"] = dual.unrestrained_at_solution();
   rep["ranks"] = comm.size();
   rep["threads"] = omp_get_max_threads();
   rep["rtol"] = options.rtol;
@@ -238,6 +246,14 @@ SolveOutput solve(std::shared_ptr<const Model> model_ptr, const SolveOptions& op
                                         {"solve", comm.max(peak_mb_solve)},
                                         {"reconstruction", comm.max(peak_rss_mb())}};
   rep["memory"] = {{"peak_mb_by_phase", peak_by_phase},
+                   {"factor_mb", comm.sum(st.factor_mb)},
+                   // The estimate made before setup (0 with check_memory off); sums over ranks.
+                   {"estimate_mb",
+                    {{"peak", comm.sum(estimate.peak_mb())},
+                     {"factors", comm.sum(estimate.factors_mb)},
+                     {"matrices", comm.sum(estimate.matrices_mb)},
+                     {"vectors", comm.sum(estimate.vectors_mb)},
+                     {"sampled", comm.min(estimate.sampled ? 1.0 : 0.0) > 0}}},
                    {"factor_nonzeros", comm.sum(static_cast<long long>(dual.factor_nonzeros()))},
                    {"coarse_factor_nonzeros", dual.coarse_factor_nonzeros()},
                    {"explicit_mb", comm.sum(8.0 * dual.explicit_doubles()) / 1048576.0},

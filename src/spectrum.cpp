@@ -1,5 +1,7 @@
 #include "htfeti/spectrum.hpp"
 
+#include "htfeti/parallel/memory.hpp"
+
 #include <Eigen/Dense>
 #include <Eigen/Sparse>
 #include <algorithm>
@@ -45,6 +47,18 @@ ClusterSpectrum cluster_spectrum(int m, int n, ElementKind element) {
                                 "--cluster-size " + std::to_string(m));
   const int H = n / m;
   if (H < 2) throw std::invalid_argument("need at least 2 elements per subdomain side");
+  {
+    // The subdomain stiffness is formed densely ((H+1)^2 rows and columns, a few copies):
+    // refuse before allocating what cannot fit.
+    const double rows = static_cast<double>(H + 1) * (H + 1);
+    const double need_mb = 3.0 * 8.0 * rows * rows / 1048576.0, have_mb = available_memory_mb();
+    if (have_mb > 0 && need_mb > have_mb)
+      throw std::invalid_argument(
+          "the dense subdomain matrices of H_s/h = " + std::to_string(H) + " need about " +
+          std::to_string(static_cast<long long>(need_mb / 1024)) + " GB, more than the " +
+          std::to_string(static_cast<long long>(have_mb / 1024)) +
+          " GB available (use a larger --cluster-size or fewer --elements)");
+  }
   ClusterSpectrum res;
   res.m = m;
   res.n = n;

@@ -57,7 +57,10 @@ TEST_F(Cli, BadArgumentsExitWithCode2AndWriteNothing) {
                        "--gamma 0",
                        "--rho-factor -1",
                        "--dual-operator dense",
-                       "--ordering nd"};
+                       "--ordering nd",
+                       // cannot fit in memory: refused by the estimate before any work
+                       "-n 20000 --subdomains 100",
+                       "-n 100000 --subdomains 10"};
   for (const char* args : bad) {
     EXPECT_EQ(run(bin + " solve " + args + " --report r.json --vtu u.vtu"), 2) << args;
     EXPECT_NE(stderr_text().find("error"), std::string::npos) << args;
@@ -65,6 +68,8 @@ TEST_F(Cli, BadArgumentsExitWithCode2AndWriteNothing) {
     EXPECT_FALSE(fs::exists("u.vtu")) << args;
   }
   EXPECT_EQ(run(bin + " spectrum -m 3 -n 64"), 2);
+  EXPECT_EQ(run(bin + " spectrum -m 1 -n 4096"), 2);  // dense matrices of 2^24 rows
+  EXPECT_NE(stderr_text().find("GB"), std::string::npos) << stderr_text();
   EXPECT_EQ(run(bin), 2);  // a subcommand is required
   EXPECT_EQ(run(bin + " solve --help"), 0);
 }
@@ -294,5 +299,71 @@ TEST_F(Cli, ContactResultsAreIdenticalOnOneToFourRanks) {
         EXPECT_EQ(a[key], b[key]) << p << ", " << r << " ranks: " << key;
     }
     EXPECT_GT(reports[0]["displacement"]["max_norm"].get<double>(), 0.0);
+  }
+}
+
+// The memory estimate made before setup names the sizes and matches the factors that the setup
+// then builds (boxes: every subdomain has the structure of the sampled one).
+TEST_F(Cli, MemoryEstimateMatchesTheFactorsBuilt) {
+  ASSERT_EQ(run(bin + " solve --problem poisson2d -n 20000 --subdomains 100 --no-vtu --report r.json"), 2);
+  EXPECT_NE(stderr_text().find("does not fit in memory: estimated"), std::string::npos)
+      << stderr_text();
+  const char* cases[] = {"--problem poisson2d -n 256 --subdomains 8",
+                         "--problem cube-obstacle --elements 12,12,12 --subdomains 2,2,2"};
+  for (const char* args : cases) {
+    ASSERT_EQ(run(bin + " solve " + args + " --dual-operator implicit --no-vtu --report r.json"), 0)
+        << args << stderr_text();
+    std::ifstream f("r.json");
+    const auto mem = nlohmann::json::parse(f)["memory"];
+    const double built = mem["factor_mb"], estimated = mem["estimate_mb"]["factors"];
+    EXPECT_TRUE(mem["estimate_mb"]["sampled"].get<bool>()) << args;
+    EXPECT_GT(built, 0) << args;
+    EXPECT_NEAR(estimated, built, 0.05 * built) << args;
+    EXPECT_GE(mem["estimate_mb"]["peak"].get<double>(), estimated) << args;
+  }
+}
+
+// Degenerate problems (reliability issue, item 5). A floating body whose load has a resultant
+// along a rigid motion that nothing restrains has no solution: exit 2 naming it. A floating body
+// with a balanced load (pure Neumann) is solvable but not unique: it is solved, the report says
+// how many rigid motions were free, and their components are zero. The membranes with one element
+// per side: the floating membrane carries no load and all its contact multipliers are zero, so
+// its position is free in the reconstruction; before, this ended in a singular coarse matrix.
+TEST_F(Cli, DegenerateFloatingBodies) {
+  auto box = [](const std::string& loads) {
+    return "[mesh]\ngenerator = \"box\"\nsize = [2.0, 1.0]\nelements = [8, 4]\n"
+           "element = \"quad4\"\n[physics]\ntype = \"elasticity\"\nyoung = 100.0\n"
+           "poisson = 0.3\n" + loads + "[decomposition]\nsubdomains = [2, 1]\n"
+           "[solver]\nrtol = 1e-10\n";
+  };
+  const std::string pull = "[[load]]\ngroup = \"x1\"\ntraction = [1.0, 0.0]\n";
+  const std::string back = "[[load]]\ngroup = \"x0\"\ntraction = [-1.0, 0.0]\n";
+  write_file("unbalanced.toml", box(pull));
+  EXPECT_EQ(run(bin + " solve unbalanced.toml --no-vtu --report r.json"), 2);
+  EXPECT_NE(stderr_text().find("has no solution"), std::string::npos) << stderr_text();
+  EXPECT_NE(stderr_text().find("rigid motion"), std::string::npos) << stderr_text();
+  EXPECT_FALSE(fs::exists("r.json"));
+
+  write_file("balanced.toml", box(pull + back));
+  ASSERT_EQ(run(bin + " solve balanced.toml --no-vtu --report r.json"), 0) << stderr_text();
+  {
+    std::ifstream f("r.json");
+    const auto r = nlohmann::json::parse(f);
+    EXPECT_EQ(r["unrestrained_rigid_motions"].get<int>(), 3);  // plane strain: 3 rigid motions
+    EXPECT_LT(r["kkt"]["equality_residual"].get<double>(), 1e-8);
+    // Stretched by a unit traction over unit height: the bar gets longer (energy < 0).
+    EXPECT_LT(r["objective"].get<double>(), 0.0);
+    EXPECT_GT(r["displacement"]["max_norm"].get<double>(), 0.0);
+  }
+  for (const char* n : {"1", "2"}) {
+    fs::remove("r.json");
+    ASSERT_EQ(run(bin + " solve --problem membranes -n " + std::string(n) +
+                  " --subdomains 1 --rtol 1e-10 --no-vtu --report r.json"),
+              0)
+        << n << stderr_text();
+    std::ifstream f("r.json");
+    const auto r = nlohmann::json::parse(f);
+    EXPECT_EQ(r["unrestrained_at_solution"].get<int>(), 1) << n;
+    EXPECT_LE(r["kkt"]["max_violation"].get<double>(), 1e-10) << n;  // still feasible
   }
 }

@@ -227,3 +227,63 @@ TEST(Failures, NonConvergenceIsAResult) {
   const auto rp = projected_cg(negative, identity, Vec::Ones(4), y, red, po);
   EXPECT_EQ(rp.reason, StopReason::breakdown);
 }
+
+// The power-method estimate of ||A|| (used for MPRGP's step length and SMALBE-M's rho and M_0):
+// a lower bound that converges to the largest eigenvalue; on diag(1..100) with a start that
+// touches every eigenvector it is within 1e-3 of 100 and never above it.
+TEST(NormEstimate, ConvergesFromBelowToTheLargestEigenvalue) {
+  const int n = 100;
+  DenseOperator A(Eigen::VectorXd::LinSpaced(n, 1.0, 100.0).asDiagonal().toDenseMatrix());
+  SerialReducer red;
+  const double est = estimate_norm(A, Vec::Ones(n), red, 500, 1e-12);
+  EXPECT_LE(est, 100.0 * (1 + 1e-12));
+  EXPECT_GT(est, 99.9);
+  // Few products with a loose tolerance: still a lower bound, and counted by the operator.
+  DenseOperator B(Eigen::VectorXd::LinSpaced(n, 1.0, 100.0).asDiagonal().toDenseMatrix());
+  const double rough = estimate_norm(B, Vec::Ones(n), red, 5, 1e-3);
+  EXPECT_LE(rough, est);
+  EXPECT_LE(B.count(), 6);
+}
+
+// SMALBE-M's iteration limit is a result with its reason and the iterate so far.
+TEST(Failures, SmalbeIterationLimitIsAResult) {
+  const Qp q = random_qp(10, 6, 2, 4, false);
+  DenseOperator A(q.A);
+  const Eigen::MatrixXd Qm = q.G.transpose() * q.G;
+  DenseOperator Q(Qm);
+  SerialReducer red;
+  SmalbeOptions opt;
+  opt.rtol = 1e-12;
+  opt.max_outer = 1;
+  const double normA = estimate_norm(A, Vec::Ones(10), red, 200, 1e-10);
+  Vec x = Vec::Zero(10);
+  const auto r = smalbe(A, Q, q.b, q.l, x, normA, red, opt);
+  EXPECT_EQ(r.reason, StopReason::max_iterations);
+  EXPECT_EQ(r.outer_iterations, 1);
+  EXPECT_TRUE(x.allFinite());
+}
+
+// MPRGP with the gradient given (SMALBE-M passes it between outer iterations): the same iterates
+// and no product for the initial gradient.
+TEST(Mprgp, GivenGradientPathMatchesComputedGradient) {
+  const Qp q = random_qp(12, 7, 0, 5, false);
+  SerialReducer red;
+  MprgpOptions opt;
+  DenseOperator A0(q.A);
+  opt.alpha = 1.9 / estimate_norm(A0, Vec::Ones(12), red, 200, 1e-10);
+  auto stop = [&](const Vec& x, const Vec& g, double) {
+    Vec gp;
+    projected_gradient(x, g, q.l, gp);
+    return gp.norm() < 1e-10 * q.b.norm();
+  };
+  const Vec start = q.l.cwiseMax(Vec::Zero(12));  // feasible
+  DenseOperator A1(q.A), A2(q.A);
+  Vec x1 = start, g1(12), x2 = start, g2 = q.A * start - q.b;
+  const auto r1 = mprgp(A1, q.b, q.l, x1, g1, red, opt, stop);
+  const auto r2 = mprgp(A2, q.b, q.l, x2, g2, red, opt, stop, true);
+  ASSERT_EQ(r1.reason, StopReason::converged);
+  ASSERT_EQ(r2.reason, StopReason::converged);
+  EXPECT_EQ(A2.count(), A1.count() - 1);
+  EXPECT_LT((x1 - x2).norm(), 1e-12 * x1.norm());
+  EXPECT_LT((x1 - exact_solution(q, 7)).norm(), 1e-8);
+}

@@ -19,6 +19,9 @@ struct SolveOptions {
   int max_iterations = 0;    ///< PCG iterations or SMALBE-M outer iterations; 0: 1000 / 200
   qp::SmalbeOptions smalbe;  ///< rtol and max_outer are taken from the fields above
   bool progress = false;     ///< print one line per (outer) iteration on rank 0 (stderr)
+  /// Estimate the memory before setup and refuse (std::invalid_argument) what cannot fit
+  /// (memory_estimate.hpp).
+  bool check_memory = true;
 };
 
 struct SolveOutput {

@@ -260,7 +260,13 @@ DualProblem::DualProblem(const FetiLayout& layout,
       b_of_x(c);
       // Factored: energy() and refactoring rebuild K_i. Freed per cluster, so that the peak is
       // the factors plus the matrices of the clusters not yet factored, not both in full.
-      for (int i = 0; i < members(c); ++i) subs_[sub_of(c, i)]->release_matrix();
+      double bytes = 0;
+      for (int i = 0; i < members(c); ++i) {
+        subs_[sub_of(c, i)]->release_matrix();
+        bytes += static_cast<double>(subs_[sub_of(c, i)]->factor_bytes());
+      }
+#pragma omp atomic
+      setup_.factor_mb += bytes / 1048576.0;
       if (factors_released_) clusters_[c]->release_factors();
     } catch (const std::bad_alloc&) {
 #pragma omp critical
@@ -356,6 +362,17 @@ DualProblem::DualProblem(const FetiLayout& layout,
     for (int i = 0; i < members(c); ++i)
       clusters_[c]->kernel_dot(i, subs_[sub_of(c, i)]->f(), &e_[coarse_first_[c0_ + c]]);
   comm_.sum_in_place(e_.data(), static_cast<int>(e_.size()));
+  if (coarse_factor_.null_dimension() > 0) {
+    // Solvable only if the load has no component along the unrestrained rigid motions
+    // (e = R~^T f must lie in the range of G~).
+    const Eigen::VectorXd along = coarse_factor_.null.transpose() * e_;
+    if (along.norm() > 1e-10 * std::max(e_.norm(), 1e-300) || (e_.norm() == 0 && along.norm() > 0))
+      throw std::invalid_argument(
+          "the problem has no solution: the load has a resultant along " +
+          describe_null(coarse_factor_.null) +
+          " that no Dirichlet condition or contact restrains (add a Dirichlet condition or "
+          "balance the load)");
+  }
   coarse_work_ = e_;
   coarse_solve(coarse_work_);
   lambda_tilde_.resize(n_own);
@@ -502,7 +519,7 @@ void DualProblem::project(const Vec& x, Vec& y) {
   y = x - ext_out_.head(layout_dual_.n_owned());
 }
 
-void DualProblem::assemble_coarse(const std::vector<double>& weight, SparseCholesky& factor) {
+void DualProblem::assemble_coarse(const std::vector<double>& weight, CoarseFactor& factor) {
   // (G~ W G~^T)_{ab} = sum_k w_k g_ak g_bk. Every cluster sends (k, coarse row, g_ak) to the
   // owner of k; owners form the products and sum equal entries; the summed triplets are shared
   // (every rank factors the coarse matrix). Counts are in items (MPI datatypes), not bytes.
@@ -622,15 +639,53 @@ void DualProblem::assemble_coarse(const std::vector<double>& weight, SparseChole
   for (const auto& t : all) trip.emplace_back(t.a, t.b, t.v);
   Eigen::SparseMatrix<double> GGt(coarse_dimension(), coarse_dimension());
   GGt.setFromTriplets(trip.begin(), trip.end());
-  factor = SparseCholesky(Ordering::amd);
-  std::string error;
+  factor.sparse = SparseCholesky(Ordering::amd);
+  factor.use_dense = false;
+  factor.null.resize(0, 0);
+  bool singular = false;
   try {
-    factor.factorize(GGt);
-  } catch (const std::exception& e) {
-    error = std::string("the coarse problem G G^T is singular (") + e.what() +
-            "): some subdomain kernel is not restrained by any constraint row";
+    factor.sparse.factorize(GGt);
+  } catch (const std::exception&) {
+    singular = true;  // the same on every rank: every rank factors the same matrix
   }
-  comm_.agree(error);
+  if (!singular) return;
+  const int nc = coarse_dimension();
+  if (nc > kMaxDenseCoarse)
+    throw std::runtime_error(
+        "the coarse problem G G^T is singular: some rigid motion of a subdomain or cluster is "
+        "restrained by no Dirichlet condition or contact row (coarse dimension " +
+        std::to_string(nc) + " is too large to name it)");
+  const Eigen::MatrixXd upper(GGt);  // entries (a, b) with a <= b
+  Eigen::MatrixXd A = upper.selfadjointView<Eigen::Upper>();
+  Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(A);
+  const auto& ev = eig.eigenvalues();
+  const double top = std::max(ev.cwiseAbs().maxCoeff(), 1e-300);
+  int nnull = 0;
+  while (nnull < nc && ev[nnull] <= 1e-10 * top) ++nnull;
+  factor.null = eig.eigenvectors().leftCols(nnull);
+  A.noalias() += factor.null * factor.null.transpose();
+  factor.dense.compute(A);
+  factor.use_dense = true;
+  if (factor.dense.info() != Eigen::Success)
+    throw std::runtime_error("the coarse problem G G^T could not be factored");
+}
+
+std::string DualProblem::describe_null(const Eigen::MatrixXd& Z) const {
+  // Clusters carrying the null directions (largest coefficients), by global cluster id.
+  std::vector<int> clusters;
+  const double top = Z.size() ? Z.cwiseAbs().maxCoeff() : 0.0;
+  for (int c = 0; c < layout_.num_clusters; ++c) {
+    double m = 0;
+    for (int j = coarse_first_[c]; j < coarse_first_[c + 1]; ++j)
+      m = std::max(m, Z.row(j).cwiseAbs().maxCoeff());
+    if (m > 1e-3 * top) clusters.push_back(c);
+  }
+  std::string s;
+  for (size_t i = 0; i < clusters.size() && i < 8; ++i)
+    s += (i ? ", " : "") + std::to_string(clusters[i]);
+  if (clusters.size() > 8) s += ", ... (" + std::to_string(clusters.size()) + " in all)";
+  const bool one = layout_.num_clusters == layout_.num_subdomains;
+  return std::to_string(Z.cols()) + " rigid motion(s) of " + (one ? "subdomain(s) " : "cluster(s) ") + s;
 }
 
 void DualProblem::apply_B(const std::vector<Vec>& u, Vec& out) {
@@ -674,9 +729,10 @@ std::vector<DualProblem::Vec> DualProblem::reconstruct(const Vec& lambda) {
   Vec alpha;
   apply_G(r, alpha);
   if (comm_.max(masked ? 1.0 : 0.0) > 0.0) {
-    SparseCholesky masked_factor;
+    CoarseFactor masked_factor;
     assemble_coarse(weight, masked_factor);
-    masked_factor.solve(alpha.data(), alpha.data());
+    reconstruction_null_ = masked_factor.null_dimension();
+    masked_factor.solve(alpha);
   } else {
     coarse_solve(alpha);
   }

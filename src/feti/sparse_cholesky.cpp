@@ -179,6 +179,29 @@ long SparseCholesky::factor_nonzeros() const {
 
 namespace htfeti {
 
+long SparseCholesky::symbolic_factor_bytes(const Eigen::SparseMatrix<double>& A,
+                                           Ordering ordering) {
+  SparseCholesky chol(ordering);
+  auto& c = chol.impl_->common;
+  Eigen::SparseMatrix<double> upper = A.triangularView<Eigen::Upper>();
+  upper.makeCompressed();
+  cholmod_sparse view{};
+  view.nrow = view.ncol = static_cast<size_t>(A.rows());
+  view.nzmax = static_cast<size_t>(upper.nonZeros());
+  view.p = upper.outerIndexPtr();
+  view.i = upper.innerIndexPtr();
+  view.x = upper.valuePtr();
+  view.stype = 1;
+  view.itype = CHOLMOD_INT;
+  view.xtype = CHOLMOD_REAL;
+  view.dtype = CHOLMOD_DOUBLE;
+  view.sorted = 1;
+  view.packed = 1;
+  chol.impl_->factor = cholmod_analyze(&view, &c);
+  if (!chol.impl_->factor) throw std::runtime_error("CHOLMOD analysis failed");
+  return chol.factor_bytes();
+}
+
 long SparseCholesky::factor_bytes() const {
   const cholmod_factor* L = impl_->factor;
   if (!L) return 0;

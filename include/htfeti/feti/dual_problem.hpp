@@ -58,6 +58,7 @@ struct SetupTimings {
   double cluster_setup =
       0;  ///< part of factorization: primal-constraint systems (summed over clusters)
   /// Peak resident memory of the rank (MiB) at the end of each setup phase.
+  double factor_mb = 0;  ///< the rank's subdomain factors as built (before any release)
   double peak_mb_assembly = 0, peak_mb_constraints = 0, peak_mb_factorization = 0,
          peak_mb_coarse = 0;
 };
@@ -102,7 +103,13 @@ class DualProblem {
   /// lambda = G~^T coarse.
   void apply_Gt(const Vec& coarse, Vec& lambda);
   /// coarse <- (G~ G~^T)^{-1} coarse.
-  void coarse_solve(Vec& coarse) { coarse_factor_.solve(coarse.data(), coarse.data()); }
+  void coarse_solve(Vec& coarse) { coarse_factor_.solve(coarse); }
+  /// Directions of the coarse space that no constraint row restrains (0 for a well-posed
+  /// problem; see CoarseFactor): the solution is unique up to these rigid motions, whose
+  /// coefficients are chosen zero.
+  int unrestrained_rigid_motions() const { return coarse_factor_.null_dimension(); }
+  /// As above for the reconstruction, where the contact rows with a zero multiplier drop out.
+  int unrestrained_at_solution() const { return reconstruction_null_; }
   /// y = P x (x and y may alias).
   void project(const Vec& x, Vec& y);
 
@@ -161,7 +168,11 @@ class DualProblem {
   bool factors_released() const { return factors_released_; }
   long explicit_doubles() const;       ///< doubles in the explicit blocks on this rank
   long cluster_dense_doubles() const;  ///< doubles in the clusters' K^+ C^T blocks and LUs
-  long coarse_factor_nonzeros() const { return coarse_factor_.factor_nonzeros(); }
+  long coarse_factor_nonzeros() const {
+    return coarse_factor_.use_dense
+               ? static_cast<long>(coarse_dimension()) * (coarse_dimension() + 1) / 2
+               : coarse_factor_.sparse.factor_nonzeros();
+  }
 
  private:
   struct Row {
@@ -178,7 +189,28 @@ class DualProblem {
   template <class Body>
   void for_each_cluster(Body body);     // OpenMP over local clusters
   void gt_into_ext(const Vec& coarse);  // ext_out_ = G~^T coarse (owners summed)
-  void assemble_coarse(const std::vector<double>& weight, SparseCholesky& factor);
+  // The coarse matrix G~ W G~^T (W = diag(weight)) and its factor. Sparse Cholesky; if that
+  // finds the matrix singular (a floating body that no constraint restrains: a pure Neumann
+  // problem, or in the reconstruction a body whose contact rows all have zero multipliers),
+  // the matrix is formed densely (up to kMaxDenseCoarse), its null space Z found by a symmetric
+  // eigendecomposition, and G W G^T + Z Z^T factored instead: on the range of G W G^T that is
+  // the pseudo-inverse, and the coefficients along Z come out zero.
+  struct CoarseFactor {
+    SparseCholesky sparse;
+    Eigen::LLT<Eigen::MatrixXd> dense;
+    Eigen::MatrixXd null;  // Z (orthonormal columns); empty when the sparse factor is used
+    bool use_dense = false;
+    void solve(Vec& x) {
+      if (use_dense)
+        x = dense.solve(x);  // allocates: only for degenerate problems
+      else
+        sparse.solve(x.data(), x.data());
+    }
+    int null_dimension() const { return static_cast<int>(null.cols()); }
+  };
+  static constexpr int kMaxDenseCoarse = 4000;
+  std::string describe_null(const Eigen::MatrixXd& Z) const;
+  void assemble_coarse(const std::vector<double>& weight, CoarseFactor& factor);
   // B~ applied to per-subdomain vectors; sums are on owners afterwards (reverse_add done).
   void apply_B(const std::vector<Vec>& u, Vec& out);
   // flat_ (one value per (subdomain, multiplier) pair) -> ext_out_ owned part, ordered sums.
@@ -211,7 +243,8 @@ class DualProblem {
   std::vector<std::array<double, 3>> contact_point_;
   // G~ rows of each local cluster: per kernel vector, (extended index, value)
   std::vector<std::vector<std::vector<std::pair<int, double>>>> g_rows_;
-  SparseCholesky coarse_factor_;
+  CoarseFactor coarse_factor_;
+  int reconstruction_null_ = 0;
   Vec d_, e_, lambda_tilde_, lower_;
   // work arrays (allocated once)
   Vec ext_in_, ext_out_, coarse_work_;

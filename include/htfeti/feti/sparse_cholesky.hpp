@@ -43,6 +43,9 @@ class SparseCholesky {
   long factor_nonzeros() const;
   /// Bytes held by the factor: values, row indices and the supernode/permutation arrays.
   long factor_bytes() const;
+  /// The bytes factor_bytes() would report after factorize(A), from the symbolic analysis
+  /// alone (ordering and supernodes; no numeric work).
+  static long symbolic_factor_bytes(const Eigen::SparseMatrix<double>& A, Ordering ordering);
 
  private:
   void factorize_impl(const Eigen::SparseMatrix<double>& A, const std::vector<int>* last);

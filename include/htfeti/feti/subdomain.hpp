@@ -61,6 +61,10 @@ class Subdomain {
   void apply_pinv(const double* x, double* y);
   /// Nonzeros of the last factorization (also after release_factor()).
   long factor_nonzeros() const { return factor_nonzeros_; }
+  /// Bytes factorize(ordering) would hold, from CHOLMOD's symbolic analysis alone.
+  long symbolic_factor_bytes(Ordering ordering) {
+    return SparseCholesky::symbolic_factor_bytes(reduced_matrix(), ordering);
+  }
   /// Bytes of the current factorization (0 after release_factor()).
   long factor_bytes() const { return chol_.factor_bytes(); }
   /// Frees the factorization (apply_pinv needs factorize() again).

@@ -1,0 +1,45 @@
+// The memory check before the large allocations (issue "reliability"): an estimate of what a
+// rank will hold at its peak, made before any subdomain is assembled in bulk, compared with the
+// memory the machine can still give. A problem that does not fit ends with exit 2 and the
+// estimate, not with an allocation failure (or the kernel's OOM killer) minutes later.
+//
+// Per rank, with D its primal unknowns (every subdomain with its own copies):
+//  - matrices: the assembled K_i, all alive at the end of the assembly phase: 12 bytes per
+//    stored nonzero (the lower triangle);
+//  - factors: CHOLMOD's symbolic analysis of one subdomain of the rank (its first), scaled by
+//    D / its unknowns (the subdomains of a rank have similar sizes: boxes, METIS parts);
+//  - vectors: kernels, loads, solutions and work vectors, (kernel dimension + 8) doubles per
+//    unknown.
+// The matrices are freed cluster by cluster as the factors grow, so the peak is
+// max(matrices, factors) + vectors. Before the sample is assembled, a lower bound from the
+// element type alone refuses sizes that cannot fit without building anything (a subdomain of
+// 10^10 unknowns). The ranks of one machine (MPI_COMM_TYPE_SHARED) add their estimates and
+// compare the sum with MemAvailable. The estimate leaves out the dual vectors, the coarse
+// problem and the explicit blocks (those have budgets of their own), so it errs low: what it
+// refuses cannot fit.
+#pragma once
+
+#include <string>
+
+#include "htfeti/feti/dual_problem.hpp"
+#include "htfeti/model.hpp"
+#include "htfeti/parallel/comm.hpp"
+
+namespace htfeti {
+
+struct MemoryEstimate {
+  double matrices_mb = 0, factors_mb = 0, vectors_mb = 0;
+  bool sampled = false;  ///< false: the lower bound only (no subdomain was assembled)
+  double peak_mb() const {
+    return (matrices_mb > factors_mb ? matrices_mb : factors_mb) + vectors_mb;
+  }
+};
+
+/// This rank's estimate (collective: no; it assembles one subdomain of the rank).
+MemoryEstimate estimate_memory(const Model& model, const FetiOptions& options, const Comm& comm);
+
+/// Throws std::invalid_argument on every rank, with the estimate, when the ranks of some machine
+/// together need more than its available memory; returns this rank's estimate. Collective.
+MemoryEstimate check_memory(const Model& model, const FetiOptions& options, const Comm& comm);
+
+}  // namespace htfeti

@@ -3,11 +3,12 @@
 clusters of 4 x 4 x 4 subdomains at H_s/h = 10, for k x k x k clusters, TFETI against H-TFETI-DP
 (face averages of the six rigid body motions), SMALBE-M + MPRGP at eps = 1e-4.
 
-k = 1, 2, 3: 64, 512, 1,728 subdomains; 0.2, 1.6, 5.3 M unknowns (k = 3 needs about 12 GB).
-The paper's row 1 (4 x 4 x 4 clusters, 4,096 subdomains, 12.5 M unknowns) needs ~26 GiB of
-factors alone: not on this machine.
+k = 1, 2, 3: 64, 512, 1,728 subdomains; 0.2, 1.6, 5.3 M unknowns (k = 3 peaks at 18 GB for TFETI
+and 23 GB for H-TFETI-DP: run it alone on a 24 GB machine). The paper's row 1 (4 x 4 x 4
+clusters, 4,096 subdomains, 12.5 M unknowns) needs ~37 GB of factors alone: not on this machine.
 
 Usage: bench/table4.py [--ks 1 2] [--threads 2] [--ranks 1] [--hh 10]
+                       [--methods TFETI H-TFETI-DP] [--merge]
 Writes bench/results/table4.json and prints the table next to the paper's numbers."""
 import argparse
 

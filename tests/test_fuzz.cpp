@@ -169,6 +169,23 @@ class Fuzz : public ::testing::Test {
     fs::copy_file("mesh.msh", to / "mesh.msh", fs::copy_options::overwrite_existing);
     return to.string() + " (" + tag + ")";
   }
+  // 60 inputs, each the seed with 1-3 random edits, written to `file` and run.
+  void run_mutations(const std::string& what, const std::string& file, const std::string& seed,
+                     unsigned rng_seed) {
+    std::mt19937 rng(rng_seed);
+    for (int i = 0; i < 60; ++i) {
+      std::string text = seed;
+      const int edits = 1 + static_cast<int>(rng() % 3);
+      for (int e = 0; e < edits; ++e) text = mutate(text, rng);
+      write(file, text);
+      check(what, i);
+    }
+    std::string summary;
+    for (const auto& [c, n] : codes)
+      summary += " exit " + std::to_string(c) + ": " + std::to_string(n);
+    std::printf("%s fuzz:%s\n", what.c_str(), summary.c_str());
+    EXPECT_GT(codes[2], 0);  // the mutations do reach the input checks
+  }
   fs::path dir;
   std::string mesh;
   std::map<int, int> codes;
@@ -185,33 +202,11 @@ TEST_F(Fuzz, SeedsSolve) {
 }
 
 TEST_F(Fuzz, MutatedProblemFilesEndInDocumentedExits) {
-  std::mt19937 rng(20261122);
   write("mesh.msh", mesh);
-  for (int i = 0; i < 60; ++i) {
-    std::string p = kSeedProblem;
-    const int edits = 1 + static_cast<int>(rng() % 3);
-    for (int e = 0; e < edits; ++e) p = mutate(p, rng);
-    write("p.toml", p);
-    check("problem file", i);
-  }
-  std::string summary;
-  for (const auto& [c, n] : codes) summary += " exit " + std::to_string(c) + ": " + std::to_string(n);
-  std::printf("problem-file fuzz:%s\n", summary.c_str());
-  EXPECT_GT(codes[2], 0);  // the mutations do reach the input checks
+  run_mutations("problem file", "p.toml", kSeedProblem, 20261122);
 }
 
 TEST_F(Fuzz, MutatedMeshFilesEndInDocumentedExits) {
-  std::mt19937 rng(1122);
   write("p.toml", kSeedProblem);
-  for (int i = 0; i < 60; ++i) {
-    std::string m = mesh;
-    const int edits = 1 + static_cast<int>(rng() % 3);
-    for (int e = 0; e < edits; ++e) m = mutate(m, rng);
-    write("mesh.msh", m);
-    check("mesh file", i);
-  }
-  std::string summary;
-  for (const auto& [c, n] : codes) summary += " exit " + std::to_string(c) + ": " + std::to_string(n);
-  std::printf("mesh fuzz:%s\n", summary.c_str());
-  EXPECT_GT(codes[2], 0);
+  run_mutations("mesh file", "mesh.msh", mesh, 1122);
 }

@@ -19,6 +19,26 @@ std::string to_string(Ordering ordering) {
   return ordering == Ordering::amd ? "amd" : ordering == Ordering::metis ? "metis" : "auto";
 }
 
+namespace {
+// A CHOLMOD view (no copy) of the upper triangle `upper` (compressed here), stype = 1.
+cholmod_sparse upper_view(Eigen::SparseMatrix<double>& upper) {
+  upper.makeCompressed();
+  cholmod_sparse view{};
+  view.nrow = view.ncol = static_cast<size_t>(upper.rows());
+  view.nzmax = static_cast<size_t>(upper.nonZeros());
+  view.p = upper.outerIndexPtr();
+  view.i = upper.innerIndexPtr();
+  view.x = upper.valuePtr();
+  view.stype = 1;  // upper triangle stored
+  view.itype = CHOLMOD_INT;
+  view.xtype = CHOLMOD_REAL;
+  view.dtype = CHOLMOD_DOUBLE;
+  view.sorted = 1;
+  view.packed = 1;
+  return view;
+}
+}  // namespace
+
 struct SparseCholesky::Impl {
   cholmod_common common;
   cholmod_factor* factor = nullptr;
@@ -62,19 +82,7 @@ void SparseCholesky::factorize_impl(const Eigen::SparseMatrix<double>& A,
   if (A.rows() != A.cols()) throw std::invalid_argument("SparseCholesky: matrix is not square");
   auto& c = impl_->common;
   Eigen::SparseMatrix<double> upper = A.triangularView<Eigen::Upper>();
-  upper.makeCompressed();
-  cholmod_sparse view{};
-  view.nrow = view.ncol = static_cast<size_t>(A.rows());
-  view.nzmax = static_cast<size_t>(upper.nonZeros());
-  view.p = upper.outerIndexPtr();
-  view.i = upper.innerIndexPtr();
-  view.x = upper.valuePtr();
-  view.stype = 1;  // upper triangle stored
-  view.itype = CHOLMOD_INT;
-  view.xtype = CHOLMOD_REAL;
-  view.dtype = CHOLMOD_DOUBLE;
-  view.sorted = 1;
-  view.packed = 1;
+  cholmod_sparse view = upper_view(upper);
   cholmod_free_factor(&impl_->factor, &c);
   impl_->nlast = 0;
   if (last) {
@@ -184,19 +192,7 @@ long SparseCholesky::symbolic_factor_bytes(const Eigen::SparseMatrix<double>& A,
   SparseCholesky chol(ordering);
   auto& c = chol.impl_->common;
   Eigen::SparseMatrix<double> upper = A.triangularView<Eigen::Upper>();
-  upper.makeCompressed();
-  cholmod_sparse view{};
-  view.nrow = view.ncol = static_cast<size_t>(A.rows());
-  view.nzmax = static_cast<size_t>(upper.nonZeros());
-  view.p = upper.outerIndexPtr();
-  view.i = upper.innerIndexPtr();
-  view.x = upper.valuePtr();
-  view.stype = 1;
-  view.itype = CHOLMOD_INT;
-  view.xtype = CHOLMOD_REAL;
-  view.dtype = CHOLMOD_DOUBLE;
-  view.sorted = 1;
-  view.packed = 1;
+  cholmod_sparse view = upper_view(upper);
   chol.impl_->factor = cholmod_analyze(&view, &c);
   if (!chol.impl_->factor) throw std::runtime_error("CHOLMOD analysis failed");
   return chol.factor_bytes();

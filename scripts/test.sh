@@ -13,7 +13,9 @@ fi
 "$here/scripts/setup.sh"
 # Open MPI refuses to start as root without these.
 export OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1
-(cd "$here/build" && ctest --output-on-failure --timeout 900 "$@")
+# As many suites at a time as there are cores (the MPI suites declare their ranks as PROCESSORS;
+# a 4-rank suite runs alone on a 2-core machine).
+(cd "$here/build" && ctest --output-on-failure --timeout 900 -j "$(nproc)" "$@")
 if [ "$quick" = 0 ]; then
   echo "sanitizer job (ASan + UBSan):"
   "$here/scripts/sanitize.sh"

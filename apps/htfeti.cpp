@@ -409,7 +409,7 @@ int main(int argc, char** argv) {
   // Blocks of 1 MiB and more (matrices, factors, dense blocks) are mapped and unmapped
   // directly. glibc's default raises this threshold to the largest block freed so far, after
   // which freed subdomain matrices stay in the heap, fragmented, while the factors grow: on the
-  // 512-subdomain cube the peak was 6.7 GB instead of 5.1 GB for the same live data.
+  // 512-subdomain cube the factorization peak was 6.6 GiB instead of 5.0 GiB for the same data.
   mallopt(M_MMAP_THRESHOLD, 1 << 20);
   int provided = 0;
   MPI_Init_thread(&argc, &argv, MPI_THREAD_FUNNELED, &provided);

@@ -201,6 +201,20 @@ int run(int argc, char** argv, const Comm& comm) {
                        "how F is applied: implicit (sparse solves), explicit (dense local blocks "
                        "from Schur complements), auto (explicit from 25 nodes per subdomain)")
           ->capture_default_str();
+  std::string precond_text = "none", scaling_text = "multiplicity";
+  auto* o_precond =
+      solve_cmd
+          ->add_option("--preconditioner", precond_text,
+                       "FETI preconditioner: none | lumped (B_D K B_D^T) | dirichlet "
+                       "(B_D S B_D^T, S the subdomain Schur complement on the interface); used "
+                       "by PCG and, in face, by MPRGP inside SMALBE-M")
+          ->capture_default_str();
+  auto* o_scaling =
+      solve_cmd
+          ->add_option("--scaling", scaling_text,
+                       "B_D of the preconditioner: multiplicity | stiffness (weights by the "
+                       "diagonal of K, for coefficient jumps between subdomains)")
+          ->capture_default_str();
   auto* o_keep = solve_cmd->add_flag("--keep-factors", opt.feti.keep_factors,
                       "explicit operator: always keep the subdomain factors during the iterations "
                       "(by default they are freed, and rebuilt for the reconstruction, when they "
@@ -295,6 +309,8 @@ int run(int argc, char** argv, const Comm& comm) {
       if (o_ordering->count()) from_file.feti.ordering = parse_ordering(ordering);
       if (o_dual->count()) from_file.feti.dual_operator = parse_dual_operator(dual_operator);
       if (o_keep->count()) from_file.feti.keep_factors = opt.feti.keep_factors;
+      if (o_precond->count()) from_file.feti.preconditioner = parse_preconditioner(precond_text);
+      if (o_scaling->count()) from_file.feti.scaling = parse_scaling(scaling_text);
       if (o_rho->count()) from_file.smalbe.rho_factor = opt.smalbe.rho_factor;
       if (o_M0->count()) from_file.smalbe.M0_factor = opt.smalbe.M0_factor;
       if (o_eta->count()) from_file.smalbe.eta_factor = opt.smalbe.eta_factor;
@@ -336,6 +352,8 @@ int run(int argc, char** argv, const Comm& comm) {
       spec.glue = parse_glue(glue);
       opt.feti.ordering = parse_ordering(ordering);
       opt.feti.dual_operator = parse_dual_operator(dual_operator);
+      opt.feti.preconditioner = parse_preconditioner(precond_text);
+      opt.feti.scaling = parse_scaling(scaling_text);
       validate_solver(opt);
       model = make_model(spec);
     } else {
@@ -352,6 +370,8 @@ int run(int argc, char** argv, const Comm& comm) {
       opt.decomposition.subdomains = ns[0];
       opt.feti.ordering = parse_ordering(ordering);
       opt.feti.dual_operator = parse_dual_operator(dual_operator);
+      opt.feti.preconditioner = parse_preconditioner(precond_text);
+      opt.feti.scaling = parse_scaling(scaling_text);
       validate(opt);
       model = make_builtin_model(opt.decomposition);
     }

@@ -204,8 +204,25 @@ ProblemSpec read_problem_file(const std::string& path, SolveOptions& solver, Out
     bad("physics.type", e.what());
   }
   spec.physics.dim = has_gen ? spec.box.dim : 3;  // set from the mesh later for files
+  if (const toml::node* c = ph.get("coefficient")) {
+    if (c->is_number()) {
+      std::ostringstream o;
+      o.precision(17);
+      o << c->value<double>().value();
+      spec.physics.coefficient = o.str();
+    } else if (c->is_string()) {
+      spec.physics.coefficient = c->value<std::string>().value();
+    } else {
+      bad("physics.coefficient", "must be a number or an expression string");
+    }
+    try {
+      Expression check(spec.physics.coefficient);
+    } catch (const std::invalid_argument& e) {
+      bad("physics.coefficient", e.what());
+    }
+  }
   if (spec.physics.kind == PhysicsKind::laplace) {
-    check_keys(ph, "physics", {"type", "source"});
+    check_keys(ph, "physics", {"type", "source", "coefficient"});
     if (const toml::node* s = ph.get("source")) {
       if (s->is_number()) {
         std::ostringstream o;
@@ -224,7 +241,7 @@ ProblemSpec read_problem_file(const std::string& path, SolveOptions& solver, Out
       }
     }
   } else {
-    check_keys(ph, "physics", {"type", "young", "poisson", "density", "gravity"});
+    check_keys(ph, "physics", {"type", "young", "poisson", "density", "gravity", "coefficient"});
     spec.physics.material.young = get_double(ph, "physics", "young", 0, true);
     spec.physics.material.poisson = get_double(ph, "physics", "poisson", 0, true);
     spec.physics.density = get_double(ph, "physics", "density", 0);
@@ -363,7 +380,7 @@ ProblemSpec read_problem_file(const std::string& path, SolveOptions& solver, Out
   }
   if (const toml::table* s = table_of(root, "solver", false)) {
     check_keys(*s, "solver", {"rtol", "max_iterations", "ordering", "dual_operator", "keep_factors",
-                              "rho_factor", "M0_factor", "eta_factor", "beta", "gamma", "progress"});
+                              "preconditioner", "scaling", "rho_factor", "M0_factor", "eta_factor", "beta", "gamma", "progress"});
     solver.rtol = get_double(*s, "solver", "rtol", solver.rtol);
     const long long mi = get_int(*s, "solver", "max_iterations", solver.max_iterations);
     if (mi < 0 || mi > 100000000) bad("solver.max_iterations", "must be a non-negative integer");
@@ -372,6 +389,11 @@ ProblemSpec read_problem_file(const std::string& path, SolveOptions& solver, Out
       if (s->contains("ordering")) solver.feti.ordering = parse_ordering(get_string(*s, "solver", "ordering", ""));
       if (s->contains("dual_operator"))
         solver.feti.dual_operator = parse_dual_operator(get_string(*s, "solver", "dual_operator", ""));
+      if (s->contains("preconditioner"))
+        solver.feti.preconditioner =
+            parse_preconditioner(get_string(*s, "solver", "preconditioner", ""));
+      if (s->contains("scaling"))
+        solver.feti.scaling = parse_scaling(get_string(*s, "solver", "scaling", ""));
     } catch (const std::invalid_argument& e) {
       bad("[solver]", e.what());
     }
@@ -584,6 +606,7 @@ class GroupModel final : public Model {
     } else {
       ph["source"] = spec_.source;
     }
+    if (!physics_.coefficient.empty()) ph["coefficient"] = physics_.coefficient;
     j["physics"] = ph;
     j["partitioner"] = grid_ ? "box" : "metis";
     j["subdomains"] = num_subdomains();

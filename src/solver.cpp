@@ -94,6 +94,10 @@ SolveOutput solve(std::shared_ptr<const Model> model_ptr, const SolveOptions& op
 
   qp::FunctionOperator F([&](const Vec& x, Vec& y) { dual.apply_F(x, y); });
   qp::FunctionOperator P([&](const Vec& x, Vec& y) { dual.project(x, y); });
+  // The preconditioner M^{-1} (counted and timed apart) and its projected forms.
+  const bool preconditioned = dual.preconditioner() != PreconditionerKind::none;
+  qp::FunctionOperator M([&](const Vec& x, Vec& y) { dual.apply_preconditioner(x, y); });
+  Vec pw(preconditioned ? n : 0), pz(preconditioned ? n : 0);
   Vec lambda = dual.lambda_tilde();
   nlohmann::json solver;
   int outer = 0, inner = 0;
@@ -111,7 +115,13 @@ SolveOutput solve(std::shared_ptr<const Model> model_ptr, const SolveOptions& op
     qp::PcgOptions po;
     po.rtol = options.rtol;
     po.max_iterations = options.max_iterations > 0 ? options.max_iterations : 1000;
-    const auto r = qp::projected_cg(F, P, dual.d(), lambda, red, po, progress);
+    // PCG applies Z only to projected residuals w = P w, so Z = P M^{-1} is P M^{-1} P there.
+    qp::FunctionOperator Z([&](const Vec& x, Vec& y) {
+      M.apply(x, pz);
+      P.apply(pz, y);
+    });
+    const auto r = qp::projected_cg(F, P, dual.d(), lambda, red, po, progress,
+                                    preconditioned ? &Z : nullptr);
     outer = r.iterations;
     matvecs = F.count();
     converged = r.reason == qp::StopReason::converged;
@@ -151,7 +161,15 @@ SolveOutput solve(std::shared_ptr<const Model> model_ptr, const SolveOptions& op
       P.apply(y, y);
       y += rho * (v - px);
     };
-    const auto r = qp::smalbe(A, Q, b, lower, x, normA, red, so, progress, &H_count, H);
+    // In face: Z_rho = P M^{-1} P + Q / rho, exact on Im Q where H_rho = rho I.
+    const qp::PenalizedApply Zrho = [&](const Vec& v, double rho, Vec& y) {
+      P.apply(v, pw);
+      M.apply(pw, pz);
+      P.apply(pz, y);
+      y += (v - pw) / rho;
+    };
+    const auto r = qp::smalbe(A, Q, b, lower, x, normA, red, so, progress, &H_count, H,
+                              preconditioned ? Zrho : qp::PenalizedApply{});
     lambda += x;
     outer = r.outer_iterations;
     inner = r.inner_iterations;
@@ -209,6 +227,14 @@ SolveOutput solve(std::shared_ptr<const Model> model_ptr, const SolveOptions& op
   rep["ordering"] = dual.ordering_in_effect();
   rep["dual_operator"] = dual.explicit_operator() ? "explicit" : "implicit";
   rep["factors_released"] = dual.factors_released();
+  rep["preconditioner"] = to_string(dual.preconditioner());
+  rep["scaling"] = to_string(dual.scaling());
+  if (preconditioned)
+    // lumped: the sparse K_bb; Dirichlet: S_i dense on every rank, or implicit somewhere.
+    rep["preconditioner_storage"] =
+        dual.preconditioner() == PreconditionerKind::lumped                ? "sparse"
+        : comm.min(dual.preconditioner_dense() ? 1.0 : 0.0) > 0 ? "dense"
+                                                                 : "implicit";
   rep["converged"] = converged;
   rep["stop_reason"] = reason;
   rep["outer_iterations"] = outer;
@@ -216,6 +242,7 @@ SolveOutput solve(std::shared_ptr<const Model> model_ptr, const SolveOptions& op
   rep["matvecs"] = matvecs;
   rep["F_applications"] = F.count();
   rep["projector_applications"] = P.count();
+  rep["preconditioner_applications"] = M.count();
   rep["objective"] = energy;
   rep["kkt"] = {{"equality_residual", kkt.equality_residual},
                 {"max_violation", kkt.max_violation},
@@ -231,7 +258,9 @@ SolveOutput solve(std::shared_ptr<const Model> model_ptr, const SolveOptions& op
                     {"solve", tmax(t_solve)},
                     {"F", tmax(F.seconds())},
                     {"projector", tmax(P.seconds())},
-                    {"vector_work", tmax(t_solve - F.seconds() - P.seconds())},
+                    {"preconditioner", tmax(M.seconds())},
+                    {"preconditioner_setup", tmax(st.preconditioner)},
+                    {"vector_work", tmax(t_solve - F.seconds() - P.seconds() - M.seconds())},
                     {"reconstruction", tmax(t_rec)},
                     {"total", tmax(t_setup + t_solve + t_rec)}};
   struct rusage usage {};
@@ -258,6 +287,8 @@ SolveOutput solve(std::shared_ptr<const Model> model_ptr, const SolveOptions& op
                    {"coarse_factor_nonzeros", dual.coarse_factor_nonzeros()},
                    {"explicit_mb", comm.sum(8.0 * dual.explicit_doubles()) / 1048576.0},
                    {"cluster_dense_mb", comm.sum(8.0 * dual.cluster_dense_doubles()) / 1048576.0},
+                   {"preconditioner_mb",
+                    comm.sum(static_cast<double>(dual.preconditioner_bytes())) / 1048576.0},
                    {"peak_rss_mb_max_rank", comm.max(rss_mb)},
                    {"peak_rss_mb_total", comm.sum(rss_mb)}};
   if (dual.has_inequalities()) {

@@ -58,6 +58,8 @@ TEST_F(Cli, BadArgumentsExitWithCode2AndWriteNothing) {
                        "--rho-factor -1",
                        "--dual-operator dense",
                        "--ordering nd",
+                       "--preconditioner jacobi",
+                       "--scaling rho",
                        // cannot fit in memory: refused by the estimate before any work
                        "-n 20000 --subdomains 100",
                        "-n 100000 --subdomains 10"};
@@ -136,7 +138,8 @@ TEST_F(Cli, ReportsDoNotDependOnTheNumberOfThreads) {
   // -m 3: four clusters per rank, threads run over clusters; -m 6: one cluster per rank, threads
   // run over the subdomains inside it. Both with the explicit and the implicit operator.
   for (const char* config :
-       {"-m 3", "-m 6", "-m 3 --dual-operator implicit", "-m 6 --dual-operator implicit"}) {
+       {"-m 3", "-m 6", "-m 3 --dual-operator implicit", "-m 6 --dual-operator implicit",
+        "-m 3 --preconditioner dirichlet --scaling stiffness", "-m 6 --preconditioner lumped"}) {
     nlohmann::json reports[2];
     for (int t = 1; t <= 2; ++t) {
       const std::string out = "t" + std::to_string(t) + ".json";
@@ -247,6 +250,11 @@ TEST_F(Cli, BadProblemFilesExitWithCode2NamingTheKeyAndWriteNothing) {
       {"[mesh\n", "line"},
       {with("type = \"laplace\"", "type = \"elasticity\"\nyoung = -1\npoisson = 0.3"), "young"},
       {with("type = \"laplace\"", "type = \"elasticity\"\nyoung = 1\npoisson = 0.5"), "poisson"},
+      {with("[solver]", "[solver]\npreconditioner = \"jacobi\""), "preconditioner"},
+      {with("[solver]", "[solver]\nscaling = 1"), "solver.scaling"},
+      {with("type = \"laplace\"", "type = \"laplace\"\ncoefficient = \"q\""), "physics.coefficient"},
+      {with("type = \"laplace\"", "type = \"laplace\"\ncoefficient = \"x - 0.5\""),
+       "physics.coefficient must be positive"},
   };
   int i = 0;
   for (const auto& [text, needle] : cases) {
@@ -280,7 +288,9 @@ TEST_F(Cli, ContactResultsAreIdenticalOnOneToFourRanks) {
   // the iterates, iteration counts and every reported number are the same bit for bit: the
   // cube-obstacle on ESPRESO's default mesh (16 subdomains) and the membranes with clusters.
   const char* problems[] = {"--problem cube-obstacle",
-                            "--problem membranes -n 64 --subdomains 8 -m 2 --glue corners+averages"};
+                            "--problem membranes -n 64 --subdomains 8 -m 2 --glue corners+averages",
+                            "--problem membranes -n 64 --subdomains 8 -m 2 --preconditioner "
+                            "dirichlet --scaling stiffness"};
   for (const char* p : problems) {
     nlohmann::json reports[4];
     for (int r = 1; r <= 4; ++r) {

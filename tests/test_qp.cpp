@@ -149,6 +149,22 @@ TEST_P(MprgpConformance, MatchesEnumeratedActiveSets) {
   EXPECT_LT((x - exact_solution(q, bounded)).norm(), 1e-8);
   expect_kkt(q, x, 1e-9);
   EXPECT_EQ(r.cg_steps + r.expansion_steps + r.proportioning_steps, r.iterations);
+  // Preconditioned in face (a non-diagonal SPD Z: the inverse of A's tridiagonal part, shifted):
+  // the same solution.
+  Eigen::MatrixXd T = Eigen::MatrixXd::Zero(n, n);
+  for (int i = 0; i < n; ++i)
+    for (int j = std::max(0, i - 1); j <= std::min(n - 1, i + 1); ++j) T(i, j) = q.A(i, j);
+  T.diagonal() += Vec::Constant(n, T.cwiseAbs().rowwise().sum().maxCoeff());  // diagonally dominant
+  const Eigen::MatrixXd Zm = T.inverse();
+  DenseOperator Z(0.5 * (Zm + Zm.transpose()));
+  opt.preconditioner = &Z;
+  Vec xp = Vec::Zero(n), gp(n);
+  const auto rp = mprgp(A, q.b, q.l, xp, gp, red, opt,
+                        [&](const Vec&, const Vec&, double gpn) { return gpn <= tol; });
+  ASSERT_EQ(rp.reason, StopReason::converged);
+  EXPECT_LT((xp - exact_solution(q, bounded)).norm(), 1e-8);
+  expect_kkt(q, xp, 1e-9);
+  EXPECT_GT(Z.count(), 0);
 }
 
 INSTANTIATE_TEST_SUITE_P(Random, MprgpConformance, ::testing::Range(1u, 9u));
@@ -180,6 +196,18 @@ TEST_P(SmalbeConformance, MatchesEnumeratedActiveSets) {
   ASSERT_EQ(r2.reason, StopReason::converged);
   EXPECT_EQ(r2.inner_iterations, r.inner_iterations);
   EXPECT_LT((x2 - x).norm(), 1e-10);
+  // Preconditioned in face with Z_rho = P D^{-1} P + Q / rho (D = diag A, P = I - Q): the same
+  // solution.
+  const Eigen::MatrixXd Pm = Eigen::MatrixXd::Identity(n, n) - Qm;
+  const Eigen::MatrixXd Dinv = q.A.diagonal().cwiseInverse().asDiagonal();
+  const PenalizedApply Zrho = [&](const Vec& v, double rho, Vec& y) {
+    y = Pm * (Dinv * (Pm * v)) + Qm * v / rho;
+  };
+  Vec x3 = Vec::Zero(n);
+  const auto r3 = smalbe(A, Q, q.b, q.l, x3, normA, red, opt, {}, nullptr, {}, Zrho);
+  ASSERT_EQ(r3.reason, StopReason::converged);
+  EXPECT_LT((x3 - exact_solution(q, bounded)).norm(), 1e-7);
+  expect_kkt(q, x3, 1e-8);
 }
 
 INSTANTIATE_TEST_SUITE_P(Random, SmalbeConformance,
@@ -202,6 +230,15 @@ TEST(Pcg, EqualityConstrainedMatchesKkt) {
   EXPECT_LT((q.G * x - e).norm(), 1e-12);
   EXPECT_LT((Pm * (q.A * x - q.b)).norm(), 1e-10);
   EXPECT_EQ(A.count(), r.iterations + 1);  // one product per iteration plus the initial residual
+  // Preconditioned (Z = P D^{-1}, D = diag A, applied to projected residuals): the same solution.
+  const Eigen::MatrixXd Zm = Pm * q.A.diagonal().cwiseInverse().asDiagonal() * Pm;
+  DenseOperator Z(Zm);
+  Vec xz = q.G.transpose() * e;
+  const auto rz = projected_cg(A, P, q.b, xz, red, opt, {}, &Z);
+  ASSERT_EQ(rz.reason, StopReason::converged);
+  EXPECT_LT((q.G * xz - e).norm(), 1e-12);
+  EXPECT_LT((xz - x).norm(), 1e-9 * x.norm());
+  EXPECT_EQ(Z.count(), rz.iterations + 1);
 }
 
 TEST(Failures, NonConvergenceIsAResult) {

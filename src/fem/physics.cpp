@@ -1,5 +1,10 @@
 #include "htfeti/fem/physics.hpp"
 
+#include <memory>
+#include <string>
+
+#include "htfeti/expression.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <numeric>
@@ -86,15 +91,29 @@ Eigen::SparseMatrix<double> assemble_stiffness(const SubdomainMesh& mesh, const 
   std::vector<Eigen::MatrixXd> cache(period > 0 ? std::min(period, ne) : 0);
   for (size_t e = 0; e < cache.size(); ++e) cache[e] = element_matrix(mesh, ph, static_cast<int>(e));
   Eigen::MatrixXd local;
+  std::unique_ptr<Expression> coefficient;  // one per call: Expression is not thread-safe
+  if (!ph.coefficient.empty()) coefficient = std::make_unique<Expression>(ph.coefficient);
   for (int e = 0; e < ne; ++e) {
     if (period == 0) local = element_matrix(mesh, ph, e);
     const Eigen::MatrixXd& ke = period > 0 ? cache[e % period] : local;
     const int* cn = mesh.cells.data() + static_cast<size_t>(e) * nc;
+    double scale = 1.0;
+    if (coefficient) {
+      double x[24];
+      for (int a = 0; a < nc; ++a)
+        for (int d = 0; d < 3; ++d) x[3 * a + d] = mesh.coords[3 * static_cast<size_t>(cn[a]) + d];
+      const auto c = cell_centroid(mesh.type, x);
+      scale = (*coefficient)(c);
+      if (!(scale > 0))
+        throw std::invalid_argument("physics.coefficient must be positive; it is " +
+                                    std::to_string(scale) + " at (" + std::to_string(c[0]) + ", " +
+                                    std::to_string(c[1]) + ", " + std::to_string(c[2]) + ")");
+    }
     for (int a = 0; a < nc; ++a)
       for (int i = 0; i < dpn; ++i)
         for (int b = 0; b < nc; ++b)
           for (int j = 0; j < dpn; ++j) {
-            const double v = ke(a * dpn + i, b * dpn + j);
+            const double v = scale * ke(a * dpn + i, b * dpn + j);
             if (v != 0.0) trip.emplace_back(cn[a] * dpn + i, cn[b] * dpn + j, v);
           }
   }

@@ -43,6 +43,17 @@ DualProblem::DualProblem(const FetiLayout& layout,
   double t = now();
   subs_.resize(nsub);
   std::vector<std::vector<LocalRow>> local_rows(nsub);
+  // Exact stiffness scaling on the nodes needs their copy counts. Copies joined primally (corner
+  // glue) form groups, for which the identity used there does not hold: those runs weight each
+  // per-node row over its own entries instead (build_scaling).
+  exact_node_scaling_ =
+      options.preconditioner != PreconditionerKind::none && options.scaling == Scaling::stiffness;
+  if (exact_node_scaling_) {
+    bool groups = false;
+    for (int c = 0; c < layout_.num_clusters; ++c) groups |= layout_.cluster_size(c) > 1;
+    exact_node_scaling_ = layout_.glue == Glue::averages || !groups;
+  }
+  if (exact_node_scaling_) node_copies_.resize(nsub);
   std::vector<std::vector<std::vector<ConstraintEntry>>> primal(ncl);
   outer_parallel_ = omp_get_max_threads() > 1 && ncl >= omp_get_max_threads();
   std::string error;
@@ -63,6 +74,11 @@ DualProblem::DualProblem(const FetiLayout& layout,
           in[i] = std::move(made);
           in[i].system.K.swap(K);
           subdomain_rows(layout_, in[i], local_rows[sub_of(c, i)]);
+          if (!node_copies_.empty()) {
+            auto& nc = node_copies_[sub_of(c, i)];
+            for (int k = 0; k < in[i].sharing.num_nodes(); ++k)
+              nc.push_back(in[i].sharing.num_copies(k));
+          }
         } catch (const std::invalid_argument& e) {
 #pragma omp critical
           inner_error = e.what(), inner_input = true;
@@ -164,9 +180,12 @@ DualProblem::DualProblem(const FetiLayout& layout,
     std::sort(ordered.begin(), ordered.end(), [&](const auto& x, const auto& y) {
       return layout_dual_.global(x.first) < layout_dual_.global(y.first);
     });
-    for (const auto& [k, r] : ordered)
-      for (const auto& [dof, v] : r->entries)
-        rows_[s].push_back({k, -1, dof, v, r->side});
+    for (const auto& [k, r] : ordered) {
+      const RowClass cls = r->kind != MultiplierKind::gluing ? RowClass::other
+                           : r->key[0] == 0                  ? RowClass::node
+                                                             : RowClass::object;
+      for (const auto& [dof, v] : r->entries) rows_[s].push_back({k, -1, dof, v, r->side, cls});
+    }
     lr = {};
   }
   local_rows = {};
@@ -234,6 +253,31 @@ DualProblem::DualProblem(const FetiLayout& layout,
   for (int c = 0; c < ncl; ++c)
     for (int i = 0; i < members(c); ++i) x_[c].push_back(Vec::Zero(subs_[sub_of(c, i)]->size()));
 
+  // The preconditioner's interface per subdomain: the dofs its rows of B~ touch (sorted), and
+  // per row entry the position of its dof there. Dense Dirichlet blocks when they fit.
+  precond_kind_ = options.preconditioner;
+  scaling_ = options.scaling;
+  std::vector<std::vector<int>> interface(precond_kind_ != PreconditionerKind::none ? nsub : 0);
+  std::vector<std::vector<double>> rho(
+      precond_kind_ != PreconditionerKind::none && scaling_ == Scaling::stiffness ? nsub : 0);
+  if (precond_kind_ != PreconditionerKind::none) {
+    double dense_bytes = 0;
+    ipos_.resize(nsub);
+    for (int s = 0; s < nsub; ++s) {
+      auto& in = interface[s];
+      for (const auto& r : rows_[s]) in.push_back(r.dof);
+      std::sort(in.begin(), in.end());
+      in.erase(std::unique(in.begin(), in.end()), in.end());
+      for (const auto& r : rows_[s])
+        ipos_[s].push_back(
+            static_cast<int>(std::lower_bound(in.begin(), in.end(), r.dof) - in.begin()));
+      dense_bytes += 8.0 * in.size() * in.size();
+    }
+    precond_dense_ = precond_kind_ == PreconditionerKind::dirichlet &&
+                     comm_.max(dense_bytes) <= options.dirichlet_dense_budget_bytes;
+    precond_.resize(nsub);
+  }
+
   // 3. Clusters: factorizations, explicit blocks, the primal-constraint systems; d.
   t = now();
   clusters_.resize(ncl);
@@ -258,6 +302,28 @@ DualProblem::DualProblem(const FetiLayout& layout,
       cluster_rhs_from_ext(c, true, 0.0);
       clusters_[c]->solve(x_[c]);
       b_of_x(c);
+      if (precond_kind_ != PreconditionerKind::none) {  // from K_i, before it is freed
+        const double tp = now();
+        std::string perr;
+#pragma omp parallel for schedule(dynamic) if (!omp_in_parallel() && members(c) > 1)
+        for (int i = 0; i < members(c); ++i) {
+          const int s = sub_of(c, i);
+          try {
+            const Eigen::SparseMatrix<double>& K = subs_[s]->K();
+            if (!rho.empty())
+              for (const auto& r : rows_[s]) rho[s].push_back(K.coeff(r.dof, r.dof));
+            precond_[s] = std::make_unique<LocalPreconditioner>(
+                K, std::move(interface[s]), precond_kind_, precond_dense_, ordering_,
+                &subs_[s]->kernel());
+          } catch (const std::exception& e) {
+#pragma omp critical
+            perr = e.what();
+          }
+        }
+        if (!perr.empty()) throw std::runtime_error(perr);
+#pragma omp atomic
+        setup_.preconditioner += now() - tp;
+      }
       // Factored: energy() and refactoring rebuild K_i. Freed per cluster, so that the peak is
       // the factors plus the matrices of the clusters not yet factored, not both in full.
       double bytes = 0;
@@ -381,8 +447,215 @@ DualProblem::DualProblem(const FetiLayout& layout,
   for (int k = 0; k < n_own; ++k)
     lower_[k] =
         kind_[k] == MultiplierKind::contact ? 0.0 : -std::numeric_limits<double>::infinity();
+  if (precond_kind_ != PreconditionerKind::none) {
+    pin_.resize(nsub), pout_.resize(nsub);
+    for (int s = 0; s < nsub; ++s)
+      pin_[s] = Vec::Zero(precond_[s]->size()), pout_[s] = Vec::Zero(precond_[s]->size());
+    if (scaling_ == Scaling::stiffness) build_scaling(rho);
+  }
   setup_.coarse = now() - t;
   setup_.peak_mb_coarse = peak_rss_mb();
+}
+
+void DualProblem::build_scaling(const std::vector<std::vector<double>>& rho) {
+  // Per (subdomain s, row r): rho_{r,s}, the b^2-weighted mean of diag K_s over the row's
+  // entries on s; summed over the subdomains of each row: W_r = sum_s rho_{r,s} and, for
+  // per-node rows (one entry b_{r,s} per subdomain), V_r = sum_s rho_{r,s} b_{r,s}. With the
+  // weights delta_s = rho_{r,s} / W_r the scaled entries are
+  //   per-node rows: b - sum_s delta_s b_{r,s}, so that B_D^T B~ on a node with copies
+  //     weighted by delta is the jump operator u_s - sum_t delta_t u_t (for uniform weights
+  //     the sum vanishes: B_D = B~);
+  //   averaged-object rows (w, -w)/sqrt(2) on two subdomains: 2 (1 - delta_s) b, the weight of
+  //     the other side (again B_D = B~ for uniform weights);
+  //   Dirichlet and contact rows: b.
+  const int nsub = static_cast<int>(subs_.size()), n_own = layout_dual_.n_owned();
+  const int npairs = static_cast<int>(flat_.size());
+  Vec num = Vec::Zero(npairs), den = Vec::Zero(npairs), bpair = Vec::Zero(npairs);
+  for (int s = 0; s < nsub; ++s)
+    for (size_t e = 0; e < rows_[s].size(); ++e) {
+      const Row& r = rows_[s][e];
+      const int p = flat_off_[s] + r.j;
+      num[p] += r.value * r.value * rho[s][e];
+      den[p] += r.value * r.value;
+      if (r.cls == RowClass::node) bpair[p] = r.value;
+    }
+  const Vec rs = (den.array() > 0).select(num.cwiseQuotient(den.cwiseMax(1e-300)), 0.0);
+  flat_ = rs;
+  combine_subdomains();
+  gather_to_ext(ext_out_.head(n_own).eval());
+  const Vec W = ext_in_;
+  flat_ = rs.cwiseProduct(bpair);
+  combine_subdomains();
+  gather_to_ext(ext_out_.head(n_own).eval());
+  const Vec V = ext_in_;
+  bd_.resize(nsub);
+  for (int s = 0; s < nsub; ++s) {
+    bd_[s].resize(rows_[s].size());
+    for (size_t e = 0; e < rows_[s].size(); ++e) {
+      const Row& r = rows_[s][e];
+      const double w = W[r.k];
+      double v = r.value;
+      if (w > 0 && r.cls == RowClass::node && !exact_node_scaling_) v = r.value - V[r.k] / w;
+      if (w > 0 && r.cls == RowClass::object) v = 2.0 * r.value * (1.0 - rs[flat_off_[s] + r.j] / w);
+      bd_[s][e] = v;
+    }
+  }
+  if (!exact_node_scaling_) return;
+  // Nodes with per-node gluing rows and no groups: the rows are an orthonormal basis of the
+  // differences of the node's m copies, so B_g^T B_g = I - 11^T / m there and the sum over the
+  // copies of a node is m (v_e - (B_g^T B_g v)_e), computable from any copy e. The weights are
+  // delta_e = rho_e / sum_c rho_c, and B_D = B_g (I - delta 1^T) on the node: applied in
+  // apply_preconditioner as u - 1 (delta^T u) after B_g^T and v - delta (1^T v) before B_g.
+  npos_.resize(nsub), ncopies_.resize(nsub), ndelta_.resize(nsub);
+  pw_.resize(nsub), pq_.resize(nsub), psum_.resize(nsub);
+  std::vector<Vec> rv(nsub);
+  for (int s = 0; s < nsub; ++s) {
+    const int nb = precond_[s]->size();
+    pw_[s] = Vec::Zero(nb), pq_[s] = Vec::Zero(nb), psum_[s] = Vec::Zero(nb);
+    rv[s] = Vec::Zero(nb);
+    const int dpn = subs_[s]->dofs_per_node();
+    for (size_t e = 0; e < rows_[s].size(); ++e) {
+      const Row& r = rows_[s][e];
+      if (r.cls != RowClass::node) continue;
+      npos_[s].push_back(ipos_[s][e]);
+      ncopies_[s].push_back(node_copies_[s][r.dof / dpn]);
+      rv[s][ipos_[s][e]] = rho[s][e];
+    }
+    // unique positions (a node dof carries several rows); copies follow their positions
+    std::vector<size_t> idx(npos_[s].size());
+    std::iota(idx.begin(), idx.end(), 0);
+    std::sort(idx.begin(), idx.end(), [&](size_t a, size_t b) { return npos_[s][a] < npos_[s][b]; });
+    std::vector<int> pos, cop;
+    for (size_t i : idx)
+      if (pos.empty() || pos.back() != npos_[s][i])
+        pos.push_back(npos_[s][i]), cop.push_back(ncopies_[s][i]);
+    npos_[s] = pos;
+    ncopies_[s].assign(cop.begin(), cop.end());
+  }
+  node_copies_ = {};
+  std::vector<Vec> rsum(nsub);
+  for (int s = 0; s < nsub; ++s) rsum[s] = Vec::Zero(precond_[s]->size());
+  copy_sums(rv, rsum);
+  for (int s = 0; s < nsub; ++s) {
+    ndelta_[s].resize(npos_[s].size());
+    for (size_t i = 0; i < npos_[s].size(); ++i) {
+      const int p = npos_[s][i];
+      ndelta_[s][i] = rsum[s][p] > 0 ? rv[s][p] / rsum[s][p] : 1.0 / ncopies_[s][i];
+    }
+  }
+}
+
+void DualProblem::gluing_BtB(const std::vector<Vec>& w, std::vector<Vec>& q) {
+  const int nsub = static_cast<int>(subs_.size()), n_own = layout_dual_.n_owned();
+#pragma omp parallel for schedule(dynamic)
+  for (int s = 0; s < nsub; ++s) {
+    for (int j = flat_off_[s]; j < flat_off_[s + 1]; ++j) flat_[j] = 0.0;
+    double* f = flat_.data() + flat_off_[s];
+    const int* pos = ipos_[s].data();
+    const auto& rows = rows_[s];
+    for (size_t e = 0; e < rows.size(); ++e)
+      if (rows[e].cls == RowClass::node) f[rows[e].j] += rows[e].value * w[s][pos[e]];
+  }
+  combine_subdomains();
+  ext_in_.head(n_own) = ext_out_.head(n_own);
+  layout_dual_.forward(ext_in_.data());
+#pragma omp parallel for schedule(dynamic)
+  for (int s = 0; s < nsub; ++s) {
+    q[s].setZero();
+    const int* pos = ipos_[s].data();
+    const auto& rows = rows_[s];
+    for (size_t e = 0; e < rows.size(); ++e)
+      if (rows[e].cls == RowClass::node) q[s][pos[e]] += rows[e].value * ext_in_[rows[e].k];
+  }
+}
+
+void DualProblem::copy_sums(std::vector<Vec>& v, std::vector<Vec>& sums) {
+  gluing_BtB(v, pq_);
+  const int nsub = static_cast<int>(subs_.size());
+  for (int s = 0; s < nsub; ++s)
+    for (size_t i = 0; i < npos_[s].size(); ++i) {
+      const int p = npos_[s][i];
+      sums[s][p] = ncopies_[s][i] * (v[s][p] - pq_[s][p]);
+    }
+}
+
+void DualProblem::apply_preconditioner(const Vec& x, Vec& y) {
+  if (precond_kind_ == PreconditionerKind::none)
+    throw std::logic_error("apply_preconditioner: no preconditioner was built");
+  gather_to_ext(x);
+  const int nsub = static_cast<int>(subs_.size());
+  const bool scaled = !bd_.empty(), nodes = exact_node_scaling_;
+  auto value = [&](int s, size_t e) { return scaled ? bd_[s][e] : rows_[s][e].value; };
+  if (!nodes) {  // one pass: B_D^T, the local operator, B_D
+#pragma omp parallel for schedule(dynamic)
+    for (int s = 0; s < nsub; ++s) {
+      const auto& rows = rows_[s];
+      const int* pos = ipos_[s].data();
+      double* in = pin_[s].data();
+      double* out = pout_[s].data();
+      pin_[s].setZero();
+      for (size_t e = 0; e < rows.size(); ++e)  // B_D^T x on the interface
+        in[pos[e]] += value(s, e) * ext_in_[rows[e].k];
+      precond_[s]->apply(in, out);
+      double* f = flat_.data() + flat_off_[s];
+      for (int j = flat_off_[s]; j < flat_off_[s + 1]; ++j) flat_[j] = 0.0;
+      for (size_t e = 0; e < rows.size(); ++e)  // B_D (S B_D^T x)
+        f[rows[e].j] += value(s, e) * out[pos[e]];
+    }
+    combine_subdomains();
+    y = ext_out_.head(layout_dual_.n_owned());
+    return;
+  }
+  // Exact node scaling (build_scaling): the gluing part of B^T x on node dofs is corrected by
+  // u - 1 (delta^T u), and before B the local result by v - delta (1^T v).
+#pragma omp parallel for schedule(dynamic)
+  for (int s = 0; s < nsub; ++s) {
+    const auto& rows = rows_[s];
+    const int* pos = ipos_[s].data();
+    pin_[s].setZero(), pw_[s].setZero();
+    for (size_t e = 0; e < rows.size(); ++e) {
+      const double v = value(s, e) * ext_in_[rows[e].k];
+      if (rows[e].cls == RowClass::node)
+        pw_[s][pos[e]] += v;  // B_g^T x
+      else
+        pin_[s][pos[e]] += v;
+    }
+    for (size_t i = 0; i < npos_[s].size(); ++i) pw_[s][npos_[s][i]] *= ndelta_[s][i];
+  }
+  copy_sums(pw_, psum_);  // delta^T u over each node's copies
+#pragma omp parallel for schedule(dynamic)
+  for (int s = 0; s < nsub; ++s) {
+    for (size_t i = 0; i < npos_[s].size(); ++i) {
+      const int p = npos_[s][i];
+      pin_[s][p] += pw_[s][p] / ndelta_[s][i] - psum_[s][p];
+    }
+    precond_[s]->apply(pin_[s].data(), pout_[s].data());
+    pw_[s].setZero();
+    for (size_t i = 0; i < npos_[s].size(); ++i) pw_[s][npos_[s][i]] = pout_[s][npos_[s][i]];
+  }
+  copy_sums(pw_, psum_);  // 1^T v over each node's copies
+#pragma omp parallel for schedule(dynamic)
+  for (int s = 0; s < nsub; ++s) {
+    const auto& rows = rows_[s];
+    const int* pos = ipos_[s].data();
+    pw_[s] = pout_[s];
+    for (size_t i = 0; i < npos_[s].size(); ++i)
+      pw_[s][npos_[s][i]] -= ndelta_[s][i] * psum_[s][npos_[s][i]];
+    double* f = flat_.data() + flat_off_[s];
+    for (int j = flat_off_[s]; j < flat_off_[s + 1]; ++j) flat_[j] = 0.0;
+    for (size_t e = 0; e < rows.size(); ++e)
+      f[rows[e].j] += value(s, e) * (rows[e].cls == RowClass::node ? pw_[s][pos[e]] : pout_[s][pos[e]]);
+  }
+  combine_subdomains();
+  y = ext_out_.head(layout_dual_.n_owned());
+}
+
+long DualProblem::preconditioner_bytes() const {
+  long b = 0;
+  for (const auto& p : precond_) b += p ? p->bytes() : 0;
+  for (const auto& v : ipos_) b += 4 * static_cast<long>(v.size());
+  for (const auto& v : bd_) b += 8 * static_cast<long>(v.size());
+  return b;
 }
 
 void DualProblem::gather_to_ext(const Vec& owned) {

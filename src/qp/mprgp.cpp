@@ -32,15 +32,25 @@ MprgpResult mprgp(Operator& A, const Vec& b, const Vec& l, Vec& x, Vec& g, const
   MprgpResult res;
   MprgpWorkspace local;
   MprgpWorkspace& w = workspace ? *workspace : local;
+  Operator* Z = opt.preconditioner;
   w.phi.resize(n), w.beta.resize(n), w.p.resize(n), w.Ap.resize(n);  // no-ops when reused
-  Vec &phi = w.phi, &beta = w.beta, &p = w.p, &Ap = w.Ap;
+  if (Z) w.z.resize(n);
+  Vec &phi = w.phi, &beta = w.beta, &p = w.p, &Ap = w.Ap, &z = w.z;
+  // z = D_F Z phi: the preconditioned free gradient (phi itself without a preconditioner).
+  auto precondition = [&]() -> const Vec& {
+    if (!Z) return phi;
+    Z->apply(phi, z);
+    for (Eigen::Index i = 0; i < n; ++i)
+      if (!(x[i] > l[i])) z[i] = 0.0;
+    return z;
+  };
   if (!gradient_given) {
     x = x.cwiseMax(l);
     A.apply(x, g);
     g -= b;
   }
   split_gradient(x, g, l, phi, beta);
-  p = phi;
+  p = precondition();
   for (int it = 0;; ++it) {
     res.iterations = it;
     res.projected_gradient = std::sqrt(red.dot(phi, phi) + red.dot(beta, beta));
@@ -76,8 +86,9 @@ MprgpResult mprgp(Operator& A, const Vec& b, const Vec& l, Vec& x, Vec& g, const
         x = x.cwiseMax(l);
         g -= a_cg * Ap;
         split_gradient(x, g, l, phi, beta);
-        const double gamma_cg = red.dot(phi, Ap) / pAp;
-        p = phi - gamma_cg * p;
+        const Vec& zz = precondition();
+        const double gamma_cg = red.dot(zz, Ap) / pAp;
+        p = zz - gamma_cg * p;
       } else {  // expansion step: feasible half step, then fixed-length projected gradient step
         ++res.expansion_steps;
         x -= a_f * p;
@@ -88,7 +99,7 @@ MprgpResult mprgp(Operator& A, const Vec& b, const Vec& l, Vec& x, Vec& g, const
         A.apply(x, g);
         g -= b;
         split_gradient(x, g, l, phi, beta);
-        p = phi;
+        p = precondition();
       }
     } else {  // proportioning step along the chopped gradient
       ++res.proportioning_steps;
@@ -102,7 +113,7 @@ MprgpResult mprgp(Operator& A, const Vec& b, const Vec& l, Vec& x, Vec& g, const
       x -= a_cg * beta;
       g -= a_cg * Ap;
       split_gradient(x, g, l, phi, beta);
-      p = phi;
+      p = precondition();
     }
   }
 }

@@ -3,10 +3,10 @@
 namespace htfeti::qp {
 
 PcgResult projected_cg(Operator& A, Operator& P, const Vec& b, Vec& x, const Reducer& red,
-                       const PcgOptions& opt, const Progress& progress) {
+                       const PcgOptions& opt, const Progress& progress, Operator* Z) {
   PcgResult res;
   const Eigen::Index n = b.size();
-  Vec r(n), w(n), p(n), q(n);
+  Vec r(n), w(n), p(n), q(n), z(Z ? n : 0);
   P.apply(b, w);
   res.projected_rhs = red.norm(w);
   const double tol = opt.rtol * (res.projected_rhs > 0 ? res.projected_rhs : 1.0);
@@ -14,7 +14,14 @@ PcgResult projected_cg(Operator& A, Operator& P, const Vec& b, Vec& x, const Red
   r = b - q;      // residual
   P.apply(r, w);  // projected residual (the gradient in Ker G)
   double ww = red.dot(w, w);
-  p = w;
+  double wz = ww;  // w'z (z = w without a preconditioner)
+  if (Z) {
+    Z->apply(w, z);
+    wz = red.dot(w, z);
+    p = z;
+  } else {
+    p = w;
+  }
   for (int it = 0;; ++it) {
     res.iterations = it;
     res.projected_residual = std::sqrt(ww);
@@ -27,19 +34,30 @@ PcgResult projected_cg(Operator& A, Operator& P, const Vec& b, Vec& x, const Red
       res.reason = StopReason::max_iterations;
       return res;
     }
+    if (!(wz > 0)) {  // a preconditioner that is not positive definite on Ker G
+      res.reason = StopReason::breakdown;
+      return res;
+    }
     A.apply(p, q);  // the bottleneck: one dual operator application
     const double pq = red.dot(p, q);
     if (!(pq > 0)) {
       res.reason = StopReason::breakdown;
       return res;
     }
-    const double alpha = ww / pq;
+    const double alpha = wz / pq;
     x += alpha * p;
     r -= alpha * q;
     P.apply(r, w);
-    const double ww_new = red.dot(w, w);
-    p = w + (ww_new / ww) * p;  // new conjugate direction, still in Ker G
-    ww = ww_new;
+    ww = red.dot(w, w);
+    if (Z) {
+      Z->apply(w, z);
+      const double wz_new = red.dot(w, z);
+      p = z + (wz_new / wz) * p;  // new conjugate direction, still in Ker G
+      wz = wz_new;
+    } else {
+      p = w + (ww / wz) * p;
+      wz = ww;
+    }
   }
 }
 

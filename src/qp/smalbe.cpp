@@ -7,7 +7,8 @@ namespace htfeti::qp {
 
 SmalbeResult smalbe(Operator& A, Operator& Q, const Vec& b, const Vec& l, Vec& x, double normA,
                     const Reducer& red, const SmalbeOptions& opt, const Progress& progress,
-                    long* H_applications, const PenalizedApply& penalized) {
+                    long* H_applications, const PenalizedApply& penalized,
+                    const PenalizedApply& preconditioner) {
   if (!(normA > 0)) throw std::invalid_argument("SMALBE-M: ||A|| estimate must be positive");
   SmalbeResult res;
   const Eigen::Index n = b.size();
@@ -30,9 +31,11 @@ SmalbeResult smalbe(Operator& A, Operator& Q, const Vec& b, const Vec& l, Vec& x
   res.rho = rho;
   res.alpha = 2.0 / (opt.norm_safety * std::max(normA, rho));
 
+  FunctionOperator Z([&](const Vec& v, Vec& y) { preconditioner(v, rho, y); });
   MprgpOptions mo;
   mo.gamma = opt.gamma;
   mo.alpha = res.alpha;
+  if (preconditioner) mo.preconditioner = &Z;
   Vec nu = Vec::Zero(n), rhs(n), g(n);
   MprgpWorkspace work;  // shared by all inner solves: no allocation inside the outer loop
   double L_prev = 0;

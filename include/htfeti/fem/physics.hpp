@@ -35,6 +35,10 @@ struct Physics {
   Material material;   ///< elasticity
   double density = 0;  ///< elasticity: body force density * gravity
   std::array<double, 3> gravity{0, 0, 0};
+  /// A positive coefficient field c(x, y, z) (an Expression; empty: 1) that multiplies each
+  /// element's stiffness, evaluated at the element's centroid: the conductivity of a Laplace
+  /// problem, a factor on Young's modulus in elasticity (coefficient jumps between materials).
+  std::string coefficient;
   int dofs_per_node() const { return kind == PhysicsKind::laplace ? 1 : dim; }
   int kernel_dimension() const {
     return kind == PhysicsKind::laplace ? 1 : (dim == 2 ? 3 : 6);

@@ -28,6 +28,7 @@
 
 #include "htfeti/feti/cluster.hpp"
 #include "htfeti/feti/constraints.hpp"
+#include "htfeti/feti/preconditioner.hpp"
 #include "htfeti/feti/sparse_cholesky.hpp"
 #include "htfeti/parallel/dual_layout.hpp"
 
@@ -48,6 +49,12 @@ struct FetiOptions {
   /// automatic picks the explicit operator only when its dense blocks (8 n_i^2 bytes per
   /// subdomain, n_i its multipliers) fit this budget on every rank.
   double explicit_budget_bytes = 4.0 * (1LL << 30);
+  /// The preconditioner built for apply_preconditioner() (none: not built; preconditioner.hpp).
+  PreconditionerKind preconditioner = PreconditionerKind::none;
+  Scaling scaling = Scaling::multiplicity;
+  /// The Dirichlet preconditioner stores S_i dense when 8 n_b^2 bytes summed over the rank's
+  /// subdomains fit this budget (n_b: interface dofs), else applies it with a factor of K_ii.
+  double dirichlet_dense_budget_bytes = 2.0 * (1LL << 30);
 };
 
 constexpr int kExplicitMinNodes = 25;
@@ -57,6 +64,7 @@ struct SetupTimings {
   double assembly = 0, factorization = 0, constraints = 0, coarse = 0;
   double cluster_setup =
       0;  ///< part of factorization: primal-constraint systems (summed over clusters)
+  double preconditioner = 0;  ///< part of factorization: the local preconditioners (summed)
   /// Peak resident memory of the rank (MiB) at the end of each setup phase.
   double factor_mb = 0;  ///< the rank's subdomain factors as built (before any release)
   double peak_mb_assembly = 0, peak_mb_constraints = 0, peak_mb_factorization = 0,
@@ -93,6 +101,16 @@ class DualProblem {
   long long global_index(int i) const { return layout_dual_.global(i); }
 
   void apply_F(const Vec& lambda, Vec& y);
+  /// y = M^{-1} x = B_D S B_D^T x (Dirichlet) or B_D K B_D^T x (lumped), summed over the
+  /// subdomains in a fixed order (preconditioner.hpp; the caller projects: P M^{-1} P).
+  /// Requires FetiOptions::preconditioner != none. Cost: one exchange each way and one
+  /// LocalPreconditioner::apply per subdomain.
+  void apply_preconditioner(const Vec& x, Vec& y);
+  PreconditionerKind preconditioner() const { return precond_kind_; }
+  Scaling scaling() const { return scaling_; }
+  /// Whether the Dirichlet S_i are stored dense on every rank (false: implicit somewhere).
+  bool preconditioner_dense() const { return precond_dense_; }
+  long preconditioner_bytes() const;  ///< on this rank
   /// Global sums that do not depend on the number of ranks: per owner cluster (the cluster of the
   /// lowest subdomain a multiplier touches) a partial sum over its entries in global order, the
   /// partial sums combined in cluster order. Collective.
@@ -175,12 +193,15 @@ class DualProblem {
   }
 
  private:
+  // Per-node gluing row, averaged-object row, or a Dirichlet / contact row (for the scaling).
+  enum class RowClass : std::uint8_t { node, object, other };
   struct Row {
     int k;  // extended dual index
     int j;  // index among the subdomain's multipliers (mult_[s][j] == k)
     int dof;
     double value;
     int side;  // contact rows: +1 on node a, -1 on node b; 0 otherwise
+    RowClass cls;
   };
   void gather_to_ext(const Vec& owned);                        // ext_in_ = [owned, ghosts]
   void cluster_rhs_from_ext(int c, bool add_f, double sign);   // x_i = (f_i) + sign B_i^T ext_in_
@@ -252,6 +273,25 @@ class DualProblem {
   std::vector<std::vector<double>> contrib_;  // per subdomain, per row entry
   std::vector<std::vector<int>> mult_;        // per subdomain: its multipliers (extended indices)
   std::vector<std::vector<Vec>> lam_, out_;   // per cluster, per subdomain: local dual vectors
+  // Preconditioner: per local subdomain its local part, per row entry the interface position of
+  // its dof and (stiffness scaling) the scaled value of B_D; work vectors on the interface.
+  void build_scaling(const std::vector<std::vector<double>>& rho);
+  // Stiffness scaling on nodes with per-node gluing rows: q = B_g^T B_g w on the interfaces
+  // (B_g: those rows; one exchange each way), and the weighted sums over a node's copies.
+  void gluing_BtB(const std::vector<Vec>& w, std::vector<Vec>& q);
+  void copy_sums(std::vector<Vec>& v, std::vector<Vec>& sums);  // sums_e = sum_c v_c (node dofs)
+  bool exact_node_scaling_ = false;
+  std::vector<std::vector<int>> node_copies_;   // per local subdomain: copies of each node
+  std::vector<std::vector<int>> npos_;          // interface positions with per-node gluing rows
+  std::vector<std::vector<double>> ncopies_, ndelta_;  // their copy count and weight delta
+  std::vector<Vec> pw_, pq_, psum_;                   // interface work vectors
+  PreconditionerKind precond_kind_ = PreconditionerKind::none;
+  Scaling scaling_ = Scaling::multiplicity;
+  bool precond_dense_ = true;
+  std::vector<std::unique_ptr<LocalPreconditioner>> precond_;
+  std::vector<std::vector<int>> ipos_;
+  std::vector<std::vector<double>> bd_;
+  std::vector<Vec> pin_, pout_;
   bool explicit_ = false;
   bool factors_released_ = false;
   bool outer_parallel_ = false;  // threads over clusters (true) or inside each cluster

@@ -10,7 +10,14 @@
 //     keeps x feasible, otherwise an expansion step: the largest feasible CG step, then a
 //     projected gradient step of fixed length alpha on the free gradient;
 //   - not proportional: a proportioning step, an exact line search along beta (leaves the face).
-// Cost of one iteration: one application of A (two for an expansion step) and a few vector ops.
+// Preconditioning in face (Dostal 2009, Section 8.6; PERMON's and ESPRESO's MPRGP): with a
+// preconditioner Z, symmetric positive definite, the CG steps in the face use the preconditioned
+// free gradient z = D_F Z phi (D_F: zero on the active set) in place of phi: p = z after a
+// restart, p = z - (z'Ap / p'Ap) p after a CG step; the step along p is the exact line search.
+// Expansion and proportioning steps and the proportionality test stay unpreconditioned, so the
+// convergence theory of the fixed-length projected gradient step is kept.
+// Cost of one iteration: one application of A (two for an expansion step) and a few vector ops
+// (and one of Z when preconditioned).
 // Stops when the caller's test holds for the projected gradient g^P = phi + beta.
 #pragma once
 
@@ -22,6 +29,8 @@ struct MprgpOptions {
   double gamma = 1.0;  ///< proportioning parameter Gamma > 0
   double alpha = 0.0;  ///< expansion step length in (0, 2/||A||]; required (> 0)
   int max_iterations = 10000;
+  /// Preconditioner in face (see above); nullptr: none. Not owned.
+  Operator* preconditioner = nullptr;
 };
 
 struct MprgpResult {
@@ -34,7 +43,7 @@ struct MprgpResult {
 /// Work vectors of one MPRGP run; pass the same one to repeated runs (SMALBE-M's inner solves)
 /// so that nothing is allocated after the first.
 struct MprgpWorkspace {
-  Vec phi, beta, p, Ap;
+  Vec phi, beta, p, Ap, z;
 };
 
 /// stop(x, g, ||g^P||) decides convergence. x: start in (projected onto the bounds), solution out;

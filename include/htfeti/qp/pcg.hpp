@@ -3,7 +3,13 @@
 // P the orthogonal projector onto Ker G. Every iterate stays feasible because every direction is
 // a P-image. Stops when ||P(b - A x)|| <= rtol ||P b||.
 //
-// Cost of one iteration: one application of A, one of P, three dot products, three axpys.
+// With a preconditioner Z (the caller's P M^{-1} P, symmetric positive definite on Ker G) the
+// directions are built from z = Z w, w = P r (FETI's preconditioned conjugate projected
+// gradients, Farhat, Mandel, Roux 1994): beta = w'z / w_old'z_old. The stopping test is the
+// same, so both variants stop at the same accuracy.
+//
+// Cost of one iteration: one application of A, one of P, three dot products, three axpys
+// (and one of Z, one more dot product, when preconditioned).
 #pragma once
 
 #include "htfeti/qp/operator.hpp"
@@ -24,6 +30,7 @@ struct PcgResult {
 
 /// x: feasible start in, solution out. A counts its applications (see Operator).
 PcgResult projected_cg(Operator& A, Operator& P, const Vec& b, Vec& x, const Reducer& red,
-                       const PcgOptions& options, const Progress& progress = {});
+                       const PcgOptions& options, const Progress& progress = {},
+                       Operator* preconditioner = nullptr);
 
 }  // namespace htfeti::qp

@@ -48,8 +48,11 @@ using PenalizedApply = std::function<void(const Vec& x, double rho, Vec& y)>;
 
 /// normA: an estimate of ||A|| (estimate_norm). x: start in, solution out. H_rho applications are
 /// counted by the operator `counted_H` if given (so a caller can report them), else not at all.
+/// preconditioner (optional): y = Z_rho x, a symmetric positive definite approximation of
+/// H_rho^{-1}, used by MPRGP in face (for A = PFP: P M^{-1} P + Q / rho, exact on Im Q).
 SmalbeResult smalbe(Operator& A, Operator& Q, const Vec& b, const Vec& lower, Vec& x, double normA,
                     const Reducer& red, const SmalbeOptions& options, const Progress& progress = {},
-                    long* H_applications = nullptr, const PenalizedApply& penalized = {});
+                    long* H_applications = nullptr, const PenalizedApply& penalized = {},
+                    const PenalizedApply& preconditioner = {});
 
 }  // namespace htfeti::qp

@@ -1,0 +1,78 @@
+// The subdomain part of the FETI preconditioners (Farhat, Mandel, Roux 1994; Klawonn, Widlund
+// 2001; Dostal et al. 2016, Section 10.4):
+//     lumped     M^{-1} = B_D K B_D^T,        Dirichlet  M^{-1} = B_D S B_D^T,
+// with K = diag(K_i) and S = diag(S_i), S_i = K_bb - K_bi K_ii^{-1} K_ib the Schur complement of
+// K_i onto its interface b (the dofs that rows of B~ touch: gluing, Dirichlet and contact rows).
+// Only the interface block enters: the lumped one applies K_bb, the Dirichlet one S_i. The
+// scaled B_D and the assembly over subdomains are in DualProblem (apply_preconditioner).
+//
+// S_i is stored dense when it fits (DualProblem decides by a budget), computed from one Cholesky
+// factorization of K_i + sigma I_b with the interface ordered last: the trailing block L_s of the
+// factor satisfies L_s L_s^T = S_i + sigma I (K_i itself is singular for a floating subdomain,
+// the shifted matrix is not), so S_i = L_s L_s^T - sigma I with sigma = max diag K_bb.
+// Otherwise S_i is applied implicitly with a sparse factor of K_ii.
+//
+// S_i vanishes on the subdomain's rigid motions restricted to the interface (R_b). In TFETI
+// with B_D = B~ those directions are cut off by the projector (R^T B^T x = G x = 0 on Ker G),
+// but with H-TFETI-DP (cluster kernels only) or a scaled B_D they are not, and B_D S B_D^T is
+// then only semidefinite on Ker G (observed on the 3D cube with clusters). Given the kernel,
+// the Dirichlet operator is S_i + tau Q Q^T, Q an orthonormal basis of R_b and tau the mean
+// diagonal of K_bb: positive definite, and unchanged on the complement of R_b.
+//
+// Cost of one application: lumped 2 nnz(K_bb) flops; Dirichlet dense 2 n_b^2; implicit
+// 2 nnz(K_ib) + 2 nnz(K_bb) + one solve with the factor of K_ii (about 4 nnz(L_ii)).
+#pragma once
+
+#include <Eigen/Dense>
+#include <Eigen/Sparse>
+#include <string>
+#include <vector>
+
+#include "htfeti/feti/sparse_cholesky.hpp"
+
+namespace htfeti {
+
+enum class PreconditionerKind { none, lumped, dirichlet };
+PreconditionerKind parse_preconditioner(const std::string& name);  // throws std::invalid_argument
+std::string to_string(PreconditionerKind kind);
+
+/// How B_D weights the rows of B~ (DualProblem::apply_preconditioner):
+///  - multiplicity: B_D = B~. B~ has orthonormal rows, so B~^T B~ is already the
+///    multiplicity-weighted jump operator (a node with k copies: I - 11^T / k);
+///  - stiffness: the gluing rows weighted by the diagonal of K (rho), so that the stiffer
+///    side of an interface is trusted more (the rho-scaling of Klawonn and Widlund).
+enum class Scaling { multiplicity, stiffness };
+Scaling parse_scaling(const std::string& name);  // throws std::invalid_argument
+std::string to_string(Scaling scaling);
+
+class LocalPreconditioner {
+ public:
+  /// K: the subdomain's full stiffness (both triangles); interface: sorted distinct dofs.
+  /// dense: store S_i dense (Dirichlet only). Throws std::runtime_error if K_ii (or the shifted
+  /// matrix) is not positive definite (the interface does not restrain the subdomain).
+  /// kernel: the subdomain's kernel basis (rows: dofs), or nullptr (S_i as it is).
+  LocalPreconditioner(const Eigen::SparseMatrix<double>& K, std::vector<int> interface,
+                      PreconditionerKind kind, bool dense, Ordering ordering,
+                      const Eigen::MatrixXd* kernel = nullptr);
+  int size() const { return static_cast<int>(interface_.size()); }
+  const std::vector<int>& interface() const { return interface_; }
+  bool dense() const { return dense_; }
+  /// y = K_bb x (lumped) or y = S_i x (Dirichlet), vectors of size(); allocates nothing.
+  void apply(const double* x, double* y);
+  /// Bytes held (dense S, sparse blocks, factor).
+  long bytes() const;
+
+ private:
+  std::vector<int> interface_;
+  PreconditionerKind kind_;
+  bool dense_ = false;
+  Eigen::MatrixXd S_;                     // dense Schur complement
+  Eigen::SparseMatrix<double> Kbb_, Kib_;  // interface block; interior x interface block
+  SparseCholesky Kii_;                     // implicit Dirichlet
+  Eigen::VectorXd work_;                   // interior vector
+  Eigen::MatrixXd Q_;                      // orthonormal basis of R_b (implicit: applied apart)
+  Eigen::VectorXd qwork_;
+  double tau_ = 0;
+};
+
+}  // namespace htfeti

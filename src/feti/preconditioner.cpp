@@ -1,0 +1,155 @@
+#include "htfeti/feti/preconditioner.hpp"
+
+#include <algorithm>
+#include <stdexcept>
+
+namespace htfeti {
+
+PreconditionerKind parse_preconditioner(const std::string& name) {
+  if (name == "none") return PreconditionerKind::none;
+  if (name == "lumped") return PreconditionerKind::lumped;
+  if (name == "dirichlet") return PreconditionerKind::dirichlet;
+  throw std::invalid_argument("unknown preconditioner '" + name +
+                              "' (expected none, lumped or dirichlet)");
+}
+
+std::string to_string(PreconditionerKind kind) {
+  switch (kind) {
+    case PreconditionerKind::none:
+      return "none";
+    case PreconditionerKind::lumped:
+      return "lumped";
+    case PreconditionerKind::dirichlet:
+      return "dirichlet";
+  }
+  return "?";
+}
+
+Scaling parse_scaling(const std::string& name) {
+  if (name == "multiplicity") return Scaling::multiplicity;
+  if (name == "stiffness") return Scaling::stiffness;
+  throw std::invalid_argument("unknown scaling '" + name +
+                              "' (expected multiplicity or stiffness)");
+}
+
+std::string to_string(Scaling scaling) {
+  return scaling == Scaling::multiplicity ? "multiplicity" : "stiffness";
+}
+
+LocalPreconditioner::LocalPreconditioner(const Eigen::SparseMatrix<double>& K,
+                                         std::vector<int> interface, PreconditionerKind kind,
+                                         bool dense, Ordering ordering,
+                                         const Eigen::MatrixXd* kernel)
+    : interface_(std::move(interface)), kind_(kind) {
+  if (kind == PreconditionerKind::none) throw std::logic_error("LocalPreconditioner: no kind");
+  const int n = static_cast<int>(K.rows()), nb = size();
+  std::vector<int> pos(n, -1);  // interface position (>= 0) or -(interior position) - 2
+  for (int i = 0; i < nb; ++i) pos[interface_[i]] = i;
+  int ni = 0;
+  for (int d = 0; d < n; ++d)
+    if (pos[d] < 0) pos[d] = -(ni++) - 2;
+  std::vector<Eigen::Triplet<double>> tbb, tib, tii;
+  double sigma = 0;
+  for (int col = 0; col < n; ++col)
+    for (Eigen::SparseMatrix<double>::InnerIterator it(K, col); it; ++it) {
+      const int row = static_cast<int>(it.row());
+      const int pr = pos[row], pc = pos[col];
+      if (pr >= 0 && pc >= 0) {
+        tbb.emplace_back(pr, pc, it.value());
+        if (pr == pc) sigma = std::max(sigma, it.value());
+      } else if (pr < 0 && pc >= 0) {
+        tib.emplace_back(-pr - 2, pc, it.value());
+      } else if (pr < 0 && pc < 0 && row <= col) {
+        tii.emplace_back(-pr - 2, -pc - 2, it.value());  // upper triangle (CHOLMOD reads it)
+      }
+    }
+  Kbb_.resize(nb, nb);
+  Kbb_.setFromTriplets(tbb.begin(), tbb.end());
+  if (kind == PreconditionerKind::lumped || nb == 0) return;
+  if (kernel && kernel->cols() > 0) {  // Q: orthonormal basis of R restricted to the interface
+    Eigen::MatrixXd Rb(nb, kernel->cols());
+    for (int i = 0; i < nb; ++i) Rb.row(i) = kernel->row(interface_[i]);
+    Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qr(Rb);
+    qr.setThreshold(1e-10);
+    const int rank = static_cast<int>(qr.rank());
+    Q_ = Eigen::MatrixXd(qr.householderQ()).leftCols(rank);
+    qwork_.resize(rank);
+    tau_ = Kbb_.diagonal().mean();
+  }
+  if (dense) {
+    // K + sigma I_b with the interface last: the trailing factor block gives S + sigma I.
+    dense_ = true;
+    Eigen::SparseMatrix<double> A = K;
+    for (int d : interface_) A.coeffRef(d, d) += sigma;
+    SparseCholesky chol;
+    try {
+      chol.factorize(A, interface_);
+    } catch (const std::runtime_error&) {
+      throw std::runtime_error(
+          "Dirichlet preconditioner: the interface does not restrain a subdomain (K_ii is "
+          "singular); use --preconditioner lumped");
+    }
+    Eigen::MatrixXd L;
+    std::vector<int> order;
+    chol.schur_factor(L, order);
+    Eigen::MatrixXd Sp = Eigen::MatrixXd::Zero(nb, nb);
+    Sp.selfadjointView<Eigen::Lower>().rankUpdate(L);  // L L^T (lower half)
+    Sp = Sp.selfadjointView<Eigen::Lower>();
+    S_.resize(nb, nb);
+    for (int j = 0; j < nb; ++j)
+      for (int i = 0; i < nb; ++i) S_(pos[order[i]], pos[order[j]]) = Sp(i, j);
+    S_.diagonal().array() -= sigma;
+    if (Q_.cols() > 0) S_.noalias() += tau_ * Q_ * Q_.transpose();
+    Q_ = Eigen::MatrixXd();
+    Kbb_ = Eigen::SparseMatrix<double>();
+    return;
+  }
+  Kib_.resize(ni, nb);
+  Kib_.setFromTriplets(tib.begin(), tib.end());
+  if (ni > 0) {
+    Eigen::SparseMatrix<double> Kii(ni, ni);
+    Kii.setFromTriplets(tii.begin(), tii.end());
+    Kii_ = SparseCholesky(ordering);
+    try {
+      Kii_.factorize(Kii);
+    } catch (const std::runtime_error&) {
+      throw std::runtime_error(
+          "Dirichlet preconditioner: the interface does not restrain a subdomain (K_ii is "
+          "singular); use --preconditioner lumped");
+    }
+  }
+  work_.resize(ni);
+}
+
+void LocalPreconditioner::apply(const double* x, double* y) {
+  const int nb = size();
+  Eigen::Map<const Eigen::VectorXd> xv(x, nb);
+  Eigen::Map<Eigen::VectorXd> yv(y, nb);
+  if (dense_) {
+    yv.noalias() = S_.selfadjointView<Eigen::Lower>() * xv;
+    return;
+  }
+  yv.noalias() = Kbb_ * xv;
+  if (kind_ == PreconditionerKind::lumped) return;
+  if (work_.size() > 0) {
+    work_.noalias() = Kib_ * xv;
+    Kii_.solve(work_.data(), work_.data());
+    yv.noalias() -= Kib_.transpose() * work_;
+  }
+  if (Q_.cols() > 0) {
+    qwork_.noalias() = Q_.transpose() * xv;
+    yv.noalias() += tau_ * (Q_ * qwork_);
+  }
+}
+
+long LocalPreconditioner::bytes() const {
+  auto sparse = [](const Eigen::SparseMatrix<double>& A) {
+    return static_cast<long>(A.nonZeros()) * 12 + 4 * static_cast<long>(A.outerSize() + 1);
+  };
+  long b = 8 * static_cast<long>(S_.size() + Q_.size()) + sparse(Kbb_) + sparse(Kib_) +
+           8 * work_.size();
+  if (!dense_ && work_.size() > 0) b += Kii_.factor_bytes();
+  return b;
+}
+
+}  // namespace htfeti

@@ -1,0 +1,229 @@
+// The FETI preconditioners (feti/preconditioner.hpp), under mpiexec -n 1, 2:
+//  - the local operators against an independent dense computation: lumped = K_bb, Dirichlet
+//    S = K_bb - K_bi K_ii^{-1} K_ib (dense from the shifted factor and implicit alike);
+//  - P M^{-1} P symmetric and positive definite on Ker G (dense eigenvalues on one rank, random
+//    projected vectors on every rank count), for TFETI and H-TFETI-DP, 2D and 3D, with and
+//    without contact, lumped and Dirichlet, multiplicity and stiffness scaling, on a problem
+//    with a coefficient jump;
+//  - the dense and the implicit Dirichlet preconditioner agree;
+//  - preconditioned solves give the unpreconditioned solution (energy to 1e-8 at rtol 1e-10).
+#include <gtest/gtest.h>
+
+#include <functional>
+
+#include "helpers.hpp"
+#include "htfeti/problem_file.hpp"
+#include "htfeti/solver.hpp"
+
+using namespace htfeti;
+
+namespace {
+
+Eigen::VectorXd ramp(int n, double seed) {
+  Eigen::VectorXd v(n);
+  for (int i = 0; i < n; ++i) v[i] = std::sin(1.7 * i + seed) + 0.3 * std::cos(0.37 * i * i);
+  return v;
+}
+
+// The cube-obstacle on a small mesh, optionally with a coefficient jump at x = 50.
+std::shared_ptr<const Model> cube(int m, bool jump) {
+  ProblemSpec spec = cube_obstacle_spec({4, 4, 4}, {2, 2, 2}, m);
+  if (jump) spec.physics.coefficient = "x > 50 ? 1000 : 1";
+  return std::shared_ptr<const Model>(make_model(spec));
+}
+
+std::shared_ptr<const Model> builtin(ProblemKind p, int n, int ns, int m, Glue glue) {
+  return std::shared_ptr<const Model>(
+      make_builtin_model(DecompositionOptions{p, ElementKind::q1, n, ns, m, glue}));
+}
+
+}  // namespace
+
+TEST(LocalPreconditioner, MatchesTheDenseSchurComplement) {
+  Comm comm;
+  if (comm.rank() != 0) return;
+  for (const auto& model : {builtin(ProblemKind::poisson2d, 8, 2, 1, Glue::averages), cube(1, true)}) {
+    const SubdomainInput in = model->input(0);
+    const Eigen::SparseMatrix<double>& K = in.system.K;
+    const int dpn = in.system.dofs_per_node;
+    std::vector<int> b;  // the dofs of shared nodes and of nodes on the domain boundary
+    for (int k = 0; k < in.sharing.num_nodes(); ++k)
+      if (in.sharing.num_copies(k) > 1)
+        for (int d = 0; d < dpn; ++d) b.push_back(k * dpn + d);
+    const int n = static_cast<int>(K.rows()), nb = static_cast<int>(b.size());
+    ASSERT_GT(nb, 0);
+    ASSERT_LT(nb, n);
+    const Eigen::MatrixXd Kd(K);
+    std::vector<int> interior;
+    for (int d = 0, j = 0; d < n; ++d)
+      if (j < nb && b[j] == d)
+        ++j;
+      else
+        interior.push_back(d);
+    const int ni = static_cast<int>(interior.size());
+    Eigen::MatrixXd Kbb(nb, nb), Kib(ni, nb), Kii(ni, ni);
+    for (int i = 0; i < nb; ++i)
+      for (int j = 0; j < nb; ++j) Kbb(i, j) = Kd(b[i], b[j]);
+    for (int i = 0; i < ni; ++i) {
+      for (int j = 0; j < nb; ++j) Kib(i, j) = Kd(interior[i], b[j]);
+      for (int j = 0; j < ni; ++j) Kii(i, j) = Kd(interior[i], interior[j]);
+    }
+    const Eigen::MatrixXd S = Kbb - Kib.transpose() * Kii.ldlt().solve(Kib);
+    const Eigen::VectorXd x = ramp(nb, 0.5);
+    Eigen::VectorXd y(nb);
+    LocalPreconditioner lumped(K, b, PreconditionerKind::lumped, false, Ordering::amd);
+    lumped.apply(x.data(), y.data());
+    EXPECT_LT((y - Kbb * x).norm(), 1e-13 * (Kbb * x).norm());
+    for (bool dense : {true, false}) {
+      LocalPreconditioner dir(K, b, PreconditionerKind::dirichlet, dense, Ordering::amd);
+      EXPECT_EQ(dir.dense(), dense);
+      dir.apply(x.data(), y.data());
+      // The dense S comes from L L^T - sigma I with sigma = max diag K_bb: round-off relative to
+      // sigma, not to ||S x||.
+      EXPECT_LT((y - S * x).norm(), 1e-11 * Kbb.diagonal().maxCoeff() * x.norm()) << dense;
+      // With the kernel: S + tau Q Q^T, Q spanning the rigid motions on the interface, which S
+      // annihilates: positive definite.
+      LocalPreconditioner reg(K, b, PreconditionerKind::dirichlet, dense, Ordering::amd,
+                              &in.system.R);
+      Eigen::MatrixXd Sr(nb, nb);
+      for (int j = 0; j < nb; ++j) {
+        Eigen::VectorXd e = Eigen::VectorXd::Zero(nb);
+        e[j] = 1;
+        reg.apply(e.data(), y.data());
+        Sr.col(j) = y;
+      }
+      Eigen::MatrixXd Rb(nb, in.system.R.cols());
+      for (int i = 0; i < nb; ++i) Rb.row(i) = in.system.R.row(b[i]);
+      EXPECT_LT((S * Rb).norm(), 1e-9 * Kbb.diagonal().maxCoeff() * Rb.norm());
+      // On the complement of R_b unchanged; on R_b tau times the identity.
+      const Eigen::VectorXd xc = x - Rb * Rb.colPivHouseholderQr().solve(x);
+      EXPECT_LT((Sr * xc - S * xc).norm(), 1e-10 * Kbb.diagonal().maxCoeff() * x.norm()) << dense;
+      Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(0.5 * (Sr + Sr.transpose()));
+      EXPECT_GT(eig.eigenvalues().minCoeff(), 1e-8 * eig.eigenvalues().maxCoeff()) << dense;
+    }
+  }
+}
+
+namespace {
+
+struct Case {
+  std::string name;
+  std::function<std::shared_ptr<const Model>()> model;
+};
+
+class Preconditioners
+    : public ::testing::TestWithParam<std::tuple<Case, PreconditionerKind, Scaling>> {};
+
+}  // namespace
+
+TEST_P(Preconditioners, SymmetricPositiveDefiniteOnKerG) {
+  const auto& [c, kind, scaling] = GetParam();
+  Comm comm;
+  const auto model = c.model();
+  FetiOptions opt;
+  opt.preconditioner = kind;
+  opt.scaling = scaling;
+  auto dual = test::make_dual(*model, comm, opt);
+  auto dot = [&](const Eigen::VectorXd& a, const Eigen::VectorXd& b) { return dual->dot(a, b); };
+  auto Z = [&](const Eigen::VectorXd& x) {
+    Eigen::VectorXd px, mx, y;
+    dual->project(x, px);
+    dual->apply_preconditioner(px, mx);
+    dual->project(mx, y);
+    return y;
+  };
+  for (double seed : {1.0, 2.0, 3.0}) {
+    const Eigen::VectorXd x = test::pseudo_random(*dual, seed),
+                          y = test::pseudo_random(*dual, seed + 7);
+    const Eigen::VectorXd zx = Z(x), zy = Z(y);
+    const double scale = std::sqrt(dot(zx, zx) * dot(y, y));
+    EXPECT_NEAR(dot(zx, y), dot(x, zy), 1e-12 * scale) << c.name;
+    Eigen::VectorXd px;
+    dual->project(x, px);
+    EXPECT_GT(dot(Z(px), px), 1e-8 * std::sqrt(dot(zx, zx) * dot(px, px))) << c.name;
+  }
+  if (comm.size() == 1) {
+    // Dense: Z + s (I - P) (s = ||Z||) is positive definite iff Z is on Ker G = Im P.
+    const int n = dual->n_owned();
+    Eigen::MatrixXd Zd(n, n), Pd(n, n);
+    for (int j = 0; j < n; ++j) {
+      Eigen::VectorXd e = Eigen::VectorXd::Zero(n), pe;
+      e[j] = 1;
+      Zd.col(j) = Z(e);
+      dual->project(e, pe);
+      Pd.col(j) = pe;
+    }
+    EXPECT_LT((Zd - Zd.transpose()).norm(), 1e-12 * Zd.norm()) << c.name;
+    const double s = Zd.norm();
+    const Eigen::MatrixXd A = 0.5 * (Zd + Zd.transpose()) + s * (Eigen::MatrixXd::Identity(n, n) - Pd);
+    Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(A);
+    EXPECT_GT(eig.eigenvalues().minCoeff(), 1e-10 * eig.eigenvalues().maxCoeff()) << c.name;
+  }
+  if (kind == PreconditionerKind::dirichlet) {  // dense and implicit S_i agree
+    FetiOptions imp = opt;
+    imp.dirichlet_dense_budget_bytes = 0;
+    auto other = test::make_dual(*model, comm, imp);
+    EXPECT_TRUE(dual->preconditioner_dense());
+    EXPECT_FALSE(other->preconditioner_dense());
+    const Eigen::VectorXd x = test::pseudo_random(*dual, 4.0);
+    Eigen::VectorXd a, b;
+    dual->apply_preconditioner(x, a);
+    other->apply_preconditioner(x, b);
+    EXPECT_LT(std::sqrt(dot(a - b, a - b)), 1e-9 * std::sqrt(dot(a, a))) << c.name;
+  }
+}
+
+namespace {
+const Case kCases[] = {
+    {"poisson2d TFETI", [] { return builtin(ProblemKind::poisson2d, 12, 3, 1, Glue::averages); }},
+    {"membranes H-TFETI-DP averages",
+     [] { return builtin(ProblemKind::membranes, 16, 4, 2, Glue::averages); }},
+    {"poisson2d H-TFETI-DP corners",
+     [] { return builtin(ProblemKind::poisson2d, 12, 4, 2, Glue::corners); }},
+    {"cube TFETI jump", [] { return cube(1, true); }},
+    {"cube H-TFETI-DP", [] { return cube(2, false); }},
+};
+}  // namespace
+
+INSTANTIATE_TEST_SUITE_P(
+    SmallCases, Preconditioners,
+    ::testing::Combine(::testing::ValuesIn(kCases),
+                       ::testing::Values(PreconditionerKind::lumped, PreconditionerKind::dirichlet),
+                       ::testing::Values(Scaling::multiplicity, Scaling::stiffness)),
+    [](const auto& info) {
+      std::string n = std::get<0>(info.param).name + "_" + to_string(std::get<1>(info.param)) +
+                      "_" + to_string(std::get<2>(info.param));
+      for (char& ch : n)
+        if (!std::isalnum(static_cast<unsigned char>(ch))) ch = '_';
+      return n;
+    });
+
+// Preconditioning changes the path, not the solution: the energy agrees to 1e-8 at rtol 1e-10
+// (PCG for the linear problems, SMALBE-M + MPRGP in face with contact).
+TEST(PreconditionedSolves, SameSolution) {
+  Comm comm;
+  const Case cases[] = {kCases[0], kCases[1], kCases[2], kCases[3], kCases[4]};
+  for (const auto& c : cases) {
+    const auto model = c.model();
+    SolveOptions base;
+    // SMALBE-M's criterion compares ||G lambda|| with ||b||: on the stiff cube (lambda ~ 1e9)
+    // it reaches 1e-7, the others 1e-10.
+    base.rtol = c.name.rfind("cube", 0) == 0 ? 1e-7 : 1e-10;
+    base.check_memory = false;
+    const SolveOutput ref = solve(model, base, comm);
+    ASSERT_TRUE(ref.converged) << c.name;
+    const double e0 = ref.report["objective"];
+    for (auto kind : {PreconditionerKind::lumped, PreconditionerKind::dirichlet})
+      for (auto scaling : {Scaling::multiplicity, Scaling::stiffness}) {
+        SolveOptions o = base;
+        o.feti.preconditioner = kind;
+        o.feti.scaling = scaling;
+        const SolveOutput out = solve(model, o, comm);
+        const std::string what = c.name + " " + to_string(kind) + " " + to_string(scaling);
+        ASSERT_TRUE(out.converged) << what;
+        EXPECT_NEAR(out.report["objective"].get<double>(), e0, 1e-8 * std::abs(e0)) << what;
+        EXPECT_GT(out.report["preconditioner_applications"].get<long>(), 0) << what;
+        EXPECT_EQ(out.report["preconditioner"], to_string(kind));
+      }
+  }
+}

@@ -215,6 +215,15 @@ int run(int argc, char** argv, const Comm& comm) {
                        "B_D of the preconditioner: multiplicity | stiffness (weights by the "
                        "diagonal of K, for coefficient jumps between subdomains)")
           ->capture_default_str();
+  std::string storage_text = "auto";
+  auto* o_storage =
+      solve_cmd
+          ->add_option("--dirichlet-storage", storage_text,
+                       "Dirichlet preconditioner: dense (S_i stored, 8 n_b^2 bytes per subdomain) "
+                       "| implicit (applied with a factor of K_ii) | auto (dense when all fit 2 "
+                       "GiB per rank)")
+          ->check(CLI::IsMember({"auto", "dense", "implicit"}))
+          ->capture_default_str();
   auto* o_keep = solve_cmd->add_flag("--keep-factors", opt.feti.keep_factors,
                       "explicit operator: always keep the subdomain factors during the iterations "
                       "(by default they are freed, and rebuilt for the reconstruction, when they "
@@ -311,6 +320,8 @@ int run(int argc, char** argv, const Comm& comm) {
       if (o_keep->count()) from_file.feti.keep_factors = opt.feti.keep_factors;
       if (o_precond->count()) from_file.feti.preconditioner = parse_preconditioner(precond_text);
       if (o_scaling->count()) from_file.feti.scaling = parse_scaling(scaling_text);
+      if (o_storage->count())
+        from_file.feti.dirichlet_storage = storage_text == "dense" ? 1 : storage_text == "implicit" ? 2 : 0;
       if (o_rho->count()) from_file.smalbe.rho_factor = opt.smalbe.rho_factor;
       if (o_M0->count()) from_file.smalbe.M0_factor = opt.smalbe.M0_factor;
       if (o_eta->count()) from_file.smalbe.eta_factor = opt.smalbe.eta_factor;
@@ -354,6 +365,7 @@ int run(int argc, char** argv, const Comm& comm) {
       opt.feti.dual_operator = parse_dual_operator(dual_operator);
       opt.feti.preconditioner = parse_preconditioner(precond_text);
       opt.feti.scaling = parse_scaling(scaling_text);
+      opt.feti.dirichlet_storage = storage_text == "dense" ? 1 : storage_text == "implicit" ? 2 : 0;
       validate_solver(opt);
       model = make_model(spec);
     } else {
@@ -372,6 +384,7 @@ int run(int argc, char** argv, const Comm& comm) {
       opt.feti.dual_operator = parse_dual_operator(dual_operator);
       opt.feti.preconditioner = parse_preconditioner(precond_text);
       opt.feti.scaling = parse_scaling(scaling_text);
+      opt.feti.dirichlet_storage = storage_text == "dense" ? 1 : storage_text == "implicit" ? 2 : 0;
       validate(opt);
       model = make_builtin_model(opt.decomposition);
     }

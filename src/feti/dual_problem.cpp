@@ -274,7 +274,9 @@ DualProblem::DualProblem(const FetiLayout& layout,
       dense_bytes += 8.0 * in.size() * in.size();
     }
     precond_dense_ = precond_kind_ == PreconditionerKind::dirichlet &&
-                     comm_.max(dense_bytes) <= options.dirichlet_dense_budget_bytes;
+                     (options.dirichlet_storage == 1 ||
+                      (options.dirichlet_storage == 0 &&
+                       comm_.max(dense_bytes) <= options.dirichlet_dense_budget_bytes));
     precond_.resize(nsub);
   }
 

@@ -55,6 +55,8 @@ struct FetiOptions {
   /// The Dirichlet preconditioner stores S_i dense when 8 n_b^2 bytes summed over the rank's
   /// subdomains fit this budget (n_b: interface dofs), else applies it with a factor of K_ii.
   double dirichlet_dense_budget_bytes = 2.0 * (1LL << 30);
+  /// Force the Dirichlet storage: 0 automatic (the budget above), 1 dense, 2 implicit.
+  int dirichlet_storage = 0;
 };
 
 constexpr int kExplicitMinNodes = 25;

@@ -1,0 +1,180 @@
+#!/usr/bin/env python3
+"""Iterations and wall time with the FETI preconditioners none / lumped / Dirichlet.
+
+Sections (--sections, default all but the slow ones):
+  poisson   poisson2d (linear, PCG), 8 x 8 subdomains, H_s/h = 16, 32, 64, 100, TFETI (m = 1)
+            and H-TFETI-DP (m = 4), eps = 1e-4 (Table 2's shape at small size);
+  membranes the Table 3 membranes (contact, SMALBE-M + MPRGP in face), N_s = 32, H_s/h = 16,
+            m = 1, 2, 4, 8 (Table 3 reduced); `--membranes-full` adds m = 8 at the paper's size;
+  cube      the cube-obstacle (3D elastic contact, Table 4's ladder): k x k x k clusters of 4^3
+            subdomains of 10^3 hex8, TFETI and H-TFETI-DP, k = 1 (--cube-k 1 2 adds the 2 x 2 x 2
+            row: about 7 GB and several minutes per run);
+  hetero    coefficient jumps between subdomains (1e3 and 1e6): Laplace on the unit square,
+            8 x 8 subdomains, H_s/h = 16, the coefficient jumping across x = 0.5 (stripes) and in
+            a checkerboard; plane-strain elasticity on the plate-with-hole Gmsh part (METIS, 16
+            subdomains) whose right half (x > 1) is stiffer;
+            none / lumped / Dirichlet x multiplicity / stiffness scaling, eps = 1e-8.
+Wall times are medians of --repeat runs (3 by default; 1 for the cube).
+
+Usage: bench/preconditioners.py [--sections poisson membranes cube hetero] [--threads 2]
+Writes bench/results/preconditioners.json (sections merged into the existing file) and prints
+markdown tables."""
+import argparse
+import json
+import os
+import statistics
+import tempfile
+
+from common import RESULTS, ROOT, save, solve
+
+p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+p.add_argument("--sections", nargs="+", default=["poisson", "membranes", "hetero", "cube"])
+p.add_argument("--threads", type=int, default=2)
+p.add_argument("--repeat", type=int, default=3)
+p.add_argument("--cube-k", type=int, nargs="+", default=[1])
+p.add_argument("--membranes-full", action="store_true")
+a = p.parse_args()
+
+PRECS = ["none", "lumped", "dirichlet"]
+
+
+def run(args, repeat):
+    reps = [solve(args, threads=a.threads) for _ in range(repeat)]
+    r = reps[0]
+    t = r["timings"]
+    return {
+        "args": " ".join(map(str, args)),
+        "preconditioner": r["preconditioner"],
+        "scaling": r["scaling"],
+        "storage": r.get("preconditioner_storage", ""),
+        "converged": r["converged"],
+        "outer": r["outer_iterations"],
+        "inner": r["inner_iterations"],
+        "matvecs": r["matvecs"],
+        "preconditioner_applications": r["preconditioner_applications"],
+        "objective": r["objective"],
+        "primal": r["primal_dimension"],
+        "total_s": statistics.median(x["timings"]["total"] for x in reps),
+        "solve_s": statistics.median(x["timings"]["solve"] for x in reps),
+        "preconditioner_setup_s": statistics.median(
+            x["timings"]["preconditioner_setup"] for x in reps),
+        "preconditioner_mb": r["memory"]["preconditioner_mb"],
+        "repeat": repeat,
+    }
+
+
+def table(title, rows, key_cols):
+    print(f"\n{title}\n")
+    hdr = key_cols + ["prec.", "outer", "inner", "F products", "M^-1", "solve s", "total s",
+                      "M setup s", "energy"]
+    print("| " + " | ".join(hdr) + " |")
+    print("|" + "---|" * len(hdr))
+    for k, r in rows:
+        print("| " + " | ".join(map(str, k)) +
+              f" | {r['preconditioner']} | {r['outer']} | {r['inner']} | {r['matvecs']} | "
+              f"{r['preconditioner_applications']} | {r['solve_s']:.2f} | {r['total_s']:.2f} | "
+              f"{r['preconditioner_setup_s']:.2f} | {r['objective']:.10e} |"
+              + ("" if r["converged"] else " (not converged)"))
+
+
+out = {}
+path = os.path.join(RESULTS, "preconditioners.json")
+if os.path.exists(path):
+    with open(path) as f:
+        out = json.load(f)
+    out.pop("machine", None)
+
+if "poisson" in a.sections:
+    rows = []
+    for m in [1, 4]:
+        for hh in [16, 32, 64, 100]:
+            for pc in PRECS:
+                r = run(["--problem", "poisson2d", "-n", 8 * hh, "--subdomains", 8, "-m", m,
+                         "--preconditioner", pc], a.repeat)
+                rows.append(((m, hh), r))
+    table("poisson2d, 8 x 8 subdomains, eps = 1e-4 (m = 1: TFETI)", rows, ["m", "H_s/h"])
+    out["poisson"] = [dict(r, m=k[0], hh=k[1]) for k, r in rows]
+
+if "membranes" in a.sections:
+    rows = []
+    cases = [(m, 16) for m in [1, 2, 4, 8]] + ([(8, 99)] if a.membranes_full else [])
+    for m, hh in cases:
+        for pc in PRECS:
+            r = run(["--problem", "membranes", "-n", 32 * hh, "--subdomains", 32, "-m", m,
+                     "--preconditioner", pc], a.repeat if hh == 16 else 1)
+            rows.append(((m, hh), r))
+    table("membranes (Table 3), N_s = 32, eps = 1e-4", rows, ["m", "H_s/h"])
+    out["membranes"] = [dict(r, m=k[0], hh=k[1]) for k, r in rows]
+
+if "hetero" in a.sections:
+    rows = []
+    square = """[mesh]
+generator = "box"
+size = [1.0, 1.0]
+elements = [128, 128]
+element = "quad4"
+[physics]
+type = "laplace"
+source = 1.0
+coefficient = "{coef}"
+[[dirichlet]]
+group = "x0"
+value = 0.0
+[decomposition]
+subdomains = [8, 8]
+cluster_size = {m}
+[solver]
+rtol = 1e-8
+"""
+    plate = """[mesh]
+file = "{mesh}"
+[physics]
+type = "elasticity"
+young = 2.1e11
+poisson = 0.3
+coefficient = "{coef}"
+[[dirichlet]]
+group = "left"
+value = [0.0, 0.0]
+[[load]]
+group = "right"
+traction = [1.0e8, 0.0]
+[decomposition]
+subdomains = 16
+cluster_size = {m}
+[solver]
+rtol = 1e-8
+"""
+    with tempfile.TemporaryDirectory() as d:
+        for jump in [1e3, 1e6]:
+            for name, tmpl, coef, m in [
+                ("square stripes", square, f"x > 0.5 ? {jump:g} : 1", 1),
+                ("square checkerboard", square,
+                 f"sin(8*pi*x)*sin(8*pi*y) > 0 ? {jump:g} : 1", 1),
+                ("plate-with-hole", plate, f"x > 1 ? {jump:g} : 1", 1),
+            ]:
+                f = os.path.join(d, "h.toml")
+                with open(f, "w") as fh:
+                    fh.write(tmpl.format(coef=coef, m=m, mesh=os.path.join(
+                        ROOT, "examples", "meshes", "plate-with-hole.msh")))
+                for pc in PRECS:
+                    for sc in (["multiplicity"] if pc == "none" else
+                               ["multiplicity", "stiffness"]):
+                        r = run([f, "--preconditioner", pc, "--scaling", sc], a.repeat)
+                        rows.append(((name, f"{jump:g}", sc), r))
+    table("coefficient jumps, eps = 1e-8 (TFETI)", rows, ["problem", "jump", "scaling"])
+    out["hetero"] = [dict(r, problem=k[0], jump=k[1]) for k, r in rows]
+
+if "cube" in a.sections:
+    rows = []
+    for k in a.cube_k:
+        for m, name in [(1, "TFETI"), (4, "H-TFETI-DP")]:
+            for pc in PRECS:
+                r = run(["--problem", "cube-obstacle", "--elements", ",".join([str(40 * k)] * 3),
+                         "--subdomains", ",".join([str(4 * k)] * 3), "-m", m,
+                         "--preconditioner", pc], 1)
+                rows.append(((f"{k}x{k}x{k}", name), r))
+    table("cube-obstacle (Table 4), eps = 1e-4", rows, ["clusters", "method"])
+    out["cube"] = [dict(r, clusters=k[0], method=k[1]) for k, r in rows]
+
+print("\nwritten:", save("preconditioners.json", out))

@@ -94,6 +94,7 @@ if "poisson" in a.sections:
                 rows.append(((m, hh), r))
     table("poisson2d, 8 x 8 subdomains, eps = 1e-4 (m = 1: TFETI)", rows, ["m", "H_s/h"])
     out["poisson"] = [dict(r, m=k[0], hh=k[1]) for k, r in rows]
+    save("preconditioners.json", out)
 
 if "membranes" in a.sections:
     rows = []
@@ -105,6 +106,7 @@ if "membranes" in a.sections:
             rows.append(((m, hh), r))
     table("membranes (Table 3), N_s = 32, eps = 1e-4", rows, ["m", "H_s/h"])
     out["membranes"] = [dict(r, m=k[0], hh=k[1]) for k, r in rows]
+    save("preconditioners.json", out)
 
 if "hetero" in a.sections:
     rows = []
@@ -164,6 +166,7 @@ rtol = 1e-8
                         rows.append(((name, f"{jump:g}", sc), r))
     table("coefficient jumps, eps = 1e-8 (TFETI)", rows, ["problem", "jump", "scaling"])
     out["hetero"] = [dict(r, problem=k[0], jump=k[1]) for k, r in rows]
+    save("preconditioners.json", out)
 
 if "cube" in a.sections:
     rows = []

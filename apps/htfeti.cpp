@@ -201,19 +201,22 @@ int run(int argc, char** argv, const Comm& comm) {
                        "how F is applied: implicit (sparse solves), explicit (dense local blocks "
                        "from Schur complements), auto (explicit from 25 nodes per subdomain)")
           ->capture_default_str();
-  std::string precond_text = "none", scaling_text = "multiplicity";
+  std::string precond_text = "auto", scaling_text = "auto";
   auto* o_precond =
       solve_cmd
           ->add_option("--preconditioner", precond_text,
                        "FETI preconditioner: none | lumped (B_D K B_D^T) | dirichlet "
-                       "(B_D S B_D^T, S the subdomain Schur complement on the interface); used "
-                       "by PCG and, in face, by MPRGP inside SMALBE-M")
+                       "(B_D S B_D^T, S the subdomain Schur complement on the interface) | auto "
+                       "(Dirichlet with a coefficient field; elasticity: lumped, but Dirichlet "
+                       "for H-TFETI-DP with contact; otherwise none); used by PCG and, in face, by "
+                       "MPRGP inside SMALBE-M")
           ->capture_default_str();
   auto* o_scaling =
       solve_cmd
           ->add_option("--scaling", scaling_text,
                        "B_D of the preconditioner: multiplicity | stiffness (weights by the "
-                       "diagonal of K, for coefficient jumps between subdomains)")
+                       "diagonal of K, for coefficient jumps between subdomains) | auto "
+                       "(stiffness with a coefficient field)")
           ->capture_default_str();
   std::string storage_text = "auto";
   auto* o_storage =

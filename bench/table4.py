@@ -21,6 +21,8 @@ p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
 p.add_argument("--ks", type=int, nargs="+", default=[1, 2])
 p.add_argument("--hh", type=int, default=10, help="H_s/h")
 p.add_argument("--m", type=int, default=4, help="subdomains per cluster side")
+p.add_argument("--preconditioner", default="none",
+               help="none (the paper's setting, the default here) | lumped | dirichlet | auto")
 p.add_argument("--ranks", type=int, default=1)
 p.add_argument("--threads", type=int, default=2)
 p.add_argument("--extra", default="", help="further htfeti solve arguments, quoted")
@@ -49,7 +51,7 @@ for k in a.ks:
         if method not in a.methods:
             continue
         r = solve(["--problem", "cube-obstacle", "--elements", n, "--subdomains", s,
-                   "--cluster-size", m, *a.extra.split()], ranks=a.ranks, threads=a.threads)
+                   "--cluster-size", m, "--preconditioner", a.preconditioner, *a.extra.split()], ranks=a.ranks, threads=a.threads)
         r["method"] = method
         r["k"] = k
         runs.append(r)

@@ -52,6 +52,7 @@ class BuiltinModel final : public Model {
     physics_.dim = 2;
     glue_ = o.glue;
   }
+  bool has_contact() const override { return dec_.options().problem != ProblemKind::poisson2d; }
   int num_subdomains() const override { return dec_.num_subdomains(); }
   int num_clusters() const override { return dec_.num_clusters(); }
   int cluster_first(int c) const override { return c * dec_.m() * dec_.m(); }

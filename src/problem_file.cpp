@@ -444,6 +444,7 @@ std::string list_groups(const std::set<std::string>& names) {
 // of subdomains) or on a whole mesh (generated or read) split by METIS.
 class GroupModel final : public Model {
  public:
+  bool has_contact() const override { return !spec_.contact.empty(); }
   explicit GroupModel(const ProblemSpec& spec) : spec_(spec), source_(spec.source) {
     physics_ = spec.physics;
     glue_ = spec.glue;

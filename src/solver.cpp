@@ -59,6 +59,25 @@ void validate(const SolveOptions& o) {
   Decomposition check(o.decomposition);  // throws for bad sizes
 }
 
+void resolve_preconditioner(const Model& model, FetiOptions& o) {
+  const bool coefficient = !model.physics().coefficient.empty();
+  if (o.preconditioner == PreconditionerKind::automatic) {
+    if (coefficient)
+      o.preconditioner = PreconditionerKind::dirichlet;
+    else if (model.physics().kind == PhysicsKind::elasticity)
+      o.preconditioner = model.num_clusters() < model.num_subdomains() && model.has_contact()
+                             ? PreconditionerKind::dirichlet
+                             : PreconditionerKind::lumped;
+    else
+      o.preconditioner = PreconditionerKind::none;
+    // Dirichlet by choice of auto only where its dense blocks fit (else none, see FetiOptions).
+    if (o.preconditioner == PreconditionerKind::dirichlet)
+      o.dirichlet_fallback = PreconditionerKind::none;
+  }
+  if (o.scaling == Scaling::automatic)
+    o.scaling = coefficient ? Scaling::stiffness : Scaling::multiplicity;
+}
+
 SolveOutput solve(const SolveOptions& options, const Comm& comm) {
   validate(options);
   return solve(std::shared_ptr<const Model>(make_builtin_model(options.decomposition)), options,
@@ -73,15 +92,17 @@ SolveOutput solve(std::shared_ptr<const Model> model_ptr, const SolveOptions& op
   const Model& model = *out.model;
   const bool verbose = options.progress && comm.rank() == 0;
 
+  FetiOptions feti = options.feti;
+  resolve_preconditioner(model, feti);
   MemoryEstimate estimate;
-  if (options.check_memory) estimate = check_memory(model, options.feti, comm);
+  if (options.check_memory) estimate = check_memory(model, feti, comm);
   double t0 = now();
   if (verbose)
     std::fprintf(stderr,
                  "  setup: %d subdomains in %d clusters on %d ranks: assembling, factoring...\n",
                  model.num_subdomains(), model.num_clusters(), comm.size());
   out.dual = std::make_unique<DualProblem>(
-      model.layout(), [&model](int s) { return model.input(s); }, comm, options.feti);
+      model.layout(), [&model](int s) { return model.input(s); }, comm, feti);
   DualProblem& dual = *out.dual;
   const DualReducer red(comm, dual);
   const double t_setup = now() - t0;

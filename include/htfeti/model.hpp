@@ -39,6 +39,8 @@ class Model {
   virtual SourceFunction source() const { return {}; }
   /// Adds the subdomain's boundary loads to f and its Dirichlet dofs and contact rows.
   virtual void apply_conditions(const SubdomainMesh& mesh, SubdomainInput& in) const = 0;
+  /// Whether the problem has contact conditions (inequalities).
+  virtual bool has_contact() const = 0;
   /// The report's description of the problem (mesh, physics, decomposition).
   virtual nlohmann::json describe() const = 0;
 

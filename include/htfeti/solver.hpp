@@ -12,9 +12,17 @@
 
 namespace htfeti {
 
+inline FetiOptions automatic_preconditioner() {
+  FetiOptions o;
+  o.preconditioner = PreconditionerKind::automatic;
+  o.scaling = Scaling::automatic;
+  return o;
+}
+
 struct SolveOptions {
   DecompositionOptions decomposition;  ///< the built-in problem (solve(options, comm) only)
-  FetiOptions feti;
+  /// preconditioner and scaling default to automatic here (resolve_preconditioner).
+  FetiOptions feti = automatic_preconditioner();
   double rtol = 1e-4;        ///< relative precision eps of the QP solvers (paper: 1e-4)
   int max_iterations = 0;    ///< PCG iterations or SMALBE-M outer iterations; 0: 1000 / 200
   qp::SmalbeOptions smalbe;  ///< rtol and max_outer are taken from the fields above
@@ -39,6 +47,14 @@ SolveOutput solve(std::shared_ptr<const Model> model, const SolveOptions& option
                   const Comm& comm);
 /// Solves the built-in problem of options.decomposition.
 SolveOutput solve(const SolveOptions& options, const Comm& comm);
+
+/// The preconditioner and scaling that `auto` stands for, chosen by measurement
+/// (docs/results.md, "Preconditioners"): a model with a coefficient field gets Dirichlet with
+/// stiffness scaling; elasticity gets lumped, except H-TFETI-DP with contact: Dirichlet; Laplace
+/// without a coefficient field none (on the measured 2D cases its setup costs more than the
+/// iterations it saves). A Dirichlet choice of auto is taken only where the dense S_i fit the
+/// budget (else none). Explicit choices are kept.
+void resolve_preconditioner(const Model& model, FetiOptions& options);
 
 /// Checks the solver options; throws std::invalid_argument.
 void validate_solver(const SolveOptions& options);

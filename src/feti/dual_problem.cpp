@@ -255,6 +255,9 @@ DualProblem::DualProblem(const FetiLayout& layout,
 
   // The preconditioner's interface per subdomain: the dofs its rows of B~ touch (sorted), and
   // per row entry the position of its dof there. Dense Dirichlet blocks when they fit.
+  if (options.preconditioner == PreconditionerKind::automatic ||
+      options.scaling == Scaling::automatic)
+    throw std::logic_error("DualProblem: resolve the automatic preconditioner first");
   precond_kind_ = options.preconditioner;
   scaling_ = options.scaling;
   std::vector<std::vector<int>> interface(precond_kind_ != PreconditionerKind::none ? nsub : 0);
@@ -273,11 +276,19 @@ DualProblem::DualProblem(const FetiLayout& layout,
             static_cast<int>(std::lower_bound(in.begin(), in.end(), r.dof) - in.begin()));
       dense_bytes += 8.0 * in.size() * in.size();
     }
+    const bool fits = comm_.max(dense_bytes) <= options.dirichlet_dense_budget_bytes;
+    if (precond_kind_ == PreconditionerKind::dirichlet && options.dirichlet_storage == 0 &&
+        !fits && options.dirichlet_fallback != PreconditionerKind::dirichlet) {
+      precond_kind_ = options.dirichlet_fallback;
+      if (precond_kind_ == PreconditionerKind::none) {
+        interface.clear(), rho.clear(), ipos_.clear();
+        exact_node_scaling_ = false;
+        node_copies_ = {};
+      }
+    }
     precond_dense_ = precond_kind_ == PreconditionerKind::dirichlet &&
-                     (options.dirichlet_storage == 1 ||
-                      (options.dirichlet_storage == 0 &&
-                       comm_.max(dense_bytes) <= options.dirichlet_dense_budget_bytes));
-    precond_.resize(nsub);
+                     (options.dirichlet_storage == 1 || (options.dirichlet_storage == 0 && fits));
+    if (precond_kind_ != PreconditionerKind::none) precond_.resize(nsub);
   }
 
   // 3. Clusters: factorizations, explicit blocks, the primal-constraint systems; d.

@@ -9,8 +9,9 @@ PreconditionerKind parse_preconditioner(const std::string& name) {
   if (name == "none") return PreconditionerKind::none;
   if (name == "lumped") return PreconditionerKind::lumped;
   if (name == "dirichlet") return PreconditionerKind::dirichlet;
+  if (name == "auto") return PreconditionerKind::automatic;
   throw std::invalid_argument("unknown preconditioner '" + name +
-                              "' (expected none, lumped or dirichlet)");
+                              "' (expected none, lumped, dirichlet or auto)");
 }
 
 std::string to_string(PreconditionerKind kind) {
@@ -21,6 +22,8 @@ std::string to_string(PreconditionerKind kind) {
       return "lumped";
     case PreconditionerKind::dirichlet:
       return "dirichlet";
+    case PreconditionerKind::automatic:
+      return "auto";
   }
   return "?";
 }
@@ -28,12 +31,15 @@ std::string to_string(PreconditionerKind kind) {
 Scaling parse_scaling(const std::string& name) {
   if (name == "multiplicity") return Scaling::multiplicity;
   if (name == "stiffness") return Scaling::stiffness;
+  if (name == "auto") return Scaling::automatic;
   throw std::invalid_argument("unknown scaling '" + name +
-                              "' (expected multiplicity or stiffness)");
+                              "' (expected multiplicity, stiffness or auto)");
 }
 
 std::string to_string(Scaling scaling) {
-  return scaling == Scaling::multiplicity ? "multiplicity" : "stiffness";
+  return scaling == Scaling::multiplicity ? "multiplicity"
+         : scaling == Scaling::stiffness  ? "stiffness"
+                                          : "auto";
 }
 
 LocalPreconditioner::LocalPreconditioner(const Eigen::SparseMatrix<double>& K,

@@ -57,6 +57,10 @@ struct FetiOptions {
   double dirichlet_dense_budget_bytes = 2.0 * (1LL << 30);
   /// Force the Dirichlet storage: 0 automatic (the budget above), 1 dense, 2 implicit.
   int dirichlet_storage = 0;
+  /// With automatic storage, what to use when the dense S_i do not fit: the implicit Dirichlet
+  /// preconditioner (dirichlet), or another kind (the automatic choice falls back to none: the
+  /// implicit one needs a second factor per subdomain, which the memory check does not count).
+  PreconditionerKind dirichlet_fallback = PreconditionerKind::dirichlet;
 };
 
 constexpr int kExplicitMinNodes = 25;

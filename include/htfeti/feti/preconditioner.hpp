@@ -32,7 +32,9 @@
 
 namespace htfeti {
 
-enum class PreconditionerKind { none, lumped, dirichlet };
+/// automatic: chosen by solve() from the problem class (resolve_preconditioner in solver.hpp);
+/// DualProblem needs it resolved.
+enum class PreconditionerKind { none, lumped, dirichlet, automatic };
 PreconditionerKind parse_preconditioner(const std::string& name);  // throws std::invalid_argument
 std::string to_string(PreconditionerKind kind);
 
@@ -41,7 +43,8 @@ std::string to_string(PreconditionerKind kind);
 ///    multiplicity-weighted jump operator (a node with k copies: I - 11^T / k);
 ///  - stiffness: the gluing rows weighted by the diagonal of K (rho), so that the stiffer
 ///    side of an interface is trusted more (the rho-scaling of Klawonn and Widlund).
-enum class Scaling { multiplicity, stiffness };
+///  - automatic: stiffness when the problem has a coefficient field, else multiplicity (solve()).
+enum class Scaling { multiplicity, stiffness, automatic };
 Scaling parse_scaling(const std::string& name);  // throws std::invalid_argument
 std::string to_string(Scaling scaling);
 

@@ -380,7 +380,7 @@ ProblemSpec read_problem_file(const std::string& path, SolveOptions& solver, Out
   }
   if (const toml::table* s = table_of(root, "solver", false)) {
     check_keys(*s, "solver", {"rtol", "max_iterations", "ordering", "dual_operator", "keep_factors",
-                              "preconditioner", "scaling", "rho_factor", "M0_factor", "eta_factor", "beta", "gamma", "progress"});
+                              "preconditioner", "scaling", "dirichlet_storage", "rho_factor", "M0_factor", "eta_factor", "beta", "gamma", "progress"});
     solver.rtol = get_double(*s, "solver", "rtol", solver.rtol);
     const long long mi = get_int(*s, "solver", "max_iterations", solver.max_iterations);
     if (mi < 0 || mi > 100000000) bad("solver.max_iterations", "must be a non-negative integer");
@@ -396,6 +396,12 @@ ProblemSpec read_problem_file(const std::string& path, SolveOptions& solver, Out
         solver.feti.scaling = parse_scaling(get_string(*s, "solver", "scaling", ""));
     } catch (const std::invalid_argument& e) {
       bad("[solver]", e.what());
+    }
+    if (s->contains("dirichlet_storage")) {
+      const std::string w = get_string(*s, "solver", "dirichlet_storage", "");
+      if (w != "auto" && w != "dense" && w != "implicit")
+        bad("solver.dirichlet_storage", "must be auto, dense or implicit");
+      solver.feti.dirichlet_storage = w == "dense" ? 1 : w == "implicit" ? 2 : 0;
     }
     solver.feti.keep_factors = get_bool(*s, "solver", "keep_factors", solver.feti.keep_factors);
     solver.smalbe.rho_factor = get_double(*s, "solver", "rho_factor", solver.smalbe.rho_factor);

@@ -252,6 +252,7 @@ TEST_F(Cli, BadProblemFilesExitWithCode2NamingTheKeyAndWriteNothing) {
       {with("type = \"laplace\"", "type = \"elasticity\"\nyoung = 1\npoisson = 0.5"), "poisson"},
       {with("[solver]", "[solver]\npreconditioner = \"jacobi\""), "preconditioner"},
       {with("[solver]", "[solver]\nscaling = 1"), "solver.scaling"},
+      {with("[solver]", "[solver]\ndirichlet_storage = \"packed\""), "solver.dirichlet_storage"},
       {with("type = \"laplace\"", "type = \"laplace\"\ncoefficient = \"q\""), "physics.coefficient"},
       {with("type = \"laplace\"", "type = \"laplace\"\ncoefficient = \"x - 0.5\""),
        "physics.coefficient must be positive"},

@@ -9,7 +9,7 @@
 //                 element = "quad4" | "tri3" | "hex8" | "tet4" | builtin = "membranes" (a
 //                 built-in problem: elements = n, element = "q1" | "p1"; no [physics] then)
 //   [physics]     type = "laplace" (source = number or expression) | "elasticity" (young,
-//                 poisson, density, gravity = [..])
+//                 poisson, density, gravity = [..]); coefficient = expression (both)
 //   [[dirichlet]] group, value (number or array), components (optional: [0, 2] or ["x", "z"])
 //   [[load]]      group, traction = [..] (a boundary group) | source = number (a volume group,
 //                 Laplace) | force = [..] (a volume group, elasticity: force per unit volume)
@@ -17,8 +17,9 @@
 //                 n.u <= gap(x, y, z) on every node of the group
 //   [decomposition] subdomains = N (METIS) or [sx, sy(, sz)] (generated box), cluster_size,
 //                 glue = "corners" | "averages" | "corners+averages"
-//   [solver]      rtol, max_iterations, ordering, dual_operator, keep_factors, rho_factor,
-//                 M0_factor, eta_factor, beta, gamma, progress
+//   [solver]      rtol, max_iterations, ordering, dual_operator, keep_factors, preconditioner,
+//                 scaling, dirichlet_storage, rho_factor, M0_factor, eta_factor, beta, gamma,
+//                 progress
 //   [output]      report = "file" | false, vtu = "file" | false, vtu_ascii = bool
 #pragma once
 

@@ -17,6 +17,7 @@ Sections (--sections, default all but the slow ones):
 Wall times are medians of --repeat runs (3 by default; 1 for the cube).
 
 Usage: bench/preconditioners.py [--sections poisson membranes cube hetero] [--threads 2]
+       [--precs none lumped dirichlet] [--cube-k 1 2] [--cube-key cube]
 Writes bench/results/preconditioners.json (sections merged into the existing file) and prints
 markdown tables."""
 import argparse
@@ -33,9 +34,12 @@ p.add_argument("--threads", type=int, default=2)
 p.add_argument("--repeat", type=int, default=3)
 p.add_argument("--cube-k", type=int, nargs="+", default=[1])
 p.add_argument("--membranes-full", action="store_true")
+p.add_argument("--precs", nargs="+", default=["none", "lumped", "dirichlet"],
+               help="the preconditioners to run")
+p.add_argument("--cube-key", default="cube", help="the JSON key of the cube section")
 a = p.parse_args()
 
-PRECS = ["none", "lumped", "dirichlet"]
+PRECS = a.precs
 
 
 def run(args, repeat):
@@ -178,6 +182,6 @@ if "cube" in a.sections:
                          "--preconditioner", pc], 1)
                 rows.append(((f"{k}x{k}x{k}", name), r))
     table("cube-obstacle (Table 4), eps = 1e-4", rows, ["clusters", "method"])
-    out["cube"] = [dict(r, clusters=k[0], method=k[1]) for k, r in rows]
+    out[a.cube_key] = [dict(r, clusters=k[0], method=k[1]) for k, r in rows]
 
 print("\nwritten:", save("preconditioners.json", out))

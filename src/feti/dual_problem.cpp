@@ -633,14 +633,18 @@ void DualProblem::apply_preconditioner(const Vec& x, Vec& y) {
       else
         pin_[s][pos[e]] += v;
     }
-    for (size_t i = 0; i < npos_[s].size(); ++i) pw_[s][npos_[s][i]] *= ndelta_[s][i];
+    for (size_t i = 0; i < npos_[s].size(); ++i) {  // u_g kept in pout_, w = delta u_g
+      const int p = npos_[s][i];
+      pout_[s][p] = pw_[s][p];
+      pw_[s][p] *= ndelta_[s][i];
+    }
   }
   copy_sums(pw_, psum_);  // delta^T u over each node's copies
 #pragma omp parallel for schedule(dynamic)
   for (int s = 0; s < nsub; ++s) {
     for (size_t i = 0; i < npos_[s].size(); ++i) {
       const int p = npos_[s][i];
-      pin_[s][p] += pw_[s][p] / ndelta_[s][i] - psum_[s][p];
+      pin_[s][p] += pout_[s][p] - psum_[s][p];
     }
     precond_[s]->apply(pin_[s].data(), pout_[s].data());
     pw_[s].setZero();

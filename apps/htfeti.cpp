@@ -227,6 +227,16 @@ int run(int argc, char** argv, const Comm& comm) {
                        "GiB per rank)")
           ->check(CLI::IsMember({"auto", "dense", "implicit"}))
           ->capture_default_str();
+  int symbolic_cache = 64;
+  auto* o_symcache =
+      solve_cmd
+          ->add_option("--symbolic-cache", symbolic_cache,
+                       "subdomain factorizations share the symbolic analysis (ordering, "
+                       "supernodes) of subdomains with the same sparsity pattern; at most this "
+                       "many patterns are kept per rank (0: analyse every subdomain anew); the "
+                       "factors are the same either way")
+          ->check(CLI::NonNegativeNumber)
+          ->capture_default_str();
   auto* o_keep = solve_cmd->add_flag("--keep-factors", opt.feti.keep_factors,
                       "explicit operator: always keep the subdomain factors during the iterations "
                       "(by default they are freed, and rebuilt for the reconstruction, when they "
@@ -391,6 +401,7 @@ int run(int argc, char** argv, const Comm& comm) {
       validate(opt);
       model = make_builtin_model(opt.decomposition);
     }
+    if (o_symcache->count()) opt.feti.symbolic_cache_patterns = symbolic_cache;
     if (no_report) out_opt.write_report = false;
     if (no_vtu) out_opt.write_vtu = false;
     if (no_memory_check) opt.check_memory = false;

@@ -7,7 +7,8 @@ import sys
 import tempfile
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-BIN = os.path.join(ROOT, "build", "htfeti")
+# HTFETI_BIN: another binary (e.g. a copy that a rebuild of build/ cannot replace mid-run)
+BIN = os.environ.get("HTFETI_BIN") or os.path.join(ROOT, "build", "htfeti")
 RESULTS = os.path.join(ROOT, "bench", "results")
 
 

@@ -18,6 +18,7 @@ Wall times are medians of --repeat runs (3 by default; 1 for the cube).
 
 Usage: bench/preconditioners.py [--sections poisson membranes cube hetero] [--threads 2]
        [--precs none lumped dirichlet] [--cube-k 1 2] [--cube-key cube]
+       [--membranes-hh 16 99] [--membranes-key membranes] [--dirichlet-storage dense]
 Writes bench/results/preconditioners.json (sections merged into the existing file) and prints
 markdown tables."""
 import argparse
@@ -33,13 +34,25 @@ p.add_argument("--sections", nargs="+", default=["poisson", "membranes", "hetero
 p.add_argument("--threads", type=int, default=2)
 p.add_argument("--repeat", type=int, default=3)
 p.add_argument("--cube-k", type=int, nargs="+", default=[1])
-p.add_argument("--membranes-full", action="store_true")
+p.add_argument("--membranes-full", action="store_true",
+               help="add m = 8 at the paper's size (n = 3168, H_s/h = 99)")
+p.add_argument("--membranes-hh", type=int, nargs="+", default=[16],
+               help="16: Table 3 reduced (m = 1, 2, 4, 8); 99: m = 8 at the paper's size")
+p.add_argument("--membranes-key", default="membranes",
+               help="the JSON key of the membranes section")
+p.add_argument("--dirichlet-storage", default=None,
+               help="passed on as --dirichlet-storage with the Dirichlet runs")
 p.add_argument("--precs", nargs="+", default=["none", "lumped", "dirichlet"],
                help="the preconditioners to run")
 p.add_argument("--cube-key", default="cube", help="the JSON key of the cube section")
 a = p.parse_args()
 
 PRECS = a.precs
+
+
+def storage(pc):
+    return (["--dirichlet-storage", a.dirichlet_storage]
+            if a.dirichlet_storage and pc == "dirichlet" else [])
 
 
 def run(args, repeat):
@@ -102,14 +115,15 @@ if "poisson" in a.sections:
 
 if "membranes" in a.sections:
     rows = []
-    cases = [(m, 16) for m in [1, 2, 4, 8]] + ([(8, 99)] if a.membranes_full else [])
+    hhs = a.membranes_hh + ([99] if a.membranes_full and 99 not in a.membranes_hh else [])
+    cases = [(m, hh) for hh in hhs for m in ([1, 2, 4, 8] if hh == 16 else [8])]
     for m, hh in cases:
         for pc in PRECS:
             r = run(["--problem", "membranes", "-n", 32 * hh, "--subdomains", 32, "-m", m,
-                     "--preconditioner", pc], a.repeat if hh == 16 else 1)
+                     "--preconditioner", pc] + storage(pc), a.repeat if hh == 16 else 1)
             rows.append(((m, hh), r))
     table("membranes (Table 3), N_s = 32, eps = 1e-4", rows, ["m", "H_s/h"])
-    out["membranes"] = [dict(r, m=k[0], hh=k[1]) for k, r in rows]
+    out[a.membranes_key] = [dict(r, m=k[0], hh=k[1]) for k, r in rows]
     save("preconditioners.json", out)
 
 if "hetero" in a.sections:
@@ -179,7 +193,7 @@ if "cube" in a.sections:
             for pc in PRECS:
                 r = run(["--problem", "cube-obstacle", "--elements", ",".join([str(40 * k)] * 3),
                          "--subdomains", ",".join([str(4 * k)] * 3), "-m", m,
-                         "--preconditioner", pc], 1)
+                         "--preconditioner", pc] + storage(pc), 1)
                 rows.append(((f"{k}x{k}x{k}", name), r))
     table("cube-obstacle (Table 4), eps = 1e-4", rows, ["clusters", "method"])
     out[a.cube_key] = [dict(r, clusters=k[0], method=k[1]) for k, r in rows]

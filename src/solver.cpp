@@ -284,6 +284,15 @@ SolveOutput solve(std::shared_ptr<const Model> model_ptr, const SolveOptions& op
                     {"vector_work", tmax(t_solve - F.seconds() - P.seconds() - M.seconds())},
                     {"reconstruction", tmax(t_rec)},
                     {"total", tmax(t_setup + t_solve + t_rec)}};
+  // The subdomain factorizations in core-seconds (summed over subdomains and ranks): the
+  // symbolic part (forming K_rr, ordering, analysis or its copy from the cache) and the numeric
+  // one; and the symbolic analyses done and reused (FetiOptions::symbolic_cache_patterns).
+  rep["factorization"] = {
+      {"symbolic_core_s", comm.sum(st.factor_symbolic)},
+      {"numeric_core_s", comm.sum(st.factor_numeric)},
+      {"symbolic_analyses", comm.sum(static_cast<long long>(st.symbolic_analyses))},
+      {"symbolic_reuses", comm.sum(static_cast<long long>(st.symbolic_reuses))},
+      {"cached_patterns", comm.sum(static_cast<long long>(st.symbolic_patterns))}};
   struct rusage usage {};
   getrusage(RUSAGE_SELF, &usage);
   const double rss_mb = usage.ru_maxrss / 1024.0;  // ru_maxrss is in KiB on Linux

@@ -78,6 +78,77 @@ TEST(Subdomain, NotPositiveDefiniteIsAnError) {
   EXPECT_THROW(chol.factorize(A), std::runtime_error);
 }
 
+// The symbolic cache: the same pattern reuses the analysis and gives the factor of its own
+// analysis bit for bit (other values, same pattern); another pattern or another set ordered last
+// is analysed anew; a full cache analyses without keeping.
+TEST(SymbolicCache, SharesAnalysesOnlyBetweenEqualPatterns) {
+  const auto grid = [](int n, double shift) {  // 5-point Laplacian on n x n, diagonal shifted
+    std::vector<Eigen::Triplet<double>> t;
+    for (int y = 0; y < n; ++y)
+      for (int x = 0; x < n; ++x) {
+        const int i = y * n + x;
+        t.emplace_back(i, i, 4.0 + shift + 0.01 * i);
+        if (x + 1 < n) t.emplace_back(i, i + 1, -1.0), t.emplace_back(i + 1, i, -1.0);
+        if (y + 1 < n) t.emplace_back(i, i + n, -1.0), t.emplace_back(i + n, i, -1.0);
+      }
+    Eigen::SparseMatrix<double> A(n * n, n * n);
+    A.setFromTriplets(t.begin(), t.end());
+    return A;
+  };
+  const Eigen::SparseMatrix<double> A1 = grid(12, 0.0), A2 = grid(12, 0.5), A3 = grid(13, 0.0);
+  std::vector<int> last;
+  for (int i = 0; i < 12; ++i) last.push_back(i);  // one side of the grid
+  std::vector<int> other_last = last;
+  other_last.back() = 12 * 12 - 1;
+  const Eigen::VectorXd b = Eigen::VectorXd::LinSpaced(144, -1.0, 1.0);
+  const auto solve = [&](SparseCholesky& c) {
+    Eigen::VectorXd x(144);
+    c.solve(b.data(), x.data());
+    return x;
+  };
+  for (Ordering ordering : {Ordering::amd, Ordering::metis}) {
+    SymbolicCache cache;
+    SparseCholesky plain(ordering), shared1(ordering), shared2(ordering), other(ordering);
+    plain.factorize(A2);
+    shared1.factorize(A1, &cache);
+    shared2.factorize(A2, &cache);  // reuses A1's analysis
+    other.factorize(A3, &cache);
+    EXPECT_EQ(cache.analyses(), 2);
+    EXPECT_EQ(cache.reuses(), 1);
+    EXPECT_EQ(cache.patterns(), 2);
+    const Eigen::VectorXd x_plain = solve(plain), x_shared = solve(shared2);
+    EXPECT_EQ((x_plain - x_shared).cwiseAbs().maxCoeff(), 0.0);  // the same factor
+    EXPECT_EQ(plain.factor_nonzeros(), shared2.factor_nonzeros());
+    EXPECT_LT((A2 * x_shared - b).norm(), 1e-12 * b.norm());
+  }
+  {  // the set ordered last is part of the key; a Schur factor from a reused analysis is exact
+    SymbolicCache cache;
+    SparseCholesky p1, p2, p3, plain;
+    p1.factorize(A1, last, &cache);
+    p2.factorize(A2, last, &cache);
+    p3.factorize(A2, other_last, &cache);
+    plain.factorize(A2, last);
+    EXPECT_EQ(cache.analyses(), 2);
+    EXPECT_EQ(cache.reuses(), 1);
+    Eigen::MatrixXd L1, L2;
+    std::vector<int> o1, o2;
+    p2.schur_factor(L1, o1);
+    plain.schur_factor(L2, o2);
+    EXPECT_EQ(o1, o2);
+    EXPECT_EQ((L1 - L2).cwiseAbs().maxCoeff(), 0.0);
+  }
+  {  // capacity 1: the second pattern is analysed but not kept, the first is still reused
+    SymbolicCache cache(1);
+    SparseCholesky a, b2, c;
+    a.factorize(A1, &cache);
+    b2.factorize(A3, &cache);
+    c.factorize(A2, &cache);
+    EXPECT_EQ(cache.patterns(), 1);
+    EXPECT_EQ(cache.analyses(), 2);
+    EXPECT_EQ(cache.reuses(), 1);
+  }
+}
+
 namespace {
 
 struct Dense {

@@ -48,7 +48,7 @@ Eigen::MatrixXd null_space(const Eigen::MatrixXd& A) {
 
 Cluster::Cluster(int id, std::vector<Subdomain*> subs, std::vector<std::vector<ConstraintEntry>> C,
                  Ordering ordering, std::vector<std::vector<Subdomain::BEntry>> b,
-                 std::vector<int> nmult, bool explicit_F)
+                 std::vector<int> nmult, bool explicit_F, SymbolicCache* cache)
     : id_(id), subs_(std::move(subs)), b_(std::move(b)), explicit_(explicit_F) {
   const int s = static_cast<int>(subs_.size());
   if (explicit_)
@@ -66,12 +66,12 @@ Cluster::Cluster(int id, std::vector<Subdomain*> subs, std::vector<std::vector<C
         for (const auto& e : b_[i]) dofs.push_back(e.dof);
         std::sort(dofs.begin(), dofs.end());
         dofs.erase(std::unique(dofs.begin(), dofs.end()), dofs.end());
-        subs_[i]->factorize_with_interface_last(dofs);
+        subs_[i]->factorize_with_interface_last(dofs, cache);
         F_[i] = subs_[i]->dual_block(b_[i], nmult[i]);
         V_[i] = Eigen::MatrixXd::Zero(nmult[i], subs_[i]->kernel_dimension());
         for (const auto& e : b_[i]) V_[i].row(e.mult) += e.value * subs_[i]->kernel().row(e.dof);
       } else {
-        subs_[i]->factorize(ordering);
+        subs_[i]->factorize(ordering, cache);
         xw_[i] = Eigen::VectorXd::Zero(subs_[i]->size());
       }
     } catch (const std::exception& e) {
@@ -229,13 +229,17 @@ void Cluster::release_factors() {
   }
 }
 
-void Cluster::refactor(Ordering ordering) {
+void Cluster::refactor(Ordering ordering, SymbolicCache* cache,
+                       const std::vector<std::vector<int>>* interface_last) {
   const int s = static_cast<int>(subs_.size());
   std::string error;
 #pragma omp parallel for schedule(dynamic) if (!omp_in_parallel() && s > 1)
   for (int i = 0; i < s; ++i) {
     try {
-      subs_[i]->factorize(ordering);
+      if (interface_last)
+        subs_[i]->factorize_with_interface_last((*interface_last)[i], cache);
+      else
+        subs_[i]->factorize(ordering, cache);
       subs_[i]->release_matrix();
     } catch (const std::exception& e) {
 #pragma omp critical

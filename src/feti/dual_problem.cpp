@@ -293,6 +293,8 @@ DualProblem::DualProblem(const FetiLayout& layout,
 
   // 3. Clusters: factorizations, explicit blocks, the primal-constraint systems; d.
   t = now();
+  if (options.symbolic_cache_patterns > 0)
+    symbolic_ = std::make_unique<SymbolicCache>(options.symbolic_cache_patterns);
   clusters_.resize(ncl);
   error.clear();
   input_error = false;
@@ -310,7 +312,7 @@ DualProblem::DualProblem(const FetiLayout& layout,
     try {
       clusters_[c] = std::make_unique<Cluster>(c0_ + c, std::move(ptrs), std::move(primal[c]),
                                                ordering_, std::move(b), std::move(nmult),
-                                               explicit_);
+                                               explicit_, symbolic_.get());
       // The cluster's part of d = B~ K~^+ f, while its factors are at hand.
       cluster_rhs_from_ext(c, true, 0.0);
       clusters_[c]->solve(x_[c]);
@@ -327,7 +329,7 @@ DualProblem::DualProblem(const FetiLayout& layout,
               for (const auto& r : rows_[s]) rho[s].push_back(K.coeff(r.dof, r.dof));
             precond_[s] = std::make_unique<LocalPreconditioner>(
                 K, std::move(interface[s]), precond_kind_, precond_dense_, ordering_,
-                &subs_[s]->kernel());
+                &subs_[s]->kernel(), symbolic_.get());
           } catch (const std::exception& e) {
 #pragma omp critical
             perr = e.what();
@@ -339,13 +341,19 @@ DualProblem::DualProblem(const FetiLayout& layout,
       }
       // Factored: energy() and refactoring rebuild K_i. Freed per cluster, so that the peak is
       // the factors plus the matrices of the clusters not yet factored, not both in full.
-      double bytes = 0;
+      double bytes = 0, tsym = 0, tnum = 0;
       for (int i = 0; i < members(c); ++i) {
         subs_[sub_of(c, i)]->release_matrix();
         bytes += static_cast<double>(subs_[sub_of(c, i)]->factor_bytes());
+        tsym += subs_[sub_of(c, i)]->symbolic_seconds();
+        tnum += subs_[sub_of(c, i)]->numeric_seconds();
       }
 #pragma omp atomic
       setup_.factor_mb += bytes / 1048576.0;
+#pragma omp atomic
+      setup_.factor_symbolic += tsym;
+#pragma omp atomic
+      setup_.factor_numeric += tnum;
       if (factors_released_) clusters_[c]->release_factors();
     } catch (const std::bad_alloc&) {
 #pragma omp critical
@@ -357,6 +365,11 @@ DualProblem::DualProblem(const FetiLayout& layout,
   }
   comm_.agree(error, input_error);
   setup_.factorization = now() - t;
+  if (symbolic_) {
+    setup_.symbolic_analyses = symbolic_->analyses();
+    setup_.symbolic_reuses = symbolic_->reuses();
+    setup_.symbolic_patterns = symbolic_->patterns();
+  }
   setup_.peak_mb_factorization = peak_rss_mb();
   for (const auto& c : clusters_) setup_.cluster_setup += c->setup_seconds();
   lam_.resize(ncl);
@@ -993,7 +1006,18 @@ std::vector<DualProblem::Vec> DualProblem::reconstruct(const Vec& lambda) {
   std::string error;
   try {
     for_each_cluster([&](int c) {
-      if (factors_released_) clusters_[c]->refactor(ordering_);
+      if (factors_released_) {
+        // The interface-last factors of the setup again (their analysis is in the cache), so
+        // that u does not depend on whether the factors were kept.
+        std::vector<std::vector<int>> interface(members(c));
+        for (int i = 0; i < members(c); ++i) {
+          for (const auto& r : rows_[sub_of(c, i)]) interface[i].push_back(r.dof);
+          std::sort(interface[i].begin(), interface[i].end());
+          interface[i].erase(std::unique(interface[i].begin(), interface[i].end()),
+                             interface[i].end());
+        }
+        clusters_[c]->refactor(ordering_, symbolic_.get(), &interface);
+      }
       cluster_rhs_from_ext(c, true, -1.0);  // f - B~^T lambda
       clusters_[c]->solve(x_[c]);
       for (int i = 0; i < members(c); ++i) u[sub_of(c, i)] = x_[c][i];

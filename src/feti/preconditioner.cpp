@@ -45,7 +45,7 @@ std::string to_string(Scaling scaling) {
 LocalPreconditioner::LocalPreconditioner(const Eigen::SparseMatrix<double>& K,
                                          std::vector<int> interface, PreconditionerKind kind,
                                          bool dense, Ordering ordering,
-                                         const Eigen::MatrixXd* kernel)
+                                         const Eigen::MatrixXd* kernel, SymbolicCache* cache)
     : interface_(std::move(interface)), kind_(kind) {
   if (kind == PreconditionerKind::none) throw std::logic_error("LocalPreconditioner: no kind");
   const int n = static_cast<int>(K.rows()), nb = size();
@@ -89,7 +89,7 @@ LocalPreconditioner::LocalPreconditioner(const Eigen::SparseMatrix<double>& K,
     for (int d : interface_) A.coeffRef(d, d) += sigma;
     SparseCholesky chol;
     try {
-      chol.factorize(A, interface_);
+      chol.factorize(A, interface_, cache);
     } catch (const std::runtime_error&) {
       throw std::runtime_error(
           "Dirichlet preconditioner: the interface does not restrain a subdomain (K_ii is "
@@ -117,7 +117,7 @@ LocalPreconditioner::LocalPreconditioner(const Eigen::SparseMatrix<double>& K,
     Kii.setFromTriplets(tii.begin(), tii.end());
     Kii_ = SparseCholesky(ordering);
     try {
-      Kii_.factorize(Kii);
+      Kii_.factorize(Kii, cache);
     } catch (const std::runtime_error&) {
       throw std::runtime_error(
           "Dirichlet preconditioner: the interface does not restrain a subdomain (K_ii is "

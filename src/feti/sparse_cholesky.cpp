@@ -3,6 +3,8 @@
 #include <cholmod.h>
 
 #include <algorithm>
+#include <chrono>
+#include <cstdint>
 #include <cstring>
 #include <stdexcept>
 
@@ -39,6 +41,36 @@ cholmod_sparse upper_view(Eigen::SparseMatrix<double>& upper) {
 }
 }  // namespace
 
+// One cached symbolic analysis: the pattern it belongs to (compared in full) and the symbolic
+// factor, allocated through the cache's own CHOLMOD common.
+struct SymbolicCache::Entry {
+  std::uint64_t hash = 0;
+  int method = 0;  // 0 AMD, 1 METIS, 2 constrained AMD with `last` ordered last
+  std::vector<int> p, i, last;
+  cholmod_common common;
+  cholmod_factor* L = nullptr;
+  Entry() { cholmod_start(&common), common.print = 0, common.error_handler = nullptr; }
+  ~Entry() {
+    cholmod_free_factor(&L, &common);
+    cholmod_finish(&common);
+  }
+};
+
+SymbolicCache::SymbolicCache(int capacity) : capacity_(capacity) {}
+SymbolicCache::~SymbolicCache() = default;
+long SymbolicCache::analyses() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return analyses_;
+}
+long SymbolicCache::reuses() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return reuses_;
+}
+int SymbolicCache::patterns() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return static_cast<int>(entries_.size());
+}
+
 struct SparseCholesky::Impl {
   cholmod_common common;
   cholmod_factor* factor = nullptr;
@@ -47,8 +79,10 @@ struct SparseCholesky::Impl {
   cholmod_dense* e = nullptr;
   int n = 0;
   int nlast = 0;  // rows ordered last by factorize(A, last)
+  int method = 0;  // 0 AMD, 1 METIS (the constructor's ordering)
+  double symbolic_seconds = 0, numeric_seconds = 0;
 
-  explicit Impl(Ordering ordering) {
+  explicit Impl(Ordering ordering) : method(ordering == Ordering::amd ? 0 : 1) {
     cholmod_start(&common);
     common.print = 0;
     common.error_handler = nullptr;
@@ -71,23 +105,69 @@ SparseCholesky::~SparseCholesky() = default;
 SparseCholesky::SparseCholesky(SparseCholesky&&) noexcept = default;
 SparseCholesky& SparseCholesky::operator=(SparseCholesky&&) noexcept = default;
 
-void SparseCholesky::factorize(const Eigen::SparseMatrix<double>& A) { factorize_impl(A, nullptr); }
-
-void SparseCholesky::factorize(const Eigen::SparseMatrix<double>& A, const std::vector<int>& last) {
-  factorize_impl(A, &last);
+void SparseCholesky::factorize(const Eigen::SparseMatrix<double>& A, SymbolicCache* cache) {
+  factorize_impl(A, nullptr, cache);
 }
 
+void SparseCholesky::factorize(const Eigen::SparseMatrix<double>& A, const std::vector<int>& last,
+                               SymbolicCache* cache) {
+  factorize_impl(A, &last, cache);
+}
+
+double SparseCholesky::symbolic_seconds() const { return impl_->symbolic_seconds; }
+double SparseCholesky::numeric_seconds() const { return impl_->numeric_seconds; }
+
 void SparseCholesky::factorize_impl(const Eigen::SparseMatrix<double>& A,
-                                    const std::vector<int>* last) {
+                                    const std::vector<int>* last, SymbolicCache* cache) {
   if (A.rows() != A.cols()) throw std::invalid_argument("SparseCholesky: matrix is not square");
+  using clock = std::chrono::steady_clock;
+  const auto t0 = clock::now();
   auto& c = impl_->common;
   Eigen::SparseMatrix<double> upper = A.triangularView<Eigen::Upper>();
   cholmod_sparse view = upper_view(upper);
   cholmod_free_factor(&impl_->factor, &c);
-  impl_->nlast = 0;
-  if (last) {
+  impl_->nlast = last ? static_cast<int>(last->size()) : 0;
+
+  // The pattern's key for the cache: method, the sorted set ordered last, the upper triangle.
+  const int n = static_cast<int>(A.rows()), nnz = static_cast<int>(upper.nonZeros());
+  const int method = last ? 2 : impl_->method;
+  std::vector<int> last_sorted;
+  std::uint64_t hash = 1469598103934665603ULL;  // FNV-1a
+  const auto mix = [&hash](const int* v, long len) {
+    for (long k = 0; k < len; ++k)
+      hash = (hash ^ static_cast<std::uint32_t>(v[k])) * 1099511628211ULL;
+  };
+  const auto same = [&](const SymbolicCache::Entry& e) {
+    return e.hash == hash && e.method == method && static_cast<int>(e.p.size()) == n + 1 &&
+           static_cast<int>(e.i.size()) == nnz && e.last == last_sorted &&
+           std::equal(e.p.begin(), e.p.end(), upper.outerIndexPtr()) &&
+           std::equal(e.i.begin(), e.i.end(), upper.innerIndexPtr());
+  };
+  bool reused = false;
+  if (cache) {
+    if (last) {
+      last_sorted = *last;
+      std::sort(last_sorted.begin(), last_sorted.end());
+    }
+    mix(&method, 1);
+    mix(&n, 1);
+    mix(last_sorted.data(), static_cast<long>(last_sorted.size()));
+    mix(upper.outerIndexPtr(), n + 1);
+    mix(upper.innerIndexPtr(), nnz);
+    std::lock_guard<std::mutex> lock(cache->mutex_);
+    for (const auto& e : cache->entries_)
+      if (same(*e)) {
+        impl_->factor = cholmod_copy_factor(e->L, &c);
+        if (!impl_->factor) throw std::bad_alloc();
+        ++cache->reuses_;
+        reused = true;
+        break;
+      }
+  }
+  if (reused) {
+    // the cached analysis is the one this pattern would get
+  } else if (last) {
     // Constrained AMD: set 0 first, then set 1 (`last`); keep that order (no postordering).
-    const int n = static_cast<int>(A.rows());
     std::vector<int> cmember(n, 0), perm(n);
     for (int r : *last) cmember[r] = 1;
     if (!cholmod_camd(&view, nullptr, 0, cmember.data(), perm.data(), &c))
@@ -113,17 +193,36 @@ void SparseCholesky::factorize_impl(const Eigen::SparseMatrix<double>& A,
     c.method[0].ordering = saved_ordering;
     c.postorder = saved_postorder;
     if (!impl_->factor) throw std::runtime_error("CHOLMOD analysis failed");
-    impl_->nlast = static_cast<int>(last->size());
   } else {
     impl_->factor = cholmod_analyze(&view, &c);
   }
   if (!impl_->factor) throw std::runtime_error("CHOLMOD analysis failed");
+  if (cache && !reused) {
+    std::lock_guard<std::mutex> lock(cache->mutex_);
+    bool known = false;  // another thread may have added the same pattern meanwhile
+    for (const auto& e : cache->entries_) known = known || same(*e);
+    ++cache->analyses_;
+    if (!known && static_cast<int>(cache->entries_.size()) < cache->capacity_) {
+      auto e = std::make_unique<SymbolicCache::Entry>();
+      e->hash = hash;
+      e->method = method;
+      e->p.assign(upper.outerIndexPtr(), upper.outerIndexPtr() + n + 1);
+      e->i.assign(upper.innerIndexPtr(), upper.innerIndexPtr() + nnz);
+      e->last = last_sorted;
+      e->L = cholmod_copy_factor(impl_->factor, &e->common);
+      if (e->L) cache->entries_.push_back(std::move(e));
+    }
+  }
+  const auto t1 = clock::now();
   cholmod_factorize(&view, impl_->factor, &c);
   if (c.status == CHOLMOD_NOT_POSDEF || impl_->factor->minor < impl_->factor->n)
     throw std::runtime_error("CHOLMOD: matrix is not positive definite");
   if (c.status < 0) throw std::runtime_error("CHOLMOD factorization failed");
   impl_->n = static_cast<int>(A.rows());
   cholmod_free_work(&c);  // the analysis workspace is O(n) per factor: do not keep it
+  const auto t2 = clock::now();
+  impl_->symbolic_seconds = std::chrono::duration<double>(t1 - t0).count();
+  impl_->numeric_seconds = std::chrono::duration<double>(t2 - t1).count();
 }
 
 void SparseCholesky::solve(const double* b, double* out) {

@@ -1,5 +1,6 @@
 #include "htfeti/feti/subdomain.hpp"
 
+#include <chrono>
 #include <stdexcept>
 #include <string>
 
@@ -41,10 +42,13 @@ void Subdomain::release_factor() {
   work_ = Eigen::VectorXd();
 }
 
-void Subdomain::factorize(Ordering ordering) { factorize_impl(ordering, nullptr); }
+void Subdomain::factorize(Ordering ordering, SymbolicCache* cache) {
+  factorize_impl(ordering, nullptr, cache);
+}
 
-void Subdomain::factorize_with_interface_last(const std::vector<int>& interface_dofs) {
-  factorize_impl(Ordering::amd, &interface_dofs);
+void Subdomain::factorize_with_interface_last(const std::vector<int>& interface_dofs,
+                                              SymbolicCache* cache) {
+  factorize_impl(Ordering::amd, &interface_dofs, cache);
 }
 
 Eigen::MatrixXd Subdomain::dual_block(const std::vector<BEntry>& b, int nmult) const {
@@ -88,17 +92,22 @@ Eigen::SparseMatrix<double> Subdomain::reduced_matrix() {
   return Krr;
 }
 
-void Subdomain::factorize_impl(Ordering ordering, const std::vector<int>* interface_dofs) {
+void Subdomain::factorize_impl(Ordering ordering, const std::vector<int>* interface_dofs,
+                               SymbolicCache* cache) {
+  const auto t0 = std::chrono::steady_clock::now();
   const Eigen::SparseMatrix<double> Krr = reduced_matrix();
+  const double t_reduce =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   chol_ = SparseCholesky(ordering);
   if (interface_dofs) {
     std::vector<int> last;
     for (int d : *interface_dofs)
       if (reduced_[d] >= 0) last.push_back(reduced_[d]);
-    chol_.factorize(Krr, last);
+    chol_.factorize(Krr, last, cache);
   } else {
-    chol_.factorize(Krr);
+    chol_.factorize(Krr, cache);
   }
+  symbolic_seconds_ = t_reduce + chol_.symbolic_seconds();
   factor_nonzeros_ = chol_.factor_nonzeros();
   work_.resize(Krr.rows());
 }

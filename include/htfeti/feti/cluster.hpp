@@ -52,7 +52,7 @@ class Cluster {
   /// locally. Factors the subdomains. explicit_F: build the dense local blocks.
   Cluster(int id, std::vector<Subdomain*> subs, std::vector<std::vector<ConstraintEntry>> C,
           Ordering ordering, std::vector<std::vector<Subdomain::BEntry>> b,
-          std::vector<int> nmult, bool explicit_F);
+          std::vector<int> nmult, bool explicit_F, SymbolicCache* cache = nullptr);
   /// Without dual rows: for tests of the generalized inverse alone.
   Cluster(int id, std::vector<Subdomain*> subs, std::vector<std::vector<ConstraintEntry>> C,
           Ordering ordering)
@@ -87,8 +87,11 @@ class Cluster {
   /// Frees the subdomain factorizations and matrices (the explicit blocks stay); solve() then
   /// needs refactor() first.
   void release_factors();
-  /// Factors the subdomains again (plain fill-reducing ordering) so that solve() works.
-  void refactor(Ordering ordering);
+  /// Factors the subdomains again so that solve() works: with interface_last (per subdomain, the
+  /// dofs its rows of B~ touch) the same interface-last factors as the explicit setup, so that
+  /// the solution does not depend on whether the factors were kept; else with `ordering`.
+  void refactor(Ordering ordering, SymbolicCache* cache = nullptr,
+                const std::vector<std::vector<int>>* interface_last = nullptr);
   /// Seconds this cluster spent on its primal-constraint setup (K_i^+ C_i^T, the saddle-point
   /// matrix and its LU, U_i), beyond the subdomain factorizations and explicit blocks.
   double setup_seconds() const { return setup_seconds_; }

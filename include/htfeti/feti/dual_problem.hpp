@@ -57,6 +57,10 @@ struct FetiOptions {
   double dirichlet_dense_budget_bytes = 2.0 * (1LL << 30);
   /// Force the Dirichlet storage: 0 automatic (the budget above), 1 dense, 2 implicit.
   int dirichlet_storage = 0;
+  /// Subdomain factorizations share the symbolic analysis of an earlier subdomain with the same
+  /// sparsity pattern (SymbolicCache); this many patterns are kept per rank (0: every subdomain
+  /// is analysed on its own). The factors are the same either way.
+  int symbolic_cache_patterns = 64;
   /// With automatic storage, what to use when the dense S_i do not fit: the implicit Dirichlet
   /// preconditioner (dirichlet), or another kind (the automatic choice falls back to none: the
   /// implicit one needs a second factor per subdomain, which the memory check does not count).
@@ -71,6 +75,12 @@ struct SetupTimings {
   double cluster_setup =
       0;  ///< part of factorization: primal-constraint systems (summed over clusters)
   double preconditioner = 0;  ///< part of factorization: the local preconditioners (summed)
+  /// Part of factorization, summed over subdomains (thread-seconds): forming K_rr, ordering and
+  /// symbolic analysis (or its copy from the cache), and the numeric factorization.
+  double factor_symbolic = 0, factor_numeric = 0;
+  /// The rank's SymbolicCache after the setup's factorizations (subdomains and preconditioner):
+  /// analyses done, analyses reused, patterns held (all 0 when the cache is off).
+  long symbolic_analyses = 0, symbolic_reuses = 0, symbolic_patterns = 0;
   /// Peak resident memory of the rank (MiB) at the end of each setup phase.
   double factor_mb = 0;  ///< the rank's subdomain factors as built (before any release)
   double peak_mb_assembly = 0, peak_mb_constraints = 0, peak_mb_factorization = 0,
@@ -255,6 +265,7 @@ class DualProblem {
   std::vector<int> coarse_first_;  // per global cluster: first coarse index (num_clusters + 1)
   std::vector<std::unique_ptr<Subdomain>> subs_;
   std::vector<std::unique_ptr<Cluster>> clusters_;
+  std::unique_ptr<SymbolicCache> symbolic_;  // shared symbolic analyses (null: off)
   std::vector<std::vector<Row>> rows_;  // B~ rows per local subdomain
   DualLayout layout_dual_;
   OrderedSum sub_sum_, clu_sum_;       // contributions by subdomain / by cluster (G~^T)

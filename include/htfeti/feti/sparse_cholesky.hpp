@@ -4,6 +4,7 @@
 
 #include <Eigen/Sparse>
 #include <memory>
+#include <mutex>
 #include <string>
 #include <vector>
 
@@ -16,6 +17,32 @@ enum class Ordering { amd, metis, automatic };
 Ordering parse_ordering(const std::string& name);
 std::string to_string(Ordering ordering);
 
+/// Symbolic analyses (fill-reducing ordering, elimination tree, supernodes) shared between the
+/// factorizations of matrices with the same sparsity pattern. The analysis depends on the pattern
+/// alone, so a factorization that reuses one gives bit-for-bit the factor of its own analysis.
+/// The subdomains of a generated box have a handful of distinct patterns (position in the box,
+/// Dirichlet and contact rows); a Gmsh mesh split by METIS has as many as subdomains, so the
+/// cache keeps at most `capacity` patterns (the first ones analysed) and analyses the rest anew.
+/// Thread-safe; the pattern is compared in full, not only its hash.
+class SymbolicCache {
+ public:
+  explicit SymbolicCache(int capacity = 64);
+  ~SymbolicCache();
+  SymbolicCache(const SymbolicCache&) = delete;
+  SymbolicCache& operator=(const SymbolicCache&) = delete;
+  long analyses() const;  ///< symbolic analyses done (cache misses)
+  long reuses() const;    ///< factorizations that reused a cached analysis
+  int patterns() const;   ///< patterns held
+
+ private:
+  friend class SparseCholesky;
+  struct Entry;
+  mutable std::mutex mutex_;
+  int capacity_;
+  long analyses_ = 0, reuses_ = 0;
+  std::vector<std::unique_ptr<Entry>> entries_;
+};
+
 class SparseCholesky {
  public:
   explicit SparseCholesky(Ordering ordering = Ordering::amd);
@@ -27,11 +54,17 @@ class SparseCholesky {
 
   /// Factors A (only its upper triangle is read). Throws std::runtime_error if A is not
   /// positive definite.
-  void factorize(const Eigen::SparseMatrix<double>& A);
+  /// With a cache, the symbolic analysis of an earlier matrix of the same pattern is reused.
+  void factorize(const Eigen::SparseMatrix<double>& A, SymbolicCache* cache = nullptr);
   /// Factors A with the rows in `last` ordered after all others (constrained AMD, no
   /// postordering), so that the trailing block of the factor is the Cholesky factor of the Schur
   /// complement of A onto `last`. The ordering option of the constructor is not used.
-  void factorize(const Eigen::SparseMatrix<double>& A, const std::vector<int>& last);
+  void factorize(const Eigen::SparseMatrix<double>& A, const std::vector<int>& last,
+                 SymbolicCache* cache = nullptr);
+  /// Seconds of the last factorize(): the symbolic part (ordering and analysis, or the copy of a
+  /// cached analysis; includes forming the upper triangle) and the numeric factorization.
+  double symbolic_seconds() const;
+  double numeric_seconds() const;
   /// After factorize(A, last): lower-triangular L_s (|last| x |last|) with L_s L_s^T the Schur
   /// complement, and order[i] = the row of A that row i of L_s stands for.
   void schur_factor(Eigen::MatrixXd& L, std::vector<int>& order) const;
@@ -48,7 +81,8 @@ class SparseCholesky {
   static long symbolic_factor_bytes(const Eigen::SparseMatrix<double>& A, Ordering ordering);
 
  private:
-  void factorize_impl(const Eigen::SparseMatrix<double>& A, const std::vector<int>* last);
+  void factorize_impl(const Eigen::SparseMatrix<double>& A, const std::vector<int>* last,
+                      SymbolicCache* cache);
   struct Impl;
   std::unique_ptr<Impl> impl_;
 };

@@ -40,11 +40,16 @@ class Subdomain {
   int kernel_dimension() const { return static_cast<int>(sys_.R.cols()); }
   const std::vector<int>& fixed_dofs() const { return sys_.fixed_dofs; }
 
-  void factorize(Ordering ordering);
+  /// With a cache, the symbolic analysis is shared with subdomains of the same pattern.
+  void factorize(Ordering ordering, SymbolicCache* cache = nullptr);
   /// Factors with the given dofs (the interface) ordered last, so that the Schur complement of
   /// K_rr onto them is available for dual_block() (explicit dual operator). Fixed dofs among
   /// them are left out (K^+ is zero there).
-  void factorize_with_interface_last(const std::vector<int>& interface_dofs);
+  void factorize_with_interface_last(const std::vector<int>& interface_dofs,
+                                     SymbolicCache* cache = nullptr);
+  /// Seconds of the last factorization: symbolic (forming K_rr, ordering, analysis) and numeric.
+  double symbolic_seconds() const { return symbolic_seconds_; }
+  double numeric_seconds() const { return chol_.numeric_seconds(); }
   /// One entry of the subdomain's part of B~: row `mult` (subdomain-local numbering), column `dof`.
   struct BEntry {
     int mult;
@@ -71,11 +76,13 @@ class Subdomain {
   void release_factor();
 
  private:
-  void factorize_impl(Ordering ordering, const std::vector<int>* interface_dofs);
+  void factorize_impl(Ordering ordering, const std::vector<int>* interface_dofs,
+                      SymbolicCache* cache);
   Eigen::SparseMatrix<double> reduced_matrix();
   SubdomainSystem sys_;
   std::vector<int> reduced_;  // dof -> index in K_rr, -1 for fixed dofs
   long factor_nonzeros_ = 0;
+  double symbolic_seconds_ = 0;
   SparseCholesky chol_;
   Eigen::VectorXd work_;  // reduced vectors
 };

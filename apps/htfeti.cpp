@@ -192,8 +192,9 @@ int run(int argc, char** argv, const Comm& comm) {
   auto* o_ordering = solve_cmd
                          ->add_option("--ordering", ordering,
                                       "fill-reducing ordering of subdomain factors: amd | metis | "
-                                      "auto (AMD in 2D, METIS in 3D); implicit operator only: the "
-                                      "explicit one orders the interface last by constrained AMD")
+                                      "auto (METIS, except AMD for the implicit operator in 2D); "
+                                      "the explicit operator orders the interface last and the "
+                                      "rest by constrained AMD (amd) or nested dissection (metis)")
                          ->capture_default_str();
   auto* o_dual =
       solve_cmd

@@ -207,8 +207,10 @@ TEST(PreconditionedSolves, SameSolution) {
     const auto model = c.model();
     SolveOptions base;
     // SMALBE-M's criterion compares ||G lambda|| with ||b||: on the stiff cube (lambda ~ 1e9)
-    // it reaches 1e-7, the others 1e-10.
-    base.rtol = c.name.rfind("cube", 0) == 0 ? 1e-7 : 1e-10;
+    // with the 1e3 jump the unpreconditioned solve reaches 1e-7, not 1e-9; the H-TFETI-DP cube
+    // is taken to 1e-9 (at 1e-7 the energies of the different paths differ by up to 5e-8);
+    // the others to 1e-10.
+    base.rtol = c.name == "cube TFETI jump" ? 1e-7 : c.name.rfind("cube", 0) == 0 ? 1e-9 : 1e-10;
     base.check_memory = false;
     const SolveOutput ref = solve(model, base, comm);
     ASSERT_TRUE(ref.converged) << c.name;

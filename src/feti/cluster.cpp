@@ -66,7 +66,7 @@ Cluster::Cluster(int id, std::vector<Subdomain*> subs, std::vector<std::vector<C
         for (const auto& e : b_[i]) dofs.push_back(e.dof);
         std::sort(dofs.begin(), dofs.end());
         dofs.erase(std::unique(dofs.begin(), dofs.end()), dofs.end());
-        subs_[i]->factorize_with_interface_last(dofs, cache);
+        subs_[i]->factorize_with_interface_last(dofs, cache, ordering);
         F_[i] = subs_[i]->dual_block(b_[i], nmult[i]);
         V_[i] = Eigen::MatrixXd::Zero(nmult[i], subs_[i]->kernel_dimension());
         for (const auto& e : b_[i]) V_[i].row(e.mult) += e.value * subs_[i]->kernel().row(e.dof);
@@ -237,7 +237,7 @@ void Cluster::refactor(Ordering ordering, SymbolicCache* cache,
   for (int i = 0; i < s; ++i) {
     try {
       if (interface_last)
-        subs_[i]->factorize_with_interface_last((*interface_last)[i], cache);
+        subs_[i]->factorize_with_interface_last((*interface_last)[i], cache, ordering);
       else
         subs_[i]->factorize(ordering, cache);
       subs_[i]->release_matrix();

@@ -241,8 +241,11 @@ DualProblem::DualProblem(const FetiLayout& layout,
               (options.dual_operator == DualOperator::automatic && min_nodes >= kExplicitMinNodes &&
                explicit_bytes <= options.explicit_budget_bytes);
 
+  // automatic: METIS in 3D, and for the explicit operator's interface-last factors (nested
+  // dissection of the interior: 40% less numeric work than constrained AMD on the 2D Table 3
+  // subdomain, docs/performance.md); AMD for the implicit operator in 2D.
   ordering_ = options.ordering == Ordering::automatic
-                  ? (layout_.dim == 3 ? Ordering::metis : Ordering::amd)
+                  ? (layout_.dim == 3 || explicit_ ? Ordering::metis : Ordering::amd)
                   : options.ordering;
   const double factor_bytes_estimate = 8.0 * 100.0 * local_dofs;
   factors_released_ =

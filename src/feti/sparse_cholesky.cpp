@@ -71,6 +71,12 @@ int SymbolicCache::patterns() const {
   return static_cast<int>(entries_.size());
 }
 
+// METIS keeps its random number generator in global state (GKlib), reseeded at the start of
+// every call: two threads ordering at once interleave it and get orderings that depend on the
+// timing, and so results that depend on the number of threads. METIS calls are serialized (with
+// the symbolic cache they are few: one per distinct pattern).
+static std::mutex metis_mutex;
+
 struct SparseCholesky::Impl {
   cholmod_common common;
   cholmod_factor* factor = nullptr;
@@ -130,7 +136,7 @@ void SparseCholesky::factorize_impl(const Eigen::SparseMatrix<double>& A,
 
   // The pattern's key for the cache: method, the sorted set ordered last, the upper triangle.
   const int n = static_cast<int>(A.rows()), nnz = static_cast<int>(upper.nonZeros());
-  const int method = last ? 2 : impl_->method;
+  const int method = last ? 2 + impl_->method : impl_->method;
   std::vector<int> last_sorted;
   std::uint64_t hash = 1469598103934665603ULL;  // FNV-1a
   const auto mix = [&hash](const int* v, long len) {
@@ -167,11 +173,37 @@ void SparseCholesky::factorize_impl(const Eigen::SparseMatrix<double>& A,
   if (reused) {
     // the cached analysis is the one this pattern would get
   } else if (last) {
-    // Constrained AMD: set 0 first, then set 1 (`last`); keep that order (no postordering).
     std::vector<int> cmember(n, 0), perm(n);
     for (int r : *last) cmember[r] = 1;
-    if (!cholmod_camd(&view, nullptr, 0, cmember.data(), perm.data(), &c))
-      throw std::runtime_error("CHOLMOD: constrained ordering failed");
+    if (impl_->method == 0) {
+      // Constrained AMD: set 0 first, then set 1 (`last`).
+      if (!cholmod_camd(&view, nullptr, 0, cmember.data(), perm.data(), &c))
+        throw std::runtime_error("CHOLMOD: constrained ordering failed");
+    } else {
+      // METIS nested dissection of the rows not in `last`, then `last`.
+      std::vector<int> inner, index(n, -1);
+      for (int r = 0; r < n; ++r)
+        if (!cmember[r]) index[r] = static_cast<int>(inner.size()), inner.push_back(r);
+      const int ni = static_cast<int>(inner.size());
+      std::vector<Eigen::Triplet<double>> t;
+      for (int col = 0; col < n; ++col)
+        for (Eigen::SparseMatrix<double>::InnerIterator it(upper, col); it; ++it)
+          if (index[it.row()] >= 0 && index[col] >= 0)
+            t.emplace_back(index[it.row()], index[col], it.value());
+      Eigen::SparseMatrix<double> Aii(ni, ni);
+      Aii.setFromTriplets(t.begin(), t.end());
+      cholmod_sparse vi = upper_view(Aii);
+      std::vector<int> pi(ni);
+      if (ni > 0) {
+        std::lock_guard<std::mutex> lock(metis_mutex);
+        if (!cholmod_metis(&vi, nullptr, 0, 1, pi.data(), &c))
+          throw std::runtime_error("CHOLMOD: METIS ordering failed");
+      }
+      int k = 0;
+      for (int q = 0; q < ni; ++q) perm[k++] = inner[pi[q]];
+      for (int r = 0; r < n; ++r)
+        if (cmember[r]) perm[k++] = r;
+    }
     const int saved_nmethods = c.nmethods, saved_ordering = c.method[0].ordering;
     const int saved_postorder = c.postorder;
     c.nmethods = 1;
@@ -193,6 +225,9 @@ void SparseCholesky::factorize_impl(const Eigen::SparseMatrix<double>& A,
     c.method[0].ordering = saved_ordering;
     c.postorder = saved_postorder;
     if (!impl_->factor) throw std::runtime_error("CHOLMOD analysis failed");
+  } else if (impl_->method == 1) {
+    std::lock_guard<std::mutex> lock(metis_mutex);
+    impl_->factor = cholmod_analyze(&view, &c);
   } else {
     impl_->factor = cholmod_analyze(&view, &c);
   }
@@ -292,7 +327,10 @@ long SparseCholesky::symbolic_factor_bytes(const Eigen::SparseMatrix<double>& A,
   auto& c = chol.impl_->common;
   Eigen::SparseMatrix<double> upper = A.triangularView<Eigen::Upper>();
   cholmod_sparse view = upper_view(upper);
-  chol.impl_->factor = cholmod_analyze(&view, &c);
+  {
+    std::lock_guard<std::mutex> lock(metis_mutex);  // (METIS: see metis_mutex)
+    chol.impl_->factor = cholmod_analyze(&view, &c);
+  }
   if (!chol.impl_->factor) throw std::runtime_error("CHOLMOD analysis failed");
   return chol.factor_bytes();
 }

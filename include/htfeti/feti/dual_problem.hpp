@@ -193,10 +193,12 @@ class DualProblem {
 
   long factor_nonzeros() const;  ///< summed over this rank's subdomains
   bool explicit_operator() const { return explicit_; }
-  /// The ordering of the subdomain factors in effect (automatic resolved; the explicit operator
-  /// orders the interface last by constrained AMD whatever is asked).
+  /// The ordering of the subdomain factors in effect (automatic resolved). The explicit operator
+  /// orders the interface last, the rest by constrained AMD (amd) or by METIS nested dissection.
   std::string ordering_in_effect() const {
-    return explicit_ ? "camd (interface last)" : to_string(ordering_);
+    return explicit_ ? (ordering_ == Ordering::amd ? "camd (interface last)"
+                                                   : "metis (interface last)")
+                     : to_string(ordering_);
   }
   /// Whether the subdomain factors are freed after setup and rebuilt for the reconstruction.
   bool factors_released() const { return factors_released_; }

@@ -45,8 +45,11 @@ class Subdomain {
   /// Factors with the given dofs (the interface) ordered last, so that the Schur complement of
   /// K_rr onto them is available for dual_block() (explicit dual operator). Fixed dofs among
   /// them are left out (K^+ is zero there).
+  /// ordering: of the other dofs (AMD: constrained AMD over all; METIS: nested dissection of
+  /// the non-interface dofs).
   void factorize_with_interface_last(const std::vector<int>& interface_dofs,
-                                     SymbolicCache* cache = nullptr);
+                                     SymbolicCache* cache = nullptr,
+                                     Ordering ordering = Ordering::amd);
   /// Seconds of the last factorization: symbolic (forming K_rr, ordering, analysis) and numeric.
   double symbolic_seconds() const { return symbolic_seconds_; }
   double numeric_seconds() const { return chol_.numeric_seconds(); }
@@ -58,9 +61,11 @@ class Subdomain {
   };
   /// The dense local dual operator F_i = B_i K_i^+ B_i^T (nmult x nmult). Needs
   /// factorize_with_interface_last() with every dof that b touches. With L_s L_s^T the Schur
-  /// complement of K_rr onto the interface, (K_rr^{-1}) restricted to it is (L_s L_s^T)^{-1}, so
-  /// F_i = T^T T with T = L_s^{-1} B_i^T: one triangular solve with nmult right-hand sides and
-  /// one product, about 2 n_b^2 nmult flops, instead of nmult sparse solves.
+  /// complement S of K_rr onto the interface, (K_rr^{-1}) restricted to it is S^{-1}, formed
+  /// from L_s by LAPACK's dpotri (2/3 n_b^3 flops); then F_i = B_i S^{-1} B_i^T by sparse-dense
+  /// products ((n_b + n_mult) flops per entry of B_i). The route through T = L_s^{-1} B_i^T and
+  /// F_i = T^T T costs about n_b^2 n_mult + n_b n_mult^2 flops: 3 times more in 2D, 5 in 3D,
+  /// where a subdomain has more multipliers than interface dofs (docs/performance.md).
   Eigen::MatrixXd dual_block(const std::vector<BEntry>& b, int nmult) const;
   /// y = K^+ x (x and y of length size(); they may alias). Allocates nothing.
   void apply_pinv(const double* x, double* y);

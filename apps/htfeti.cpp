@@ -240,8 +240,9 @@ int run(int argc, char** argv, const Comm& comm) {
           ->capture_default_str();
   auto* o_keep = solve_cmd->add_flag("--keep-factors", opt.feti.keep_factors,
                       "explicit operator: always keep the subdomain factors during the iterations "
-                      "(by default they are freed, and rebuilt for the reconstruction, when they "
-                      "would take more than 4 GiB per rank)");
+                      "(by default a cluster frees them after its setup, and they are rebuilt for "
+                      "the reconstruction, once the available memory has fallen below 30% of "
+                      "what it was when the factorizations began)");
   auto* o_rho =
       solve_cmd
           ->add_option("--rho-factor", opt.smalbe.rho_factor, "SMALBE-M penalty rho = factor * ||PFP||")
@@ -280,6 +281,23 @@ int run(int argc, char** argv, const Comm& comm) {
                        "bottom node ends in contact; larger A: partial contact)")
           ->capture_default_str();
   auto* o_ascii = solve_cmd->add_flag("--vtu-ascii", out_opt.vtu_ascii, "write the VTU as ASCII");
+  std::string precision_text = "double";
+  auto* o_precision =
+      solve_cmd
+          ->add_option("--explicit-precision", precision_text,
+                       "storage of the explicit F_i (lower triangle, packed): double | single "
+                       "(half the memory and bytes per F; values rounded to single precision, "
+                       "sums in double)")
+          ->check(CLI::IsMember({"double", "single"}))
+          ->capture_default_str();
+  std::string norm_text = "power";
+  auto* o_norm = solve_cmd
+                     ->add_option("--norm-estimate", norm_text,
+                                  "SMALBE-M's estimate of ||PFP||: power (power method) | "
+                                  "lanczos (largest Ritz value of the Lanczos process); at most "
+                                  "50 products, relative change 1e-3")
+                     ->check(CLI::IsMember({"lanczos", "power"}))
+                     ->capture_default_str();
   auto* o_progress =
       solve_cmd->add_flag("--progress", opt.progress, "print one line per (outer) iteration");
 
@@ -403,6 +421,8 @@ int run(int argc, char** argv, const Comm& comm) {
       model = make_builtin_model(opt.decomposition);
     }
     if (o_symcache->count()) opt.feti.symbolic_cache_patterns = symbolic_cache;
+    if (o_norm->count()) opt.norm_estimate = qp::parse_norm_estimate(norm_text);
+    if (o_precision->count()) opt.feti.explicit_precision = parse_precision(precision_text);
     if (no_report) out_opt.write_report = false;
     if (no_vtu) out_opt.write_vtu = false;
     if (no_memory_check) opt.check_memory = false;

@@ -195,6 +195,8 @@ if "cube" in a.sections:
                          "--subdomains", ",".join([str(4 * k)] * 3), "-m", m,
                          "--preconditioner", pc] + storage(pc), 1)
                 rows.append(((f"{k}x{k}x{k}", name), r))
+                out[a.cube_key] = [dict(r, clusters=k[0], method=k[1]) for k, r in rows]
+                save("preconditioners.json", out)  # a row at a time: these runs are long
     table("cube-obstacle (Table 4), eps = 1e-4", rows, ["clusters", "method"])
     out[a.cube_key] = [dict(r, clusters=k[0], method=k[1]) for k, r in rows]
 

@@ -380,7 +380,7 @@ ProblemSpec read_problem_file(const std::string& path, SolveOptions& solver, Out
   }
   if (const toml::table* s = table_of(root, "solver", false)) {
     check_keys(*s, "solver", {"rtol", "max_iterations", "ordering", "dual_operator", "keep_factors",
-                              "preconditioner", "scaling", "dirichlet_storage", "rho_factor", "M0_factor", "eta_factor", "beta", "gamma", "progress"});
+                              "preconditioner", "scaling", "dirichlet_storage", "explicit_precision", "norm_estimate", "rho_factor", "M0_factor", "eta_factor", "beta", "gamma", "progress"});
     solver.rtol = get_double(*s, "solver", "rtol", solver.rtol);
     const long long mi = get_int(*s, "solver", "max_iterations", solver.max_iterations);
     if (mi < 0 || mi > 100000000) bad("solver.max_iterations", "must be a non-negative integer");
@@ -394,6 +394,12 @@ ProblemSpec read_problem_file(const std::string& path, SolveOptions& solver, Out
             parse_preconditioner(get_string(*s, "solver", "preconditioner", ""));
       if (s->contains("scaling"))
         solver.feti.scaling = parse_scaling(get_string(*s, "solver", "scaling", ""));
+      if (s->contains("explicit_precision"))
+        solver.feti.explicit_precision =
+            parse_precision(get_string(*s, "solver", "explicit_precision", ""));
+      if (s->contains("norm_estimate"))
+        solver.norm_estimate =
+            qp::parse_norm_estimate(get_string(*s, "solver", "norm_estimate", ""));
     } catch (const std::invalid_argument& e) {
       bad("[solver]", e.what());
     }

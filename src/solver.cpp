@@ -168,7 +168,9 @@ SolveOutput solve(std::shared_ptr<const Model> model_ptr, const SolveOptions& op
     for (int i = 0; i < n; ++i)  // depends on global indices only, not on the rank count
       start[i] = 1.0 + 0.5 * std::sin(0.7 * static_cast<double>(dual.global_index(i)) + 0.3);
     P.apply(start, start);
-    const double normA = qp::estimate_norm(A, start, red);
+    const double normA = options.norm_estimate == qp::NormEstimate::lanczos
+                             ? qp::estimate_norm_lanczos(A, start, red)
+                             : qp::estimate_norm(A, start, red);
     const long norm_matvecs = A.count();
     qp::SmalbeOptions so = options.smalbe;
     so.rtol = options.rtol;
@@ -203,6 +205,7 @@ SolveOutput solve(std::shared_ptr<const Model> model_ptr, const SolveOptions& op
               {"rhs_norm", r.rhs_norm},
               {"norm_estimate", normA},
               {"norm_estimate_matvecs", norm_matvecs},
+              {"norm_estimate_method", qp::to_string(options.norm_estimate)},
               {"rho", r.rho},
               {"M_final", r.M},
               {"alpha", r.alpha},
@@ -247,7 +250,9 @@ SolveOutput solve(std::shared_ptr<const Model> model_ptr, const SolveOptions& op
   rep["rtol"] = options.rtol;
   rep["ordering"] = dual.ordering_in_effect();
   rep["dual_operator"] = dual.explicit_operator() ? "explicit" : "implicit";
+  if (dual.explicit_operator()) rep["explicit_precision"] = to_string(feti.explicit_precision);
   rep["factors_released"] = dual.factors_released();
+  rep["clusters_released"] = comm.sum(static_cast<long long>(dual.clusters_released()));
   rep["preconditioner"] = to_string(dual.preconditioner());
   rep["scaling"] = to_string(dual.scaling());
   if (preconditioned)
@@ -315,7 +320,7 @@ SolveOutput solve(std::shared_ptr<const Model> model_ptr, const SolveOptions& op
                      {"sampled", comm.min(estimate.sampled ? 1.0 : 0.0) > 0}}},
                    {"factor_nonzeros", comm.sum(static_cast<long long>(dual.factor_nonzeros()))},
                    {"coarse_factor_nonzeros", dual.coarse_factor_nonzeros()},
-                   {"explicit_mb", comm.sum(8.0 * dual.explicit_doubles()) / 1048576.0},
+                   {"explicit_mb", comm.sum(static_cast<double>(dual.explicit_bytes())) / 1048576.0},
                    {"cluster_dense_mb", comm.sum(8.0 * dual.cluster_dense_doubles()) / 1048576.0},
                    {"preconditioner_mb",
                     comm.sum(static_cast<double>(dual.preconditioner_bytes())) / 1048576.0},

@@ -10,6 +10,7 @@
 #include "htfeti/feti/constraints.hpp"
 #include "htfeti/fem/physics.hpp"
 #include "htfeti/linalg/orthonormal.hpp"
+#include "htfeti/linalg/packed_symmetric.hpp"
 
 using namespace htfeti;
 
@@ -146,6 +147,31 @@ TEST(SymbolicCache, SharesAnalysesOnlyBetweenEqualPatterns) {
     EXPECT_EQ(cache.patterns(), 1);
     EXPECT_EQ(cache.analyses(), 2);
     EXPECT_EQ(cache.reuses(), 1);
+  }
+}
+
+// The packed lower triangle: the product equals the dense symmetric product (double: to
+// rounding; single: to the rounding of the values, 2^-24 relative), entries read back, and half
+// the bytes (a quarter in single precision).
+TEST(PackedSymmetric, ProductAndStorage) {
+  for (int n : {1, 2, 7, 64}) {
+    Eigen::MatrixXd A = Eigen::MatrixXd::Random(n, n);
+    A = (A + A.transpose()).eval();
+    A.triangularView<Eigen::StrictlyUpper>().setConstant(1e30);  // not read
+    const Eigen::MatrixXd S = A.selfadjointView<Eigen::Lower>();
+    const Eigen::VectorXd x = Eigen::VectorXd::LinSpaced(n, -1.0, 2.0);
+    const Eigen::VectorXd ref = S * x;
+    for (Precision p : {Precision::double_, Precision::single}) {
+      const PackedSymmetric P(A, p);
+      Eigen::VectorXd y = Eigen::VectorXd::Constant(n, 7.0);  // overwritten
+      P.multiply(x.data(), y.data());
+      const double tol = (p == Precision::double_ ? 1e-14 : 2e-7) * (S.cwiseAbs() * x.cwiseAbs()).maxCoeff();
+      EXPECT_LT((y - ref).cwiseAbs().maxCoeff(), tol) << n;
+      EXPECT_EQ(P.bytes(), (p == Precision::double_ ? 8L : 4L) * n * (n + 1) / 2);
+      for (int i = 0; i < n; ++i)
+        for (int j = 0; j < n; ++j)
+          EXPECT_NEAR(P(i, j), S(i, j), p == Precision::double_ ? 0.0 : 1e-7 * std::abs(S(i, j)));
+    }
   }
 }
 

@@ -18,8 +18,8 @@
 //   [decomposition] subdomains = N (METIS) or [sx, sy(, sz)] (generated box), cluster_size,
 //                 glue = "corners" | "averages" | "corners+averages"
 //   [solver]      rtol, max_iterations, ordering, dual_operator, keep_factors, preconditioner,
-//                 scaling, dirichlet_storage, rho_factor, M0_factor, eta_factor, beta, gamma,
-//                 progress
+//                 scaling, dirichlet_storage, explicit_precision, norm_estimate, rho_factor,
+//                 M0_factor, eta_factor, beta, gamma, progress
 //   [output]      report = "file" | false, vtu = "file" | false, vtu_ascii = bool
 #pragma once
 

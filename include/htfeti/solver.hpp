@@ -8,6 +8,7 @@
 
 #include "htfeti/feti/dual_problem.hpp"
 #include "htfeti/model.hpp"
+#include "htfeti/qp/power_norm.hpp"
 #include "htfeti/qp/smalbe.hpp"
 
 namespace htfeti {
@@ -26,6 +27,11 @@ struct SolveOptions {
   double rtol = 1e-4;        ///< relative precision eps of the QP solvers (paper: 1e-4)
   int max_iterations = 0;    ///< PCG iterations or SMALBE-M outer iterations; 0: 1000 / 200
   qp::SmalbeOptions smalbe;  ///< rtol and max_outer are taken from the fields above
+  /// How SMALBE-M's ||PFP|| is estimated (qp/power_norm.hpp); its products are reported in
+  /// solver.norm_estimate_matvecs. The power method stays the default because the committed
+  /// tables (docs/results.md) were measured with it; Lanczos needs fewer products in total
+  /// (docs/performance.md) and moves SMALBE-M's counts through rho = 1.1 ||PFP||.
+  qp::NormEstimate norm_estimate = qp::NormEstimate::power;
   bool progress = false;     ///< print one line per (outer) iteration on rank 0 (stderr)
   /// Estimate the memory before setup and refuse (std::invalid_argument) what cannot fit
   /// (memory_estimate.hpp).

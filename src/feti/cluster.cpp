@@ -48,7 +48,8 @@ Eigen::MatrixXd null_space(const Eigen::MatrixXd& A) {
 
 Cluster::Cluster(int id, std::vector<Subdomain*> subs, std::vector<std::vector<ConstraintEntry>> C,
                  Ordering ordering, std::vector<std::vector<Subdomain::BEntry>> b,
-                 std::vector<int> nmult, bool explicit_F, SymbolicCache* cache)
+                 std::vector<int> nmult, bool explicit_F, SymbolicCache* cache,
+                 Precision precision)
     : id_(id), subs_(std::move(subs)), b_(std::move(b)), explicit_(explicit_F) {
   const int s = static_cast<int>(subs_.size());
   if (explicit_)
@@ -67,7 +68,7 @@ Cluster::Cluster(int id, std::vector<Subdomain*> subs, std::vector<std::vector<C
         std::sort(dofs.begin(), dofs.end());
         dofs.erase(std::unique(dofs.begin(), dofs.end()), dofs.end());
         subs_[i]->factorize_with_interface_last(dofs, cache, ordering);
-        F_[i] = subs_[i]->dual_block(b_[i], nmult[i]);
+        F_[i] = PackedSymmetric(subs_[i]->dual_block(b_[i], nmult[i]), precision);
         V_[i] = Eigen::MatrixXd::Zero(nmult[i], subs_[i]->kernel_dimension());
         for (const auto& e : b_[i]) V_[i].row(e.mult) += e.value * subs_[i]->kernel().row(e.dof);
       } else {
@@ -249,11 +250,11 @@ void Cluster::refactor(Ordering ordering, SymbolicCache* cache,
   if (!error.empty()) throw std::runtime_error(error);
 }
 
-long Cluster::explicit_doubles() const {
+long Cluster::explicit_bytes() const {
   long n = 0;
-  for (const auto& f : F_) n += f.size();
-  for (const auto& u : U_) n += u.size();
-  for (const auto& v : V_) n += v.size();
+  for (const auto& f : F_) n += f.bytes();
+  for (const auto& u : U_) n += 8 * u.size();
+  for (const auto& v : V_) n += 8 * v.size();
   return n;
 }
 
@@ -276,7 +277,7 @@ void Cluster::apply_dual(const std::vector<Eigen::VectorXd>& lam,
   }
 #pragma omp parallel for schedule(static) if (!omp_in_parallel() && s > 1)
   for (int i = 0; i < s; ++i)
-    out[i].noalias() = F_[i].selfadjointView<Eigen::Lower>() * lam[i];  // the bottleneck
+    F_[i].multiply(lam[i].data(), out[i].data());  // the bottleneck
   if (rhs_.size() == 0) return;
   rhs_.setZero();
   for (int i = 0; i < s; ++i) {  // fixed order

@@ -231,11 +231,13 @@ DualProblem::DualProblem(const FetiLayout& layout,
     local_dofs += sd->size();
   }
   min_nodes = comm_.min(min_nodes);
-  // Dense local blocks F_i take 8 n_i^2 bytes (n_i: multipliers of subdomain i); automatic picks
-  // them only when they fit the same per-rank budget as the factors (3D subdomains have large
-  // interfaces: 1,806 multipliers and 26 MB per subdomain at H_s/h = 10).
+  // Dense local blocks F_i take 8 n_i (n_i + 1) / 2 bytes packed (4 in single precision; n_i:
+  // multipliers of subdomain i); automatic picks them only when they fit the same per-rank budget
+  // as the factors (3D subdomains have large interfaces: 1,806 interface dofs per subdomain at
+  // H_s/h = 10).
+  const double value_bytes = options.explicit_precision == Precision::single ? 4.0 : 8.0;
   double explicit_bytes = 0;
-  for (const auto& m : mult_) explicit_bytes += 8.0 * m.size() * m.size();
+  for (const auto& m : mult_) explicit_bytes += value_bytes * m.size() * (m.size() + 1) / 2;
   explicit_bytes = comm_.max(explicit_bytes);
   explicit_ = options.dual_operator == DualOperator::explicit_ ||
               (options.dual_operator == DualOperator::automatic && min_nodes >= kExplicitMinNodes &&
@@ -248,8 +250,14 @@ DualProblem::DualProblem(const FetiLayout& layout,
                   ? (layout_.dim == 3 || explicit_ ? Ordering::metis : Ordering::amd)
                   : options.ordering;
   const double factor_bytes_estimate = 8.0 * 100.0 * local_dofs;
-  factors_released_ =
-      explicit_ && !options.keep_factors && factor_bytes_estimate > options.factor_budget_bytes;
+  // Factor release (FetiOptions::keep_factors): fixed for all clusters by a budget, or decided
+  // cluster by cluster from the available memory.
+  const bool release_all = explicit_ && !options.keep_factors &&
+                           options.factor_budget_bytes >= 0 &&
+                           factor_bytes_estimate > options.factor_budget_bytes;
+  const bool release_adaptive = explicit_ && !options.keep_factors && options.factor_budget_bytes < 0;
+  const double reserve_mb = kFactorReserve * available_memory_mb();
+  released_.assign(ncl, 0);
   contrib_.resize(nsub);
   for (int s = 0; s < nsub; ++s) contrib_[s].assign(rows_[s].size(), 0.0);
   x_.resize(ncl);
@@ -315,7 +323,8 @@ DualProblem::DualProblem(const FetiLayout& layout,
     try {
       clusters_[c] = std::make_unique<Cluster>(c0_ + c, std::move(ptrs), std::move(primal[c]),
                                                ordering_, std::move(b), std::move(nmult),
-                                               explicit_, symbolic_.get());
+                                               explicit_, symbolic_.get(),
+                                               options.explicit_precision);
       // The cluster's part of d = B~ K~^+ f, while its factors are at hand.
       cluster_rhs_from_ext(c, true, 0.0);
       clusters_[c]->solve(x_[c]);
@@ -357,7 +366,10 @@ DualProblem::DualProblem(const FetiLayout& layout,
       setup_.factor_symbolic += tsym;
 #pragma omp atomic
       setup_.factor_numeric += tnum;
-      if (factors_released_) clusters_[c]->release_factors();
+      if (release_all || (release_adaptive && available_memory_mb() < reserve_mb)) {
+        clusters_[c]->release_factors();
+        released_[c] = 1;
+      }
     } catch (const std::bad_alloc&) {
 #pragma omp critical
       error = "out of memory while factoring the subdomains", input_error = true;
@@ -368,6 +380,7 @@ DualProblem::DualProblem(const FetiLayout& layout,
   }
   comm_.agree(error, input_error);
   setup_.factorization = now() - t;
+  factors_released_ = comm_.max(static_cast<double>(clusters_released())) > 0;
   if (symbolic_) {
     setup_.symbolic_analyses = symbolic_->analyses();
     setup_.symbolic_reuses = symbolic_->reuses();
@@ -1009,7 +1022,7 @@ std::vector<DualProblem::Vec> DualProblem::reconstruct(const Vec& lambda) {
   std::string error;
   try {
     for_each_cluster([&](int c) {
-      if (factors_released_) {
+      if (released_[c]) {
         // The interface-last factors of the setup again (their analysis is in the cache), so
         // that u does not depend on whether the factors were kept.
         std::vector<std::vector<int>> interface(members(c));
@@ -1024,7 +1037,7 @@ std::vector<DualProblem::Vec> DualProblem::reconstruct(const Vec& lambda) {
       cluster_rhs_from_ext(c, true, -1.0);  // f - B~^T lambda
       clusters_[c]->solve(x_[c]);
       for (int i = 0; i < members(c); ++i) u[sub_of(c, i)] = x_[c][i];
-      if (factors_released_) clusters_[c]->release_factors();
+      if (released_[c]) clusters_[c]->release_factors();
     });
   } catch (const std::exception& e) {
     error = e.what();
@@ -1181,9 +1194,15 @@ long DualProblem::factor_nonzeros() const {
   return n;
 }
 
-long DualProblem::explicit_doubles() const {
+int DualProblem::clusters_released() const {
+  int n = 0;
+  for (char r : released_) n += r;
+  return n;
+}
+
+long DualProblem::explicit_bytes() const {
   long n = 0;
-  for (const auto& c : clusters_) n += c->explicit_doubles();
+  for (const auto& c : clusters_) n += c->explicit_bytes();
   return n;
 }
 

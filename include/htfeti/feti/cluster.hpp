@@ -34,6 +34,7 @@
 
 #include "htfeti/feti/constraints.hpp"
 #include "htfeti/feti/subdomain.hpp"
+#include "htfeti/linalg/packed_symmetric.hpp"
 
 namespace htfeti {
 
@@ -52,7 +53,8 @@ class Cluster {
   /// locally. Factors the subdomains. explicit_F: build the dense local blocks.
   Cluster(int id, std::vector<Subdomain*> subs, std::vector<std::vector<ConstraintEntry>> C,
           Ordering ordering, std::vector<std::vector<Subdomain::BEntry>> b,
-          std::vector<int> nmult, bool explicit_F, SymbolicCache* cache = nullptr);
+          std::vector<int> nmult, bool explicit_F, SymbolicCache* cache = nullptr,
+          Precision precision = Precision::double_);
   /// Without dual rows: for tests of the generalized inverse alone.
   Cluster(int id, std::vector<Subdomain*> subs, std::vector<std::vector<ConstraintEntry>> C,
           Ordering ordering)
@@ -95,8 +97,8 @@ class Cluster {
   /// Seconds this cluster spent on its primal-constraint setup (K_i^+ C_i^T, the saddle-point
   /// matrix and its LU, U_i), beyond the subdomain factorizations and explicit blocks.
   double setup_seconds() const { return setup_seconds_; }
-  /// Doubles held by the explicit blocks F_i, U_i, V_i.
-  long explicit_doubles() const;
+  /// Bytes held by the explicit blocks F_i (packed), U_i, V_i.
+  long explicit_bytes() const;
 
  private:
   struct LocalRow {
@@ -119,7 +121,8 @@ class Cluster {
   std::vector<std::vector<Subdomain::BEntry>> b_;  // rows of B~ per subdomain (local numbering)
   std::vector<Eigen::VectorXd> xw_;                // implicit apply_dual: physical work vectors
   bool explicit_ = false;
-  std::vector<Eigen::MatrixXd> F_, U_;  // explicit: F_i, B_i K_i^+ C_i^T
+  std::vector<PackedSymmetric> F_;      // explicit: F_i (lower triangle, packed)
+  std::vector<Eigen::MatrixXd> U_;      // explicit: B_i K_i^+ C_i^T
   std::vector<Eigen::MatrixXd> V_;      // explicit: B_i R_i
   double setup_seconds_ = 0;
 };

@@ -40,15 +40,22 @@ struct FetiOptions {
   /// kExplicitMinNodes nodes (docs/performance.md: measured break-even).
   DualOperator dual_operator = DualOperator::automatic;
   /// With the explicit operator the subdomain factors are needed only for d (setup) and the
-  /// primal reconstruction. When their estimated size on a rank (100 nonzeros per node) exceeds
-  /// factor_budget_bytes, each cluster frees them right after its setup and factors again for the
-  /// reconstruction (the iterations then hold only the explicit blocks; docs/performance.md).
+  /// primal reconstruction. A cluster frees them right after its setup, and factors again (the
+  /// same interface-last factors, so u does not change) for the reconstruction, when
+  ///  - factor_budget_bytes < 0 (automatic, the default): the machine's available memory has
+  ///    fallen below kFactorReserve of what was available when the factorizations began
+  ///    (measured after each cluster: clusters keep their factors while memory is plentiful);
+  ///  - factor_budget_bytes >= 0: the rank's factors, estimated at 100 nonzeros per node, exceed
+  ///    it (0: always free them).
   /// keep_factors = true always keeps them.
   bool keep_factors = false;
-  double factor_budget_bytes = 4.0 * (1LL << 30);  ///< see keep_factors
+  double factor_budget_bytes = -1;  ///< see keep_factors
   /// automatic picks the explicit operator only when its dense blocks (8 n_i^2 bytes per
   /// subdomain, n_i its multipliers) fit this budget on every rank.
   double explicit_budget_bytes = 4.0 * (1LL << 30);
+  /// Storage of the explicit F_i (lower triangle, packed): double, or single precision with
+  /// double sums (half the memory and bandwidth; docs/performance.md).
+  Precision explicit_precision = Precision::double_;
   /// The preconditioner built for apply_preconditioner() (none: not built; preconditioner.hpp).
   PreconditionerKind preconditioner = PreconditionerKind::none;
   Scaling scaling = Scaling::multiplicity;
@@ -68,6 +75,9 @@ struct FetiOptions {
 };
 
 constexpr int kExplicitMinNodes = 25;
+/// Automatic factor release: clusters keep their factors while the available memory stays above
+/// this fraction of what was available at the start of the setup (FetiOptions::keep_factors).
+constexpr double kFactorReserve = 0.3;
 
 /// Seconds spent in each setup phase (wall clock on this rank).
 struct SetupTimings {
@@ -200,9 +210,11 @@ class DualProblem {
                                                    : "metis (interface last)")
                      : to_string(ordering_);
   }
-  /// Whether the subdomain factors are freed after setup and rebuilt for the reconstruction.
+  /// Whether the subdomain factors of some cluster were freed after setup and are rebuilt for the
+  /// reconstruction (on any rank), and how many clusters of this rank freed them.
   bool factors_released() const { return factors_released_; }
-  long explicit_doubles() const;       ///< doubles in the explicit blocks on this rank
+  int clusters_released() const;
+  long explicit_bytes() const;         ///< bytes of the explicit blocks on this rank
   long cluster_dense_doubles() const;  ///< doubles in the clusters' K^+ C^T blocks and LUs
   long coarse_factor_nonzeros() const {
     return coarse_factor_.use_dense
@@ -313,6 +325,7 @@ class DualProblem {
   std::vector<Vec> pin_, pout_;
   bool explicit_ = false;
   bool factors_released_ = false;
+  std::vector<char> released_;  // per local cluster: factors freed after setup
   bool outer_parallel_ = false;  // threads over clusters (true) or inside each cluster
   Ordering ordering_ = Ordering::amd;
 };

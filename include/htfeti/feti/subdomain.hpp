@@ -64,8 +64,8 @@ class Subdomain {
   /// complement S of K_rr onto the interface, (K_rr^{-1}) restricted to it is S^{-1}, formed
   /// from L_s by LAPACK's dpotri (2/3 n_b^3 flops); then F_i = B_i S^{-1} B_i^T by sparse-dense
   /// products ((n_b + n_mult) flops per entry of B_i). The route through T = L_s^{-1} B_i^T and
-  /// F_i = T^T T costs about n_b^2 n_mult + n_b n_mult^2 flops: 3 times more in 2D, 5 in 3D,
-  /// where a subdomain has more multipliers than interface dofs (docs/performance.md).
+  /// F_i = T^T T costs about n_b^2 n_mult + n_b n_mult^2 flops, 3 times more when n_mult is
+  /// about n_b (docs/performance.md).
   Eigen::MatrixXd dual_block(const std::vector<BEntry>& b, int nmult) const;
   /// y = K^+ x (x and y of length size(); they may alias). Allocates nothing.
   void apply_pinv(const double* x, double* y);

@@ -1,0 +1,43 @@
+// A symmetric matrix stored as its lower triangle packed column by column (LAPACK's 'L' packed
+// layout): n(n+1)/2 values instead of the n^2 of a full array, in double or single precision.
+// Products accumulate in double whatever the storage. Used for the explicit local dual operators
+// F_i, whose product streams the stored values once per application of F (memory-bound: the
+// values are read once, 4 flops each).
+#pragma once
+
+#include <Eigen/Dense>
+#include <string>
+#include <vector>
+
+namespace htfeti {
+
+/// Storage precision of the explicit F_i: double, or single (half the memory and the bytes
+/// streamed per product; the values are rounded to 24 bits, the sums stay in double).
+enum class Precision { double_, single };
+Precision parse_precision(const std::string& name);  // throws std::invalid_argument
+std::string to_string(Precision precision);
+
+class PackedSymmetric {
+ public:
+  PackedSymmetric() = default;
+  /// Packs the lower triangle of A (the upper one is not read).
+  PackedSymmetric(const Eigen::MatrixXd& A, Precision precision);
+  int size() const { return n_; }
+  Precision precision() const { return single_ ? Precision::single : Precision::double_; }
+  /// Bytes of the stored values.
+  long bytes() const {
+    return static_cast<long>(d_.size()) * 8 + static_cast<long>(s_.size()) * 4;
+  }
+  /// y = A x (length size(); x and y must not alias). Allocates nothing.
+  void multiply(const double* x, double* y) const;
+  /// Entry (i, j) (either triangle), for tests.
+  double operator()(int i, int j) const;
+
+ private:
+  int n_ = 0;
+  bool single_ = false;
+  std::vector<double> d_;
+  std::vector<float> s_;
+};
+
+}  // namespace htfeti

@@ -8,6 +8,7 @@ Default: a reduced H_s/h (16) that runs in a minute here. --full runs the paper'
 10 GB and several minutes per m.
 
 Usage: bench/table3.py [--hh 16 | --full] [--ms 1 2 4 8] [--ranks 1] [--threads 2]
+       [--extra "more htfeti solve arguments"] [--out table3_custom.json]
 Writes bench/results/table3_hh<H>.json and prints the table next to the paper's numbers."""
 import argparse
 
@@ -24,6 +25,8 @@ p.add_argument("--glue", default="averages")
 p.add_argument("--ranks", type=int, default=1)
 p.add_argument("--threads", type=int, default=2)
 p.add_argument("--extra", default="", help="further htfeti solve arguments, quoted")
+p.add_argument("--out", default=None,
+               help="the JSON file in bench/results (default table3_hh<H_s/h>.json)")
 a = p.parse_args()
 hh = 99 if a.full else a.hh
 n = a.ns * hh
@@ -38,7 +41,7 @@ for m in a.ms:
     r = solve(["--problem", "membranes", "-n", n, "--subdomains", a.ns, "-m", m, "--glue", a.glue,
                *a.extra.split()], ranks=a.ranks, threads=a.threads)
     runs.append(r)
-    save(f"table3_hh{hh}.json", {"command": "(partial)", "paper": PAPER, "runs": runs})
+    save(a.out or f"table3_hh{hh}.json", {"command": "(partial)", "paper": PAPER, "runs": runs})
     pp = PAPER.get(m, ("-", "-", "-"))
     print(f"| {m} | {r['outer_iterations']} | {r['matvecs']} | {r['coarse_dimension']} | "
           f"{pp[0]} / {pp[1]} / {pp[2]} | {r['primal_dimension']} | {r['inequalities']} | "
@@ -46,4 +49,4 @@ for m in a.ms:
           flush=True)
 cmd = "bench/table3.py " + ("--full" if a.full else f"--hh {hh}") + \
       f" --ms {' '.join(map(str, a.ms))} --ranks {a.ranks} --threads {a.threads}"
-print("\n" + save(f"table3_hh{hh}.json", {"command": cmd, "paper": PAPER, "runs": runs}))
+print("\n" + save(a.out or f"table3_hh{hh}.json", {"command": cmd, "paper": PAPER, "runs": runs}))

@@ -244,8 +244,9 @@ DualProblem::DualProblem(const FetiLayout& layout,
                explicit_bytes <= options.explicit_budget_bytes);
 
   // automatic: METIS in 3D, and for the explicit operator's interface-last factors (nested
-  // dissection of the interior: 40% less numeric work than constrained AMD on the 2D Table 3
-  // subdomain, docs/performance.md); AMD for the implicit operator in 2D.
+  // dissection of the interior: 8% fewer nonzeros than constrained AMD on the 2D Table 3
+  // subdomain, 14% less numeric time in 3D; docs/performance.md); AMD for the implicit
+  // operator in 2D.
   ordering_ = options.ordering == Ordering::automatic
                   ? (layout_.dim == 3 || explicit_ ? Ordering::metis : Ordering::amd)
                   : options.ordering;

@@ -17,17 +17,23 @@ Per build and case, medians of --repeat runs, from the reports:
   - the reconstruction per subdomain (here the factors are kept: one solve per subdomain).
 
 Usage: bench/setup_cost.py [--before OLD/htfeti] [--after build/htfeti] [--repeat 3]
+                           [--cases 2d 3d]
+The builds take turns run by run (one run of each per repetition), so that the drift of a shared
+machine's speed falls on all of them alike.
 Writes bench/results/setup_cost.json and prints a markdown table."""
 import argparse
 import os
 import statistics
 
-from common import ROOT, save, solve
+import json
+
+from common import RESULTS, ROOT, save, solve
 
 p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
 p.add_argument("--before", default=None, help="an older htfeti binary")
 p.add_argument("--after", default=os.path.join(ROOT, "build", "htfeti"))
 p.add_argument("--repeat", type=int, default=3)
+p.add_argument("--cases", nargs="+", default=["2d", "3d"], help="2d and/or 3d")
 a = p.parse_args()
 
 CASES = {
@@ -37,8 +43,7 @@ CASES = {
 }
 
 
-def measure(binary, args):
-    runs = [solve(args, threads=1, binary=binary) for _ in range(a.repeat)]
+def summarize(runs):
     n = runs[0]["subdomains"]
     med = lambda f: statistics.median(f(r) for r in runs) / n * 1e3  # noqa: E731
     out = {"factorization_ms": med(lambda r: r["timings"]["factorization"]),
@@ -57,13 +62,26 @@ def measure(binary, args):
 builds = [("after", a.after)] + ([("before", a.before)] if a.before else [])
 result = {"command": "bench/setup_cost.py" + (" --before BEFORE" if a.before else "") +
           f" --repeat {a.repeat}", "cases": {}}
-for case, args in CASES.items():
-    row = {}
-    for label, binary in builds:
-        row[label] = measure(binary, args + ["--dual-operator", "explicit"])
-    plain = measure(a.after, args + ["--dual-operator", "implicit", "--symbolic-cache", 0])
+path = os.path.join(RESULTS, "setup_cost.json")
+if os.path.exists(path):  # cases not rerun are kept
+    with open(path) as f:
+        result["cases"] = json.load(f).get("cases", {})
+for case in a.cases:
+    args = CASES[case]
+    # The builds and the plain reference take turns, one run each per repetition: this VM's
+    # speed drifts over minutes, and interleaving spreads the drift over all of them alike.
+    variants = [(label, binary, args + ["--dual-operator", "explicit"]) for label, binary in builds]
+    variants.append(("plain", a.after,
+                     args + ["--dual-operator", "implicit", "--symbolic-cache", 0]))
+    runs = {label: [] for label, _, _ in variants}
+    for _ in range(a.repeat):
+        for label, binary, v in variants:
+            runs[label].append(solve(v, threads=1, binary=binary))
+    row = {label: summarize(runs[label]) for label, _ in builds}
+    plain = summarize(runs["plain"])
     row["cholmod_plain_ms"] = plain.get("symbolic_ms", 0) + plain.get("numeric_ms", 0)
     row["cholmod_plain"] = plain
+    row["interleaved"] = True
     result["cases"][case] = row
     save("setup_cost.json", result)
 
@@ -72,6 +90,8 @@ print("| case | build | explicit setup ms / subdomain | of which symbolic / nume
 print("|---|---|---:|---|---:|---:|---:|")
 for case, row in result["cases"].items():
     for label, _ in builds:
+        if label not in row:
+            continue
         r = row[label]
         split = (f"{r['symbolic_ms']:.1f} / {r['numeric_ms']:.1f}" if "symbolic_ms" in r else "-")
         print(f"| {case} | {label} | {r['factorization_ms']:.1f} | {split} | "

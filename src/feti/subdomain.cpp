@@ -108,16 +108,35 @@ Eigen::SparseMatrix<double> Subdomain::reduced_matrix() {
   const int nn = size();
   if (sys_.K.rows() != nn) sys_.assemble().swap(sys_.K);  // released earlier
   const int nr = nn - static_cast<int>(sys_.fixed_dofs.size());
-  std::vector<Eigen::Triplet<double>> trip;
-  trip.reserve(sys_.K.nonZeros());
-  for (int col = 0; col < nn; ++col)
+  // The upper triangle of K without the fixed rows and columns, written straight into compressed
+  // storage: reduced_ is increasing, so the columns come in order and each keeps K's sorted rows
+  // (no triplets, no sort; the same matrix entry for entry).
+  long nnz = 0;
+  for (int col = 0; col < nn; ++col) {
+    if (reduced_[col] < 0) continue;
+    for (Eigen::SparseMatrix<double>::InnerIterator it(sys_.K, col); it; ++it)
+      if (it.row() <= col && reduced_[it.row()] >= 0) ++nnz;
+  }
+  Eigen::SparseMatrix<double> Krr(nr, nr);
+  Krr.makeCompressed();
+  Krr.resizeNonZeros(nnz);
+  int* outer = Krr.outerIndexPtr();
+  int* inner = Krr.innerIndexPtr();
+  double* value = Krr.valuePtr();
+  long k = 0;
+  outer[0] = 0;
+  for (int col = 0; col < nn; ++col) {
+    const int rc = reduced_[col];
+    if (rc < 0) continue;
     for (Eigen::SparseMatrix<double>::InnerIterator it(sys_.K, col); it; ++it) {
       const int row = static_cast<int>(it.row());
-      if (row > col || reduced_[row] < 0 || reduced_[col] < 0) continue;
-      trip.emplace_back(reduced_[row], reduced_[col], it.value());
+      if (row > col || reduced_[row] < 0) continue;
+      inner[k] = reduced_[row];
+      value[k] = it.value();
+      ++k;
     }
-  Eigen::SparseMatrix<double> Krr(nr, nr);
-  Krr.setFromTriplets(trip.begin(), trip.end());
+    outer[rc + 1] = static_cast<int>(k);
+  }
   return Krr;
 }
 

@@ -53,7 +53,7 @@ Cluster::Cluster(int id, std::vector<Subdomain*> subs, std::vector<std::vector<C
     : id_(id), subs_(std::move(subs)), b_(std::move(b)), explicit_(explicit_F) {
   const int s = static_cast<int>(subs_.size());
   if (explicit_)
-    F_.resize(s), V_.resize(s);
+    F_.resize(s), V_.resize(s), interface_.resize(s);
   else
     xw_.resize(s);
   std::string error;
@@ -63,7 +63,7 @@ Cluster::Cluster(int id, std::vector<Subdomain*> subs, std::vector<std::vector<C
   for (int i = 0; i < s; ++i) {
     try {
       if (explicit_) {
-        std::vector<int> dofs;
+        std::vector<int>& dofs = interface_[i];
         for (const auto& e : b_[i]) dofs.push_back(e.dof);
         std::sort(dofs.begin(), dofs.end());
         dofs.erase(std::unique(dofs.begin(), dofs.end()), dofs.end());
@@ -230,15 +230,14 @@ void Cluster::release_factors() {
   }
 }
 
-void Cluster::refactor(Ordering ordering, SymbolicCache* cache,
-                       const std::vector<std::vector<int>>* interface_last) {
+void Cluster::refactor(Ordering ordering, SymbolicCache* cache) {
   const int s = static_cast<int>(subs_.size());
   std::string error;
 #pragma omp parallel for schedule(dynamic) if (!omp_in_parallel() && s > 1)
   for (int i = 0; i < s; ++i) {
     try {
-      if (interface_last)
-        subs_[i]->factorize_with_interface_last((*interface_last)[i], cache, ordering);
+      if (explicit_)
+        subs_[i]->factorize_with_interface_last(interface_[i], cache, ordering);
       else
         subs_[i]->factorize(ordering, cache);
       subs_[i]->release_matrix();

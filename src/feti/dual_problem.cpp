@@ -257,7 +257,7 @@ DualProblem::DualProblem(const FetiLayout& layout,
                            options.factor_budget_bytes >= 0 &&
                            factor_bytes_estimate > options.factor_budget_bytes;
   const bool release_adaptive = explicit_ && !options.keep_factors && options.factor_budget_bytes < 0;
-  const double reserve_mb = kFactorReserve * available_memory_mb();
+  const double reserve_mb = release_adaptive ? kFactorReserve * available_memory_mb() : 0.0;
   released_.assign(ncl, 0);
   contrib_.resize(nsub);
   for (int s = 0; s < nsub; ++s) contrib_[s].assign(rows_[s].size(), 0.0);
@@ -1023,18 +1023,9 @@ std::vector<DualProblem::Vec> DualProblem::reconstruct(const Vec& lambda) {
   std::string error;
   try {
     for_each_cluster([&](int c) {
-      if (released_[c]) {
-        // The interface-last factors of the setup again (their analysis is in the cache), so
-        // that u does not depend on whether the factors were kept.
-        std::vector<std::vector<int>> interface(members(c));
-        for (int i = 0; i < members(c); ++i) {
-          for (const auto& r : rows_[sub_of(c, i)]) interface[i].push_back(r.dof);
-          std::sort(interface[i].begin(), interface[i].end());
-          interface[i].erase(std::unique(interface[i].begin(), interface[i].end()),
-                             interface[i].end());
-        }
-        clusters_[c]->refactor(ordering_, symbolic_.get(), &interface);
-      }
+      // The setup's factors again (their analysis is in the cache): u does not depend on
+      // whether they were kept.
+      if (released_[c]) clusters_[c]->refactor(ordering_, symbolic_.get());
       cluster_rhs_from_ext(c, true, -1.0);  // f - B~^T lambda
       clusters_[c]->solve(x_[c]);
       for (int i = 0; i < members(c); ++i) u[sub_of(c, i)] = x_[c][i];

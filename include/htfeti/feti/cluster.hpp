@@ -89,11 +89,10 @@ class Cluster {
   /// Frees the subdomain factorizations and matrices (the explicit blocks stay); solve() then
   /// needs refactor() first.
   void release_factors();
-  /// Factors the subdomains again so that solve() works: with interface_last (per subdomain, the
-  /// dofs its rows of B~ touch) the same interface-last factors as the explicit setup, so that
-  /// the solution does not depend on whether the factors were kept; else with `ordering`.
-  void refactor(Ordering ordering, SymbolicCache* cache = nullptr,
-                const std::vector<std::vector<int>>* interface_last = nullptr);
+  /// Factors the subdomains again so that solve() works, as the constructor did (explicit: the
+  /// same interface-last factors, so the solution does not depend on whether the factors were
+  /// kept; implicit: with `ordering`).
+  void refactor(Ordering ordering, SymbolicCache* cache = nullptr);
   /// Seconds this cluster spent on its primal-constraint setup (K_i^+ C_i^T, the saddle-point
   /// matrix and its LU, U_i), beyond the subdomain factorizations and explicit blocks.
   double setup_seconds() const { return setup_seconds_; }
@@ -122,6 +121,7 @@ class Cluster {
   std::vector<Eigen::VectorXd> xw_;                // implicit apply_dual: physical work vectors
   bool explicit_ = false;
   std::vector<PackedSymmetric> F_;      // explicit: F_i (lower triangle, packed)
+  std::vector<std::vector<int>> interface_;  // explicit: the dofs ordered last (refactor())
   std::vector<Eigen::MatrixXd> U_;      // explicit: B_i K_i^+ C_i^T
   std::vector<Eigen::MatrixXd> V_;      // explicit: B_i R_i
   double setup_seconds_ = 0;

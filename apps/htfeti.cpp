@@ -243,6 +243,14 @@ int run(int argc, char** argv, const Comm& comm) {
                       "(by default a cluster frees them after its setup, and they are rebuilt for "
                       "the reconstruction, once the available memory has fallen below 30% of "
                       "what it was when the factorizations began)");
+  bool release_factors = false;
+  auto* o_release =
+      solve_cmd
+          ->add_flag("--release-factors", release_factors,
+                     "explicit operator: every cluster frees its subdomain factors right after "
+                     "its setup and factors again for the reconstruction (the least memory; by "
+                     "default factors are freed only once memory runs short)")
+          ->excludes(o_keep);
   auto* o_rho =
       solve_cmd
           ->add_option("--rho-factor", opt.smalbe.rho_factor, "SMALBE-M penalty rho = factor * ||PFP||")
@@ -421,6 +429,11 @@ int run(int argc, char** argv, const Comm& comm) {
       model = make_builtin_model(opt.decomposition);
     }
     if (o_symcache->count()) opt.feti.symbolic_cache_patterns = symbolic_cache;
+    if (release_factors) {
+      if (opt.feti.keep_factors)
+        throw std::invalid_argument("--release-factors contradicts solver.keep_factors = true");
+      opt.feti.factor_budget_bytes = 0;
+    }
     if (o_norm->count()) opt.norm_estimate = qp::parse_norm_estimate(norm_text);
     if (o_precision->count()) opt.feti.explicit_precision = parse_precision(precision_text);
     if (no_report) out_opt.write_report = false;

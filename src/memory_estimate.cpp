@@ -1,6 +1,7 @@
 #include "htfeti/memory_estimate.hpp"
 
 #include <mpi.h>
+#include <omp.h>
 
 #include <algorithm>
 #include <cmath>
@@ -44,23 +45,56 @@ MemoryEstimate estimate_memory(const Model& model, const FetiOptions& options, c
   const double unknowns = static_cast<double>(model.primal_dimension()) * share;
   const double per_subdomain = unknowns / (s1 - s0);
   const Physics& ph = model.physics();
-  e.vectors_mb = unknowns * 8.0 * (ph.kernel_dimension() + 8) / kMiB;
+  e.vectors_mb = unknowns * 8.0 * (ph.kernel_dimension() + 4) / kMiB;
   const double lower_nnz = unknowns * lower_nonzeros_per_row(ph);
   e.matrices_mb = lower_nnz * 12.0 / kMiB;
   e.factors_mb = lower_nnz * 8.0 / kMiB;  // L has at least the nonzeros of K's lower triangle
+  e.factors_held_mb = e.factors_mb;
   if (per_subdomain > kMaxSampleUnknowns) return e;
   // Sample: the rank's first subdomain, assembled and analysed with the ordering in effect.
   SubdomainInput in = model.input(s0);
   const double n = static_cast<double>(in.system.f.size());
   if (n == 0) return e;
   const double k_bytes = 12.0 * static_cast<double>(in.system.K.nonZeros());
-  const Ordering ordering = options.ordering == Ordering::automatic
-                                ? (layout.dim == 3 ? Ordering::metis : Ordering::amd)
-                                : options.ordering;
+  // Its multipliers: one row of B~ per further copy of each shared dof, per Dirichlet dof and per
+  // contact row.
+  double nmult = static_cast<double>(in.dirichlet.size() + in.contact.size());
+  for (int k = 0; k < in.sharing.num_nodes(); ++k)
+    nmult += static_cast<double>(in.sharing.num_copies(k) - 1) * ph.dofs_per_node();
+  const double nodes = n / ph.dofs_per_node();
+  // The explicit operator (DualProblem's rule, with every subdomain like the sample).
+  const double subdomains = s1 - s0;
+  const double value_bytes = options.explicit_precision == Precision::single ? 4.0 : 8.0;
+  const double explicit_bytes = subdomains * value_bytes * nmult * (nmult + 1) / 2;
+  const bool is_explicit =
+      options.dual_operator == DualOperator::explicit_ ||
+      (options.dual_operator == DualOperator::automatic && nodes >= kExplicitMinNodes &&
+       explicit_bytes <= options.explicit_budget_bytes);
+  const Ordering ordering =
+      options.ordering == Ordering::automatic
+          ? (layout.dim == 3 || is_explicit ? Ordering::metis : Ordering::amd)
+          : options.ordering;
   Subdomain sample(std::move(in.system));
   const double f_bytes = static_cast<double>(sample.symbolic_factor_bytes(ordering));
   e.matrices_mb = std::max(e.matrices_mb, k_bytes / n * unknowns / kMiB);
   e.factors_mb = std::max(e.factors_mb, f_bytes / n * unknowns / kMiB);
+  e.factors_held_mb = e.factors_mb;
+  if (is_explicit) {
+    e.explicit_mb = explicit_bytes / kMiB;
+    // Released factors (FetiOptions::keep_factors): at most the clusters being set up at one
+    // time hold theirs (threads x the rank's largest cluster).
+    const bool released =
+        !options.keep_factors && (options.factor_budget_bytes < 0 ||
+                                  8.0 * 100.0 * unknowns > options.factor_budget_bytes);
+    if (released) {
+      int largest = 1;
+      for (int c = c0; c < c1; ++c)
+        largest = std::max(largest, layout.cluster_first[c + 1] - layout.cluster_first[c]);
+      const double working = std::min(subdomains, static_cast<double>(largest) *
+                                                      std::max(1, omp_get_max_threads()));
+      e.factors_held_mb = e.factors_mb * working / subdomains;
+    }
+  }
   e.sampled = true;
   return e;
 }
@@ -79,8 +113,10 @@ MemoryEstimate check_memory(const Model& model, const FetiOptions& options, cons
   } catch (const std::exception& ex) {
     error = ex.what();
   }
-  double mine[4] = {e.peak_mb(), e.factors_mb, e.matrices_mb, e.vectors_mb}, sum[4];
-  MPI_Allreduce(mine, sum, 4, MPI_DOUBLE, MPI_SUM, node);
+  double mine[6] = {e.peak_mb(),  e.factors_mb,  e.matrices_mb,
+                    e.vectors_mb, e.explicit_mb, e.factors_held_mb},
+         sum[6];
+  MPI_Allreduce(mine, sum, 6, MPI_DOUBLE, MPI_SUM, node);
   double available = available_memory_mb();
   MPI_Allreduce(MPI_IN_PLACE, &available, 1, MPI_DOUBLE, MPI_MIN, node);
   int node_ranks = 1;
@@ -89,7 +125,9 @@ MemoryEstimate check_memory(const Model& model, const FetiOptions& options, cons
   if (error.empty() && available > 0 && sum[0] > available)
     error = "the problem does not fit in memory: estimated " + gb(sum[0]) + " on " +
             std::to_string(node_ranks) + " rank(s) of this machine (factors " + gb(sum[1]) +
-            ", matrices " + gb(sum[2]) + ", vectors " + gb(sum[3]) + "), available " +
+            (sum[5] < sum[1] ? " of which " + gb(sum[5]) + " held at once" : std::string()) +
+            ", matrices " + gb(sum[2]) + ", vectors " + gb(sum[3]) +
+            (sum[4] > 0 ? ", explicit F_i " + gb(sum[4]) : std::string()) + "), available " +
             gb(available) +
             "; use fewer unknowns, more machines, or --no-memory-check to try anyway";
   comm.agree(error, true);

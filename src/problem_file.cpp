@@ -379,7 +379,7 @@ ProblemSpec read_problem_file(const std::string& path, SolveOptions& solver, Out
     }
   }
   if (const toml::table* s = table_of(root, "solver", false)) {
-    check_keys(*s, "solver", {"rtol", "max_iterations", "ordering", "dual_operator", "keep_factors",
+    check_keys(*s, "solver", {"rtol", "max_iterations", "ordering", "dual_operator", "keep_factors", "release_factors",
                               "preconditioner", "scaling", "dirichlet_storage", "explicit_precision", "norm_estimate", "rho_factor", "M0_factor", "eta_factor", "beta", "gamma", "progress"});
     solver.rtol = get_double(*s, "solver", "rtol", solver.rtol);
     const long long mi = get_int(*s, "solver", "max_iterations", solver.max_iterations);
@@ -410,6 +410,11 @@ ProblemSpec read_problem_file(const std::string& path, SolveOptions& solver, Out
       solver.feti.dirichlet_storage = w == "dense" ? 1 : w == "implicit" ? 2 : 0;
     }
     solver.feti.keep_factors = get_bool(*s, "solver", "keep_factors", solver.feti.keep_factors);
+    if (get_bool(*s, "solver", "release_factors", false)) {
+      if (solver.feti.keep_factors)
+        bad("solver.release_factors", "cannot be true together with solver.keep_factors");
+      solver.feti.factor_budget_bytes = 0;
+    }
     solver.smalbe.rho_factor = get_double(*s, "solver", "rho_factor", solver.smalbe.rho_factor);
     solver.smalbe.M0_factor = get_double(*s, "solver", "M0_factor", solver.smalbe.M0_factor);
     solver.smalbe.eta_factor = get_double(*s, "solver", "eta_factor", solver.smalbe.eta_factor);

@@ -178,11 +178,13 @@ SolveOutput solve(std::shared_ptr<const Model> model_ptr, const SolveOptions& op
     Vec x = Vec::Zero(n);
     long H_count = 0;
     Vec px(n);
-    const qp::PenalizedApply H = [&](const Vec& v, double rho, Vec& y) {  // PFP v + rho (v - P v)
-      P.apply(v, px);  // one projection of v serves both terms
+    // PFP v + rho (v - P v), and Q v = v - P v: one projection of v serves all three.
+    const qp::PenalizedHessian H = [&](const Vec& v, double rho, Vec& y, Vec& qv) {
+      P.apply(v, px);
       F.apply(px, y);
       P.apply(y, y);
-      y += rho * (v - px);
+      qv = v - px;
+      y += rho * qv;
     };
     // In face: Z_rho = P M^{-1} P + Q / rho, exact on Im Q where H_rho = rho I.
     const qp::PenalizedApply Zrho = [&](const Vec& v, double rho, Vec& y) {
@@ -317,6 +319,8 @@ SolveOutput solve(std::shared_ptr<const Model> model_ptr, const SolveOptions& op
                      {"factors", comm.sum(estimate.factors_mb)},
                      {"matrices", comm.sum(estimate.matrices_mb)},
                      {"vectors", comm.sum(estimate.vectors_mb)},
+                     {"explicit", comm.sum(estimate.explicit_mb)},
+                     {"factors_held", comm.sum(estimate.factors_held_mb)},
                      {"sampled", comm.min(estimate.sampled ? 1.0 : 0.0) > 0}}},
                    {"factor_nonzeros", comm.sum(static_cast<long long>(dual.factor_nonzeros()))},
                    {"coarse_factor_nonzeros", dual.coarse_factor_nonzeros()},

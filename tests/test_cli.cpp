@@ -334,6 +334,36 @@ TEST_F(Cli, MemoryEstimateMatchesTheFactorsBuilt) {
   }
 }
 
+// With the explicit operator the estimate counts the packed blocks F_i (checked against the
+// blocks built) and, when factors are released, only the factors of the clusters set up at one
+// time; --keep-factors counts them all. --release-factors frees every cluster's factors.
+TEST_F(Cli, MemoryEstimateModelsExplicitBlocksAndFactorRelease) {
+  auto estimate = [&](const std::string& extra) {
+    EXPECT_EQ(run(bin + " solve --problem poisson2d -n 256 --subdomains 8 -m 1 --dual-operator "
+                        "explicit --no-vtu --report r.json " + extra),
+              0)
+        << extra << stderr_text();
+    std::ifstream f("r.json");
+    return nlohmann::json::parse(f);
+  };
+  const auto released = estimate("--release-factors");
+  const auto& e = released["memory"]["estimate_mb"];
+  const double built = released["memory"]["explicit_mb"];
+  EXPECT_NEAR(e["explicit"].get<double>(), built, 0.1 * built);
+  EXPECT_LT(e["factors_held"].get<double>(), 0.5 * e["factors"].get<double>());
+  EXPECT_EQ(released["clusters_released"], released["clusters"]);
+  const auto kept = estimate("--keep-factors");
+  EXPECT_EQ(kept["memory"]["estimate_mb"]["factors_held"], kept["memory"]["estimate_mb"]["factors"]);
+  EXPECT_EQ(kept["clusters_released"], 0);
+  EXPECT_GT(kept["memory"]["estimate_mb"]["peak"].get<double>(), e["peak"].get<double>());
+  // The solution does not depend on it (round-off of the reconstruction's factor).
+  EXPECT_NEAR(kept["objective"].get<double>(), released["objective"].get<double>(),
+              1e-12 * std::abs(kept["objective"].get<double>()));
+  EXPECT_EQ(run(bin + " solve --problem poisson2d -n 64 --subdomains 4 --release-factors "
+                      "--keep-factors --no-vtu --report r.json"),
+            2);
+}
+
 // Degenerate problems (reliability issue, item 5). A floating body whose load has a resultant
 // along a rigid motion that nothing restrains has no solution: exit 2 naming it. A floating body
 // with a balanced load (pure Neumann) is solvable but not unique: it is solved, the report says

@@ -189,8 +189,9 @@ TEST_P(SmalbeConformance, MatchesEnumeratedActiveSets) {
   expect_kkt(q, x, 1e-8);
   // The combined penalized operator gives the same iterates.
   Vec x2 = Vec::Zero(n);
-  const PenalizedApply combined = [&](const Vec& v, double rho, Vec& y) {
-    y = q.A * v + rho * (Qm * v);
+  const PenalizedHessian combined = [&](const Vec& v, double rho, Vec& y, Vec& qv) {
+    qv = Qm * v;
+    y = q.A * v + rho * qv;
   };
   const auto r2 = smalbe(A, Q, q.b, q.l, x2, normA, red, opt, {}, nullptr, combined);
   ASSERT_EQ(r2.reason, StopReason::converged);
@@ -330,6 +331,48 @@ TEST(Failures, SmalbeIterationLimitIsAResult) {
   EXPECT_EQ(r.reason, StopReason::max_iterations);
   EXPECT_EQ(r.outer_iterations, 1);
   EXPECT_TRUE(x.allFinite());
+}
+
+// The tracked image T x (SMALBE-M's Q x for the stopping test) equals T applied to x at every
+// stop test, through CG, expansion and proportioning steps, and the iterates do not change.
+TEST(Mprgp, TrackedImageEqualsAppliedImage) {
+  const int n = 14, bounded = 10;
+  int expansions = 0, proportionings = 0;
+  for (unsigned seed = 1; seed <= 8; ++seed) {
+    const Qp q = random_qp(n, bounded, 0, seed, false);
+    SerialReducer red;
+    const Eigen::MatrixXd Tm = Eigen::MatrixXd::Random(5, n);
+    Vec last(5);
+    FunctionOperator A([&](const Vec& v, Vec& y) {
+      y = q.A * v;
+      last = Tm * v;
+    });
+    DenseOperator A0(q.A);
+    MprgpOptions opt;
+    opt.alpha = 1.9 / estimate_norm(A0, Vec::Ones(n), red, 200, 1e-10);
+    opt.gamma = 0.3;  // small Gamma: proportioning steps happen
+    TrackedImage image;
+    image.last = &last;
+    opt.image = &image;
+    const double tol = 1e-11 * q.b.norm();
+    double worst = 0;
+    Vec x = Vec::Zero(n), g(n);
+    const auto r = mprgp(A, q.b, q.l, x, g, red, opt, [&](const Vec& xx, const Vec&, double gp) {
+      worst = std::max(worst, (image.tx - Tm * xx).norm() / std::max(1.0, (Tm * xx).norm()));
+      return gp <= tol;
+    });
+    ASSERT_EQ(r.reason, StopReason::converged);
+    EXPECT_LT(worst, 1e-12) << "seed " << seed;
+    expansions += r.expansion_steps, proportionings += r.proportioning_steps;
+    // Without tracking: the same iterates.
+    MprgpOptions plain = opt;
+    plain.image = nullptr;
+    Vec x2 = Vec::Zero(n), g2(n);
+    mprgp(A0, q.b, q.l, x2, g2, red, plain, [&](const Vec&, const Vec&, double gp) { return gp <= tol; });
+    EXPECT_EQ(x2, x);
+  }
+  EXPECT_GT(expansions, 0);
+  EXPECT_GT(proportionings, 0);
 }
 
 // MPRGP with the gradient given (SMALBE-M passes it between outer iterations): the same iterates

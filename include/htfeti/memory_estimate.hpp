@@ -5,17 +5,26 @@
 //
 // Per rank, with D its primal unknowns (every subdomain with its own copies):
 //  - matrices: the assembled K_i, all alive at the end of the assembly phase: 12 bytes per
-//    stored nonzero (the lower triangle);
+//    stored nonzero;
 //  - factors: CHOLMOD's symbolic analysis of one subdomain of the rank (its first), scaled by
 //    D / its unknowns (the subdomains of a rank have similar sizes: boxes, METIS parts);
-//  - vectors: kernels, loads, solutions and work vectors, (kernel dimension + 8) doubles per
-//    unknown.
-// The matrices are freed cluster by cluster as the factors grow, so the peak is
-// max(matrices, factors) + vectors. Before the sample is assembled, a lower bound from the
-// element type alone refuses sizes that cannot fit without building anything (a subdomain of
-// 10^10 unknowns). The ranks of one machine (MPI_COMM_TYPE_SHARED) add their estimates and
-// compare the sum with MemAvailable. The estimate leaves out the dual vectors, the coarse
-// problem and the explicit blocks (those have budgets of their own), so it errs low: what it
+//  - vectors: kernels, loads and work vectors, (kernel dimension + 4) doubles per unknown
+//    (measured: 3.0 GB beyond the matrices at the end of the assembly of the 82.6 M-unknown
+//    Table 2 row, against 3.4 GB estimated);
+//  - explicit: the packed blocks F_i of the explicit operator, when it will be chosen (the same
+//    rule as DualProblem's), with n_i estimated from the sample's shared dofs, Dirichlet dofs and
+//    contact rows.
+// The matrices are freed cluster by cluster as the factors grow. With the explicit operator and
+// the automatic factor release, clusters free their factors once memory runs short, so the
+// factors held are bounded by the working set of the clusters being set up at one time
+// (threads x the largest cluster's share), not by all of them. The peak is therefore
+// max(matrices, factors held) + vectors + explicit, where factors held is all the factors
+// unless they are released. Before the sample is assembled, a lower bound from the element type
+// alone refuses sizes that cannot fit without building anything (a subdomain of 10^10 unknowns).
+// The ranks of one machine (MPI_COMM_TYPE_SHARED) add their estimates and compare the sum with
+// MemAvailable. The estimate leaves out the dual vectors, the coarse problem and the
+// preconditioner, and the interface-last factors of the explicit operator have more fill than
+// the sample's plain analysis (1.46 times on the Table 3 subdomain), so it errs low: what it
 // refuses cannot fit.
 #pragma once
 
@@ -28,10 +37,13 @@
 namespace htfeti {
 
 struct MemoryEstimate {
-  double matrices_mb = 0, factors_mb = 0, vectors_mb = 0;
+  double matrices_mb = 0, factors_mb = 0, vectors_mb = 0, explicit_mb = 0;
+  /// The factors held at the peak: factors_mb, or the working set when they are released.
+  double factors_held_mb = 0;
   bool sampled = false;  ///< false: the lower bound only (no subdomain was assembled)
   double peak_mb() const {
-    return (matrices_mb > factors_mb ? matrices_mb : factors_mb) + vectors_mb;
+    return (matrices_mb > factors_held_mb ? matrices_mb : factors_held_mb) + vectors_mb +
+           explicit_mb;
   }
 };
 

@@ -230,13 +230,13 @@ void Cluster::release_factors() {
   }
 }
 
-void Cluster::refactor(Ordering ordering, SymbolicCache* cache) {
+void Cluster::refactor(Ordering ordering, SymbolicCache* cache, bool as_setup) {
   const int s = static_cast<int>(subs_.size());
   std::string error;
 #pragma omp parallel for schedule(dynamic) if (!omp_in_parallel() && s > 1)
   for (int i = 0; i < s; ++i) {
     try {
-      if (explicit_)
+      if (explicit_ && as_setup)
         subs_[i]->factorize_with_interface_last(interface_[i], cache, ordering);
       else
         subs_[i]->factorize(ordering, cache);

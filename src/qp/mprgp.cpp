@@ -44,9 +44,18 @@ MprgpResult mprgp(Operator& A, const Vec& b, const Vec& l, Vec& x, Vec& g, const
       if (!(x[i] > l[i])) z[i] = 0.0;
     return z;
   };
+  TrackedImage* T = opt.image;
+  // T x after x -= a v, where A was applied to v last; T x = T v after A was applied to x.
+  auto image_step = [&](double a) {
+    if (T) T->tx -= a * *T->last;
+  };
+  auto image_reset = [&]() {
+    if (T) T->tx = *T->last;
+  };
   if (!gradient_given) {
     x = x.cwiseMax(l);
     A.apply(x, g);
+    image_reset();
     g -= b;
   }
   split_gradient(x, g, l, phi, beta);
@@ -83,6 +92,7 @@ MprgpResult mprgp(Operator& A, const Vec& b, const Vec& l, Vec& x, Vec& g, const
       if (a_cg <= a_f) {  // conjugate gradient step
         ++res.cg_steps;
         x -= a_cg * p;
+        image_step(a_cg);
         x = x.cwiseMax(l);
         g -= a_cg * Ap;
         split_gradient(x, g, l, phi, beta);
@@ -97,6 +107,7 @@ MprgpResult mprgp(Operator& A, const Vec& b, const Vec& l, Vec& x, Vec& g, const
         split_gradient(x, g, l, phi, beta);
         x = (x - opt.alpha * phi).cwiseMax(l);
         A.apply(x, g);
+        image_reset();
         g -= b;
         split_gradient(x, g, l, phi, beta);
         p = precondition();
@@ -111,6 +122,7 @@ MprgpResult mprgp(Operator& A, const Vec& b, const Vec& l, Vec& x, Vec& g, const
       }
       const double a_cg = red.dot(g, beta) / dAd;
       x -= a_cg * beta;
+      image_step(a_cg);
       g -= a_cg * Ap;
       split_gradient(x, g, l, phi, beta);
       p = precondition();

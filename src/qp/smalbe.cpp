@@ -7,21 +7,23 @@ namespace htfeti::qp {
 
 SmalbeResult smalbe(Operator& A, Operator& Q, const Vec& b, const Vec& l, Vec& x, double normA,
                     const Reducer& red, const SmalbeOptions& opt, const Progress& progress,
-                    long* H_applications, const PenalizedApply& penalized,
+                    long* H_applications, const PenalizedHessian& penalized,
                     const PenalizedApply& preconditioner) {
   if (!(normA > 0)) throw std::invalid_argument("SMALBE-M: ||A|| estimate must be positive");
   SmalbeResult res;
   const Eigen::Index n = b.size();
   const double rho = opt.rho_factor * normA;
-  Vec qx(n), tmp(n);
-  FunctionOperator H([&](const Vec& v, Vec& y) {  // H_rho = A + rho Q
+  Vec qx(n), qv(n);
+  // H_rho = A + rho Q; the image Q v of every argument is left in qv, from which MPRGP keeps
+  // Q x up to date for the stopping test (TrackedImage).
+  FunctionOperator H([&](const Vec& v, Vec& y) {
     if (penalized) {
-      penalized(v, rho, y);
+      penalized(v, rho, y, qv);
       return;
     }
     A.apply(v, y);
-    Q.apply(v, tmp);
-    y += rho * tmp;
+    Q.apply(v, qv);
+    y += rho * qv;
   });
   res.rhs_norm = red.norm(b);
   const double bnorm = res.rhs_norm > 0 ? res.rhs_norm : 1.0;
@@ -36,29 +38,39 @@ SmalbeResult smalbe(Operator& A, Operator& Q, const Vec& b, const Vec& l, Vec& x
   mo.gamma = opt.gamma;
   mo.alpha = res.alpha;
   if (preconditioner) mo.preconditioner = &Z;
+  TrackedImage image;
+  image.last = &qv;
+  image.tx = Vec::Zero(n);  // set by MPRGP's first application of H to the start x
+  mo.image = &image;
   Vec nu = Vec::Zero(n), rhs(n), g(n);
   MprgpWorkspace work;  // shared by all inner solves: no allocation inside the outer loop
   double L_prev = 0;
   double qnorm = 0;
   bool global_stop = false;
-  const MprgpStop stop = [&](const Vec& xx, const Vec&, double gp) {
-    Q.apply(xx, qx);  // ||G x|| = ||Q x||
-    qnorm = red.norm(qx);
-    global_stop = gp <= tol && qnorm <= tol;
-    return global_stop || gp <= std::min(M * qnorm, eta);
+  // The inner stopping test with ||G x|| = ||Q x|| from the tracked image (no projection); the
+  // inner solve's last x is checked with Q x applied afresh below.
+  const MprgpStop stop = [&](const Vec&, const Vec&, double gp) {
+    const double q = red.norm(image.tx);
+    return (gp <= tol && q <= tol) || gp <= std::min(M * q, eta);
   };
   for (int k = 0;; ++k) {
     rhs = b - nu;
     mo.max_iterations = opt.max_inner - res.inner_iterations;
     // After the first outer iteration g = H x - (b - nu) is kept up to date below.
     const MprgpResult inner = mprgp(H, rhs, l, x, g, red, mo, stop, k > 0, &work);
+    // Q x afresh at the inner solve's exit: the outer update and the global test use it, and the
+    // next inner solve starts its tracked image from it (round-off of the updates does not carry).
+    Q.apply(x, qx);
+    qnorm = red.norm(qx);
+    image.tx = qx;
+    global_stop = inner.projected_gradient <= tol && qnorm <= tol;
     res.inner_iterations += inner.iterations;
     res.cg_steps += inner.cg_steps;
     res.expansion_steps += inner.expansion_steps;
     res.proportioning_steps += inner.proportioning_steps;
     res.outer_iterations = k + 1;
     res.projected_gradient = inner.projected_gradient;
-    res.equality_residual = qnorm;  // the stop test ran last at the returned x
+    res.equality_residual = qnorm;
     res.M = M;
     if (progress) progress(k + 1, inner.projected_gradient, qnorm);
     if (global_stop) {

@@ -40,8 +40,8 @@ struct FetiOptions {
   /// kExplicitMinNodes nodes (docs/performance.md: measured break-even).
   DualOperator dual_operator = DualOperator::automatic;
   /// With the explicit operator the subdomain factors are needed only for d (setup) and the
-  /// primal reconstruction. A cluster frees them right after its setup, and factors again (the
-  /// same interface-last factors, so u does not change) for the reconstruction, when
+  /// primal reconstruction. A cluster frees them right after its setup, and factors again for
+  /// the reconstruction (a plain factor, without the interface last: u agrees to round-off), when
   ///  - factor_budget_bytes < 0 (automatic, the default): the machine's available memory has
   ///    fallen below kFactorReserve of what was available when the factorizations began
   ///    (measured after each cluster: clusters keep their factors while memory is plentiful);

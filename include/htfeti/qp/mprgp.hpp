@@ -18,6 +18,10 @@
 // convergence theory of the fixed-length projected gradient step is kept.
 // Cost of one iteration: one application of A (two for an expansion step) and a few vector ops
 // (and one of Z when preconditioned).
+// A tracked linear image t = T x (MprgpOptions::image): x changes by x -= a v after A v was formed,
+// or is reset where A x itself is formed, so T x follows from the images T v that A's
+// application leaves behind, at the cost of one axpy. SMALBE-M uses it for ||G x|| = ||Q x|| at
+// every stop test, which would otherwise cost one projection per iteration.
 // Stops when the caller's test holds for the projected gradient g^P = phi + beta.
 #pragma once
 
@@ -25,12 +29,21 @@
 
 namespace htfeti::qp {
 
+/// A linear image t = T x of the iterate, kept up to date without applying T (see above). The
+/// caller's operator A writes T v into *last whenever it is applied to v.
+struct TrackedImage {
+  const Vec* last = nullptr;  ///< T v of the vector A was applied to last (written by A)
+  Vec tx;                     ///< T x; on entry with gradient_given it must hold T x of the given x
+};
+
 struct MprgpOptions {
   double gamma = 1.0;  ///< proportioning parameter Gamma > 0
   double alpha = 0.0;  ///< expansion step length in (0, 2/||A||]; required (> 0)
   int max_iterations = 10000;
   /// Preconditioner in face (see above); nullptr: none. Not owned.
   Operator* preconditioner = nullptr;
+  /// T x tracked through the iterations (see above); nullptr: none. Not owned.
+  TrackedImage* image = nullptr;
 };
 
 struct MprgpResult {

@@ -11,8 +11,10 @@
 //   2. nu^{k+1} = nu^k + rho Q x^k;
 //   3. if L(x^k, mu^k) < L(x^{k-1}, mu^{k-1}) + rho/2 ||G x^k||^2, then M_{k+1} = M_k / beta.
 // Stops when ||g^P|| <= rtol ||b|| and ||G x|| <= rtol ||b||.
-// Cost: the inner MPRGP iterations, each one H_rho application (one A, one Q) and one Q for the
-// stopping test; an outer iteration adds one Q and a few vector operations.
+// Cost: the inner MPRGP iterations, each one H_rho application (one A, one Q; with A = PFP and a
+// PenalizedHessian, two projections in all); the stopping test's ||G x|| comes from Q x tracked
+// by MPRGP (TrackedImage, one axpy); an outer iteration adds one Q (x checked afresh) and a few
+// vector operations.
 #pragma once
 
 #include "htfeti/qp/mprgp.hpp"
@@ -42,8 +44,11 @@ struct SmalbeResult {
   double rho = 0, M = 0, alpha = 0;
 };
 
-/// y = A x + rho Q x in one go, for callers that can share work between the two (with A = PFP
-/// and Q = I - P, one projection of x serves both). Without it SMALBE-M applies A and Q apart.
+/// y = A x + rho Q x and qx = Q x in one go, for callers that can share work between the two
+/// (with A = PFP and Q = I - P, one projection of x serves both). Without it SMALBE-M applies A
+/// and Q apart.
+using PenalizedHessian = std::function<void(const Vec& x, double rho, Vec& y, Vec& qx)>;
+/// y = Z_rho x (the preconditioner in face, which depends on rho).
 using PenalizedApply = std::function<void(const Vec& x, double rho, Vec& y)>;
 
 /// normA: an estimate of ||A|| (estimate_norm). x: start in, solution out. H_rho applications are
@@ -52,7 +57,7 @@ using PenalizedApply = std::function<void(const Vec& x, double rho, Vec& y)>;
 /// H_rho^{-1}, used by MPRGP in face (for A = PFP: P M^{-1} P + Q / rho, exact on Im Q).
 SmalbeResult smalbe(Operator& A, Operator& Q, const Vec& b, const Vec& lower, Vec& x, double normA,
                     const Reducer& red, const SmalbeOptions& options, const Progress& progress = {},
-                    long* H_applications = nullptr, const PenalizedApply& penalized = {},
+                    long* H_applications = nullptr, const PenalizedHessian& penalized = {},
                     const PenalizedApply& preconditioner = {});
 
 }  // namespace htfeti::qp

@@ -8,6 +8,7 @@
 #include <CLI/CLI.hpp>
 #include <algorithm>
 #include <cstdio>
+#include <chrono>
 #include <filesystem>
 #include <fstream>
 #include <iostream>
@@ -461,8 +462,21 @@ int run(int argc, char** argv, const Comm& comm) {
   if (out_opt.write_vtu) {
     VtuOptions vo;
     vo.ascii = out_opt.vtu_ascii;
+    const auto t0 = std::chrono::steady_clock::now();
     const std::string where = write_vtu(out_opt.vtu, *out.model, *out.dual, out.u, out.lambda, vo);
-    if (comm.rank() == 0) std::printf("  solution: %s\n", where.c_str());
+    const double seconds =
+        comm.max(std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
+    double bytes = 0;
+    for (const auto& f : vtu_files(out_opt.vtu, comm.size())) {
+      std::error_code ec;  // (a piece on another machine's disk is not counted)
+      const auto n = comm.rank() == 0 ? std::filesystem::file_size(f, ec) : 0;
+      if (!ec) bytes += static_cast<double>(n);
+    }
+    // The output's cost in the report (written after it): seconds and size of the VTU files.
+    out.report["timings"]["output"] = seconds;
+    out.report["output_mb"] = bytes / 1048576.0;
+    if (comm.rank() == 0)
+      std::printf("  solution: %s (%.0f MB in %.2f s)\n", where.c_str(), bytes / 1048576.0, seconds);
   }
   if (out_opt.write_report) {
     std::string error;

@@ -19,15 +19,17 @@ def env(threads=1):
     return e
 
 
-def solve(args, ranks=1, threads=1, extra_env=None, binary=None):
+def solve(args, ranks=1, threads=1, extra_env=None, binary=None, vtu=False):
     """Runs htfeti solve (build/htfeti, or `binary`) with the given argument list; returns the
-    report as a dict."""
+    report as a dict. vtu: also write the VTU output (to a temporary directory beside the report,
+    deleted afterwards; the report then has timings.output and output_mb)."""
     binary = binary or BIN
     if not os.path.exists(binary):
         sys.exit(f"{binary} is missing: run scripts/setup.sh first")
-    with tempfile.TemporaryDirectory() as d:
+    with tempfile.TemporaryDirectory(dir=os.environ.get("HTFETI_BENCH_TMP")) as d:
         report = os.path.join(d, "r.json")
-        cmd = [binary, "solve", *map(str, args), "--report", report, "--no-vtu"]
+        out = ["--vtu", os.path.join(d, "u.vtu")] if vtu else ["--no-vtu"]
+        cmd = [binary, "solve", *map(str, args), "--report", report, *out]
         if ranks > 1:
             cmd = ["mpiexec", "-n", str(ranks), "--oversubscribe", "--bind-to", "none"] + cmd
         e = env(threads)

@@ -5,7 +5,11 @@ The paper: H_s/h = 100, m = 15, 6 x 6 clusters (8,100 subdomains, 81,018,001 unk
 here the same m and cluster layout at sizes that fit this machine.
 
 Usage: bench/table2.py [--hh 20] [--m 15] [--nc 1 2 3] [--ranks 1] [--threads 2]
-Writes bench/results/table2_hh<H>_m<m>.json and prints a markdown table."""
+                       [--methods hybrid tfeti] [--extra "ARGS"] [--vtu] [--out FILE]
+Writes bench/results/table2_hh<H>_m<m>.json (or --out) and prints a markdown table.
+The paper's row 1 on this machine (81,018,001 unknowns; TFETI with single-precision F_i):
+  bench/table2.py --hh 100 --nc 6 --methods tfeti --extra "--explicit-precision single" --vtu \
+      --out table2_row1.json"""
 import argparse
 
 from common import save, solve
@@ -16,6 +20,10 @@ p.add_argument("--m", type=int, default=15, help="cluster size m (m x m subdomai
 p.add_argument("--nc", type=int, nargs="+", default=[1, 2, 3], help="clusters per side")
 p.add_argument("--ranks", type=int, default=1)
 p.add_argument("--threads", type=int, default=2)
+p.add_argument("--methods", nargs="+", choices=["hybrid", "tfeti"], default=["hybrid", "tfeti"])
+p.add_argument("--extra", default="", help="further htfeti solve arguments, quoted")
+p.add_argument("--vtu", action="store_true", help="write the VTU output too (timed in the report)")
+p.add_argument("--out", help="the JSON file in bench/results")
 a = p.parse_args()
 
 runs = []
@@ -26,15 +34,33 @@ print("|---:|---:|---:|---|---|---|")
 for nc in a.nc:
     ns = nc * a.m
     n = ns * a.hh
-    common = ["--problem", "poisson2d", "-n", n, "--subdomains", ns]
-    h = solve(common + ["-m", a.m], ranks=a.ranks, threads=a.threads)
-    t = solve(common + ["-m", 1], ranks=a.ranks, threads=a.threads)
-    runs.append({"hybrid": h, "tfeti": t})
+    common = ["--problem", "poisson2d", "-n", n, "--subdomains", ns] + a.extra.split()
+    run = {}
+    for method in a.methods:
+        run[method] = solve(common + ["-m", a.m if method == "hybrid" else 1], ranks=a.ranks,
+                            threads=a.threads, vtu=a.vtu)
+    runs.append(run)
     unknowns = (n + 1) ** 2
-    print(f"| {nc * nc} | {ns * ns} | {unknowns:,} | {h['outer_iterations']} / "
-          f"{h['timings']['solve']:.2f} / {h['timings']['total']:.2f} | {t['outer_iterations']} / "
-          f"{t['timings']['solve']:.2f} / {t['timings']['total']:.2f} | "
-          f"{h['coarse_dimension']} / {t['coarse_dimension']} |", flush=True)
+
+    def cell(r):
+        if r is None:
+            return "-"
+        return f"{r['outer_iterations']} / {r['timings']['solve']:.2f} / {r['timings']['total']:.2f}"
+    h, t = run.get("hybrid"), run.get("tfeti")
+    print(f"| {nc * nc} | {ns * ns} | {unknowns:,} | {cell(h)} | {cell(t)} | "
+          f"{h['coarse_dimension'] if h else '-'} / {t['coarse_dimension'] if t else '-'} |",
+          flush=True)
+    for method, r in run.items():
+        mem = r["memory"]
+        core_s = r["timings"]["total"] * a.ranks * a.threads / (unknowns / 1e6)
+        line = (f"  {method}: total {r['timings']['total']:.1f} s, {core_s:.1f} core-s per M "
+                f"unknowns, peak {mem['peak_rss_mb_total'] / 1024:.1f} GB, phases "
+                + ", ".join(f"{k} {r['timings'][k]:.1f}" for k in
+                            ("assembly", "factorization", "solve", "reconstruction")))
+        if "output" in r["timings"]:
+            line += f", VTU {r['output_mb']:.0f} MB in {r['timings']['output']:.1f} s"
+        print(line, flush=True)
 cmd = f"bench/table2.py --hh {a.hh} --m {a.m} --nc {' '.join(map(str, a.nc))} " \
-      f"--ranks {a.ranks} --threads {a.threads}"
-print("\n" + save(f"table2_hh{a.hh}_m{a.m}.json", {"command": cmd, "runs": runs}))
+      f"--ranks {a.ranks} --threads {a.threads} --methods {' '.join(a.methods)}" + \
+      (f' --extra "{a.extra}"' if a.extra else "") + (" --vtu" if a.vtu else "")
+print("\n" + save(a.out or f"table2_hh{a.hh}_m{a.m}.json", {"command": cmd, "runs": runs}))

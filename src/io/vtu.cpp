@@ -1,5 +1,6 @@
 #include "htfeti/io/vtu.hpp"
 
+#include <fcntl.h>
 #include <unistd.h>
 
 #include <cstdint>
@@ -34,14 +35,6 @@ struct Array {
 };
 
 template <class T>
-Array make_array(const std::string& name, const std::string& type, int comps,
-                 const std::vector<T>& v) {
-  Array a{name, type, comps, std::string()};
-  a.bytes.assign(reinterpret_cast<const char*>(v.data()), v.size() * sizeof(T));
-  return a;
-}
-
-template <class T>
 void write_ascii_values(std::ostream& o, const std::string& bytes) {
   const T* v = reinterpret_cast<const T*>(bytes.data());
   const size_t n = bytes.size() / sizeof(T);
@@ -49,18 +42,32 @@ void write_ascii_values(std::ostream& o, const std::string& bytes) {
   for (size_t i = 0; i < n; ++i) o << +v[i] << (i + 1 == n ? "\n" : " ");
 }
 
-void write_piece_file(const std::string& file, long points, long cells,
-                      const std::vector<Array>& point_arrays, const Array& coords,
-                      const std::vector<Array>& cell_struct, const std::vector<Array>& cell_arrays,
-                      bool ascii) {
-  std::ofstream o(file, std::ios::binary);
-  if (!o) throw std::runtime_error("cannot write " + file);
+// One subdomain's values of every array (or all of a piece's, for ASCII).
+struct Buffers {
+  std::vector<double> xyz, u, cf, cg, vm;
+  std::vector<std::int64_t> conn, offs;
+  std::vector<std::uint8_t> types;
+  std::vector<std::int32_t> sub, clu, rank;
+  void clear() {
+    xyz.clear(), u.clear(), cf.clear(), cg.clear(), vm.clear(), conn.clear(), offs.clear();
+    types.clear(), sub.clear(), clu.clear(), rank.clear();
+  }
+};
+
+// The XML of a piece: the data arrays in the order point data, cell data, points, cells. ASCII:
+// the values inline (from the arrays' bytes), and the document closed. Binary: every array
+// appended, with `sizes` its bytes; the text ends where the raw data begins ("_").
+std::string piece_header(long points, long cells, const std::vector<Array>& point_arrays,
+                         const Array& coords, const std::vector<Array>& cell_struct,
+                         const std::vector<Array>& cell_arrays, bool ascii,
+                         const std::vector<std::uint64_t>& sizes = {}) {
+  std::ostringstream o;
   o << "<?xml version=\"1.0\"?>\n<VTKFile type=\"UnstructuredGrid\" version=\"1.0\" "
        "byte_order=\"LittleEndian\" header_type=\"UInt64\">\n<UnstructuredGrid>\n<Piece "
        "NumberOfPoints=\""
     << points << "\" NumberOfCells=\"" << cells << "\">\n";
   std::uint64_t offset = 0;
-  std::vector<const Array*> order;
+  size_t k = 0;
   auto tag = [&](const Array& a) {
     o << "<DataArray type=\"" << a.type << "\" Name=\"" << a.name << "\"";
     if (a.components > 1) o << " NumberOfComponents=\"" << a.components << "\"";
@@ -73,8 +80,7 @@ void write_piece_file(const std::string& file, long points, long cells,
       o << "</DataArray>\n";
     } else {
       o << " format=\"appended\" offset=\"" << offset << "\"/>\n";
-      offset += sizeof(std::uint64_t) + a.bytes.size();
-      order.push_back(&a);
+      offset += sizeof(std::uint64_t) + sizes.at(k++);
     }
   };
   o << "<PointData>\n";
@@ -86,16 +92,20 @@ void write_piece_file(const std::string& file, long points, long cells,
   o << "</Points>\n<Cells>\n";
   for (const auto& a : cell_struct) tag(a);
   o << "</Cells>\n</Piece>\n</UnstructuredGrid>\n";
-  if (!ascii) {
+  if (ascii)
+    o << "</VTKFile>\n";
+  else
     o << "<AppendedData encoding=\"raw\">\n_";
-    for (const Array* a : order) {
-      const std::uint64_t n = a->bytes.size();
-      o.write(reinterpret_cast<const char*>(&n), sizeof(n));
-      o.write(a->bytes.data(), static_cast<std::streamsize>(a->bytes.size()));
-    }
-    o << "\n</AppendedData>\n";
-  }
-  o << "</VTKFile>\n";
+  return o.str();
+}
+
+void write_ascii_piece(const std::string& file, long points, long cells,
+                       const std::vector<Array>& point_arrays, const Array& coords,
+                       const std::vector<Array>& cell_struct,
+                       const std::vector<Array>& cell_arrays) {
+  std::ofstream o(file, std::ios::binary);
+  if (!o) throw std::runtime_error("cannot write " + file);
+  o << piece_header(points, cells, point_arrays, coords, cell_struct, cell_arrays, true);
   o.flush();
   if (!o) throw std::runtime_error("error while writing " + file + " (disk full?)");
   o.close();
@@ -127,37 +137,34 @@ std::string write_vtu(const std::string& path, const Model& model, DualProblem& 
   const bool contact = dual.has_inequalities();
   std::string error;
   try {
-    std::vector<double> xyz, uu, cf, cg, vm;
-    std::vector<std::int64_t> conn, offs;
-    std::vector<std::uint8_t> types;
-    std::vector<std::int32_t> sub_id, clu_id, rank_id;
     const auto& subs = dual.subdomains();
-    std::int64_t base = 0, off = 0;
-    for (size_t i = 0; i < subs.size(); ++i) {
-      const SubdomainMesh m = model.mesh(subs[i]->id());
+    // The values of subdomain i's points and cells, appended to b (point ids from `base`,
+    // offsets continuing from `off`).
+    auto fill = [&](size_t i, const SubdomainMesh& m, std::int64_t base, std::int64_t& off,
+                    Buffers& b) {
       const int nn = m.num_nodes(), nc = cell_nodes(m.type), ne = m.num_cells();
-      xyz.insert(xyz.end(), m.coords.begin(), m.coords.end());
+      b.xyz.insert(b.xyz.end(), m.coords.begin(), m.coords.end());
       for (int k = 0; k < nn; ++k) {
         if (!elastic) {
-          uu.push_back(u[i][k]);
+          b.u.push_back(u[i][k]);
         } else {
-          for (int d = 0; d < 3; ++d) uu.push_back(d < dpn ? u[i][k * dpn + d] : 0.0);
+          for (int d = 0; d < 3; ++d) b.u.push_back(d < dpn ? u[i][k * dpn + d] : 0.0);
         }
         if (contact) {
-          for (int d = 0; d < 3; ++d) cf.push_back(d < dpn ? forces[i][k * dpn + d] : 0.0);
-          cg.push_back(gaps[i][k]);
+          for (int d = 0; d < 3; ++d) b.cf.push_back(d < dpn ? forces[i][k * dpn + d] : 0.0);
+          b.cg.push_back(gaps[i][k]);
         }
       }
       const Eigen::MatrixXd D = elastic ? elasticity_matrix(m.dim, ph.material) : Eigen::MatrixXd();
       for (int e = 0; e < ne; ++e) {
         const int* cn = m.cells.data() + static_cast<size_t>(e) * nc;
-        for (int a = 0; a < nc; ++a) conn.push_back(base + cn[a]);
+        for (int a = 0; a < nc; ++a) b.conn.push_back(base + cn[a]);
         off += nc;
-        offs.push_back(off);
-        types.push_back(static_cast<std::uint8_t>(vtk_cell_type(m.type)));
-        sub_id.push_back(m.id);
-        clu_id.push_back(m.cluster);
-        rank_id.push_back(comm.rank());
+        b.offs.push_back(off);
+        b.types.push_back(static_cast<std::uint8_t>(vtk_cell_type(m.type)));
+        b.sub.push_back(m.id);
+        b.clu.push_back(m.cluster);
+        b.rank.push_back(comm.rank());
         if (elastic) {
           double x[24];
           Eigen::VectorXd ue(nc * dpn);
@@ -166,25 +173,121 @@ std::string write_vtu(const std::string& path, const Model& model, DualProblem& 
             for (int d = 0; d < dpn; ++d) ue[a * dpn + d] = u[i][cn[a] * dpn + d];
           }
           const Eigen::VectorXd stress = D * (strain_matrix_at_centroid(m.type, x) * ue);
-          vm.push_back(von_mises(m.dim, stress, ph.material.poisson));
+          b.vm.push_back(von_mises(m.dim, stress, ph.material.poisson));
         }
       }
-      base += nn;
-    }
-    std::vector<Array> pa{make_array("u", "Float64", elastic ? 3 : 1, uu)};
+    };
+    std::vector<Array> pa{{"u", "Float64", elastic ? 3 : 1, {}}};
     if (contact) {
-      pa.push_back(make_array("contact_force", "Float64", 3, cf));
-      pa.push_back(make_array("contact_gap", "Float64", 1, cg));
+      pa.push_back({"contact_force", "Float64", 3, {}});
+      pa.push_back({"contact_gap", "Float64", 1, {}});
     }
-    std::vector<Array> ca{make_array("subdomain", "Int32", 1, sub_id),
-                          make_array("cluster", "Int32", 1, clu_id),
-                          make_array("rank", "Int32", 1, rank_id)};
-    if (elastic) ca.push_back(make_array("von_mises", "Float64", 1, vm));
-    write_piece_file(piece_tmp, static_cast<long>(base), static_cast<long>(types.size()), pa,
-                     make_array("Points", "Float64", 3, xyz),
-                     {make_array("connectivity", "Int64", 1, conn),
-                      make_array("offsets", "Int64", 1, offs), make_array("types", "UInt8", 1, types)},
-                     ca, options.ascii);
+    std::vector<Array> ca{{"subdomain", "Int32", 1, {}}, {"cluster", "Int32", 1, {}},
+                          {"rank", "Int32", 1, {}}};
+    if (elastic) ca.push_back({"von_mises", "Float64", 1, {}});
+    Array coords{"Points", "Float64", 3, {}};
+    std::vector<Array> cs{{"connectivity", "Int64", 1, {}}, {"offsets", "Int64", 1, {}},
+                          {"types", "UInt8", 1, {}}};
+    // The arrays in file order, each with its source in the buffers.
+    std::vector<Array*> arrays;
+    for (auto& a : pa) arrays.push_back(&a);
+    for (auto& a : ca) arrays.push_back(&a);
+    arrays.push_back(&coords);
+    for (auto& a : cs) arrays.push_back(&a);
+    auto bytes_of = [&](const Array& a, const Buffers& b) -> std::pair<const char*, size_t> {
+      auto raw = [](const auto& v) {
+        return std::pair<const char*, size_t>(reinterpret_cast<const char*>(v.data()),
+                                              v.size() * sizeof(v[0]));
+      };
+      if (a.name == "u") return raw(b.u);
+      if (a.name == "contact_force") return raw(b.cf);
+      if (a.name == "contact_gap") return raw(b.cg);
+      if (a.name == "subdomain") return raw(b.sub);
+      if (a.name == "cluster") return raw(b.clu);
+      if (a.name == "rank") return raw(b.rank);
+      if (a.name == "von_mises") return raw(b.vm);
+      if (a.name == "Points") return raw(b.xyz);
+      if (a.name == "connectivity") return raw(b.conn);
+      if (a.name == "offsets") return raw(b.offs);
+      return raw(b.types);
+    };
+    if (options.ascii) {  // small outputs: everything in memory, then written as text
+      Buffers b;
+      std::int64_t base = 0, off = 0;
+      for (size_t i = 0; i < subs.size(); ++i) {
+        const SubdomainMesh m = model.mesh(subs[i]->id());
+        fill(i, m, base, off, b);
+        base += m.num_nodes();
+      }
+      for (Array* a : arrays) {
+        const auto [data, n] = bytes_of(*a, b);
+        a->bytes.assign(data, n);
+      }
+      write_ascii_piece(piece_tmp, static_cast<long>(base), static_cast<long>(b.types.size()), pa,
+                        coords, cs, ca);
+    } else {
+      // Binary, streamed: a first pass over the meshes gives every array's size, so the header
+      // (with the offsets of the appended data) is written first; then each subdomain's values
+      // go to their places in the file by positioned writes. Memory: one subdomain's buffers.
+      std::vector<std::int64_t> nodes(subs.size()), cells(subs.size()), corners(subs.size());
+      std::int64_t P = 0, C = 0, K = 0;
+      for (size_t i = 0; i < subs.size(); ++i) {
+        const SubdomainMesh m = model.mesh(subs[i]->id());
+        nodes[i] = m.num_nodes(), cells[i] = m.num_cells();
+        corners[i] = cells[i] * cell_nodes(m.type);
+        P += nodes[i], C += cells[i], K += corners[i];
+      }
+      std::vector<std::uint64_t> sizes;
+      for (const Array* a : arrays) {
+        const bool point = a == &coords || a->name == "u" || a->name == "contact_force" ||
+                           a->name == "contact_gap";
+        const std::uint64_t width = a->type == "Float64" || a->type == "Int64" ? 8
+                                    : a->type == "Int32"                       ? 4
+                                                                               : 1;
+        const std::int64_t count = point ? P : a->name == "connectivity" ? K : C;
+        sizes.push_back(width * a->components * static_cast<std::uint64_t>(count));
+      }
+      const std::string head = piece_header(static_cast<long>(P), static_cast<long>(C), pa, coords,
+                                            cs, ca, false, sizes);
+      const int fd = ::open(piece_tmp.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+      if (fd < 0) throw std::runtime_error("cannot write " + piece_tmp);
+      std::string werr;
+      auto put = [&](const char* data, size_t n, std::uint64_t at) {
+        while (n > 0 && werr.empty()) {
+          const ssize_t w = ::pwrite(fd, data, n, static_cast<off_t>(at));
+          if (w <= 0) {
+            werr = "error while writing " + piece + " (disk full?)";
+            break;
+          }
+          data += w, n -= static_cast<size_t>(w), at += static_cast<std::uint64_t>(w);
+        }
+      };
+      put(head.data(), head.size(), 0);
+      std::vector<std::uint64_t> cursor;  // where each array's next values go
+      std::uint64_t at = head.size();
+      for (size_t k = 0; k < arrays.size(); ++k) {
+        put(reinterpret_cast<const char*>(&sizes[k]), sizeof(std::uint64_t), at);
+        cursor.push_back(at + sizeof(std::uint64_t));
+        at += sizeof(std::uint64_t) + sizes[k];
+      }
+      const std::string tail = "\n</AppendedData>\n</VTKFile>\n";
+      put(tail.data(), tail.size(), at);
+      Buffers b;
+      std::int64_t base = 0, off = 0;
+      for (size_t i = 0; i < subs.size() && werr.empty(); ++i) {
+        b.clear();
+        const SubdomainMesh m = model.mesh(subs[i]->id());
+        fill(i, m, base, off, b);
+        base += m.num_nodes();
+        for (size_t k = 0; k < arrays.size(); ++k) {
+          const auto [data, n] = bytes_of(*arrays[k], b);
+          put(data, n, cursor[k]);
+          cursor[k] += n;
+        }
+      }
+      if (::close(fd) != 0 && werr.empty()) werr = "error while closing " + piece;
+      if (!werr.empty()) throw std::runtime_error(werr);
+    }
     if (comm.size() > 1 && comm.rank() == 0) {
       std::ofstream o(temp_name(files[0]));
       if (!o) throw std::runtime_error("cannot write " + files[0]);

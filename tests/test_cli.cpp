@@ -362,6 +362,19 @@ TEST_F(Cli, MemoryEstimateModelsExplicitBlocksAndFactorRelease) {
   EXPECT_EQ(run(bin + " solve --problem poisson2d -n 64 --subdomains 4 --release-factors "
                       "--keep-factors --no-vtu --report r.json"),
             2);
+  const std::string box =
+      "[mesh]\ngenerator = \"box\"\nsize = [1.0, 1.0]\nelements = [32, 32]\n"
+      "element = \"quad4\"\n[physics]\ntype = \"laplace\"\nsource = 1.0\n"
+      "[[dirichlet]]\ngroup = \"x0\"\nvalue = 0.0\n[decomposition]\nsubdomains = [4, 4]\n"
+      "[solver]\ndual_operator = \"explicit\"\n";
+  write_file("release.toml", box + "release_factors = true\n");
+  ASSERT_EQ(run(bin + " solve release.toml --no-vtu --report r.json"), 0) << stderr_text();
+  std::ifstream f("r.json");
+  const auto r = nlohmann::json::parse(f);
+  EXPECT_EQ(r["clusters_released"], r["clusters"]);
+  write_file("both.toml", box + "release_factors = true\nkeep_factors = true\n");
+  EXPECT_EQ(run(bin + " solve both.toml --no-vtu --report r.json"), 2);
+  EXPECT_NE(stderr_text().find("release_factors"), std::string::npos) << stderr_text();
 }
 
 // Degenerate problems (reliability issue, item 5). A floating body whose load has a resultant

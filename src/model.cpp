@@ -33,6 +33,9 @@ SubdomainInput Model::input(int s) const {
   const Physics ph = physics_;
   const Model* self = this;
   in.system.assemble = [self, ph, s]() { return assemble_stiffness(self->mesh(s), ph); };
+  in.system.quadratic_form = [self, ph, s](const Eigen::VectorXd& u) {
+    return stiffness_form(self->mesh(s), ph, u);
+  };
   apply_conditions(m, in);
   in.sharing.global_node = std::move(m.global_node);
   in.sharing.coords = std::move(m.coords);

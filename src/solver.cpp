@@ -222,8 +222,10 @@ SolveOutput solve(std::shared_ptr<const Model> model_ptr, const SolveOptions& op
   out.u = dual.reconstruct(lambda);
   t_rec = now() - t_rec;
   if (verbose) std::fprintf(stderr, "  reconstruction done in %.2f s\n", t_rec);
+  double t_checks = now();  // the report's checks of the solution
   const auto kkt = dual.kkt(out.u, lambda);
   const double energy = dual.energy(out.u);
+  t_checks = now() - t_checks;
 
   const auto& st = dual.setup_timings();
   auto tmax = [&](double v) { return comm.max(v); };
@@ -290,7 +292,8 @@ SolveOutput solve(std::shared_ptr<const Model> model_ptr, const SolveOptions& op
                     {"preconditioner_setup", tmax(st.preconditioner)},
                     {"vector_work", tmax(t_solve - F.seconds() - P.seconds() - M.seconds())},
                     {"reconstruction", tmax(t_rec)},
-                    {"total", tmax(t_setup + t_solve + t_rec)}};
+                    {"checks", tmax(t_checks)},
+                    {"total", tmax(t_setup + t_solve + t_rec + t_checks)}};
   // The subdomain factorizations in core-seconds (summed over subdomains and ranks): the
   // symbolic part (forming K_rr, ordering, analysis or its copy from the cache) and the numeric
   // one; and the symbolic analyses done and reused (FetiOptions::symbolic_cache_patterns).

@@ -82,11 +82,13 @@ Eigen::MatrixXd element_matrix(const SubdomainMesh& mesh, const Physics& ph, int
 
 }  // namespace
 
-Eigen::SparseMatrix<double> assemble_stiffness(const SubdomainMesh& mesh, const Physics& ph) {
-  const int nc = cell_nodes(mesh.type), dpn = ph.dofs_per_node(), ne = mesh.num_cells();
-  const int n = mesh.num_nodes() * dpn, ed = nc * dpn;
-  std::vector<Eigen::Triplet<double>> trip;
-  trip.reserve(static_cast<size_t>(ne) * ed * ed);
+namespace {
+
+// Calls visit(e, ke, scale) for every cell: its element matrix (computed once per period on a
+// generated grid) and the coefficient at its centroid (1 without a coefficient field).
+template <class Visit>
+void for_each_element_matrix(const SubdomainMesh& mesh, const Physics& ph, Visit&& visit) {
+  const int nc = cell_nodes(mesh.type), ne = mesh.num_cells();
   const int period = mesh.uniform_period;
   std::vector<Eigen::MatrixXd> cache(period > 0 ? std::min(period, ne) : 0);
   for (size_t e = 0; e < cache.size(); ++e) cache[e] = element_matrix(mesh, ph, static_cast<int>(e));
@@ -109,6 +111,18 @@ Eigen::SparseMatrix<double> assemble_stiffness(const SubdomainMesh& mesh, const 
                                     std::to_string(scale) + " at (" + std::to_string(c[0]) + ", " +
                                     std::to_string(c[1]) + ", " + std::to_string(c[2]) + ")");
     }
+    visit(cn, ke, scale);
+  }
+}
+
+}  // namespace
+
+Eigen::SparseMatrix<double> assemble_stiffness(const SubdomainMesh& mesh, const Physics& ph) {
+  const int nc = cell_nodes(mesh.type), dpn = ph.dofs_per_node(), ne = mesh.num_cells();
+  const int n = mesh.num_nodes() * dpn, ed = nc * dpn;
+  std::vector<Eigen::Triplet<double>> trip;
+  trip.reserve(static_cast<size_t>(ne) * ed * ed);
+  for_each_element_matrix(mesh, ph, [&](const int* cn, const Eigen::MatrixXd& ke, double scale) {
     for (int a = 0; a < nc; ++a)
       for (int i = 0; i < dpn; ++i)
         for (int b = 0; b < nc; ++b)
@@ -116,10 +130,31 @@ Eigen::SparseMatrix<double> assemble_stiffness(const SubdomainMesh& mesh, const 
             const double v = scale * ke(a * dpn + i, b * dpn + j);
             if (v != 0.0) trip.emplace_back(cn[a] * dpn + i, cn[b] * dpn + j, v);
           }
-  }
+  });
   Eigen::SparseMatrix<double> K(n, n);
   K.setFromTriplets(trip.begin(), trip.end());
   return K;
+}
+
+double stiffness_form(const SubdomainMesh& mesh, const Physics& ph, const Eigen::VectorXd& u) {
+  const int nc = cell_nodes(mesh.type), dpn = ph.dofs_per_node(), ed = nc * dpn;
+  if (u.size() != static_cast<Eigen::Index>(mesh.num_nodes()) * dpn)
+    throw std::invalid_argument("stiffness_form: u has the wrong size");
+  // Each element's values less their mean per component: the element matrices of both physics
+  // annihilate constants per component (translations), so the form is the same, and the
+  // cancellation of a large rigid part of u (a floating subdomain) is avoided.
+  Eigen::VectorXd ue(ed);
+  double sum = 0;
+  for_each_element_matrix(mesh, ph, [&](const int* cn, const Eigen::MatrixXd& ke, double scale) {
+    for (int i = 0; i < dpn; ++i) {
+      double mean = 0;
+      for (int a = 0; a < nc; ++a) mean += u[cn[a] * dpn + i];
+      mean /= nc;
+      for (int a = 0; a < nc; ++a) ue[a * dpn + i] = u[cn[a] * dpn + i] - mean;
+    }
+    sum += scale * ue.dot(ke * ue);
+  });
+  return sum;
 }
 
 AssembledSubdomain assemble_subdomain(const SubdomainMesh& mesh, const Physics& ph,

@@ -1069,8 +1069,12 @@ std::vector<DualProblem::Vec> DualProblem::reconstruct(const Vec& lambda) {
 
 double DualProblem::energy(const std::vector<Vec>& u) const {
   // Per-subdomain energies summed in subdomain order (rank-count independent).
+  // Threads take subdomains (each rebuilds its K_i if it was freed: the cost of this function);
+  // the sum below is in subdomain order, so the result does not depend on the thread count.
   std::vector<double> e(layout_.num_subdomains, 0.0);
-  for (size_t s = 0; s < subs_.size(); ++s) e[subs_[s]->id()] = subs_[s]->energy(u[s]);
+  const int n = static_cast<int>(subs_.size());
+#pragma omp parallel for schedule(dynamic)
+  for (int s = 0; s < n; ++s) e[subs_[s]->id()] = subs_[s]->energy(u[s]);
   if (comm_.size() > 1)
     MPI_Allreduce(MPI_IN_PLACE, e.data(), static_cast<int>(e.size()), MPI_DOUBLE, MPI_SUM, comm_.raw());
   double q = 0;

@@ -36,6 +36,7 @@ Subdomain::Subdomain(SubdomainSystem system) : sys_(take(system)) {
 
 double Subdomain::energy(const Eigen::VectorXd& u) const {
   if (sys_.K.rows() == size()) return 0.5 * u.dot(sys_.K.selfadjointView<Eigen::Lower>() * u) - sys_.f.dot(u);
+  if (sys_.quadratic_form) return 0.5 * sys_.quadratic_form(u) - sys_.f.dot(u);
   const Eigen::SparseMatrix<double> K = sys_.assemble();
   return 0.5 * u.dot(K * u) - sys_.f.dot(u);
 }

@@ -31,6 +31,8 @@ struct SubdomainSystem {
   Eigen::SparseMatrix<double> K;
   /// Rebuilds K after it was freed (the factors are computed again for the reconstruction).
   std::function<Eigen::SparseMatrix<double>()> assemble;
+  /// u'K u without K (element by element), for the energy once K was freed; optional.
+  std::function<double(const Eigen::VectorXd&)> quadratic_form;
   Eigen::VectorXd f;
   Eigen::MatrixXd R;            ///< orthonormal kernel basis, one column per rigid mode
   std::vector<int> fixed_dofs;  ///< R.cols() dofs set to zero by K^+ (sorted)

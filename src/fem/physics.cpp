@@ -140,18 +140,11 @@ double stiffness_form(const SubdomainMesh& mesh, const Physics& ph, const Eigen:
   const int nc = cell_nodes(mesh.type), dpn = ph.dofs_per_node(), ed = nc * dpn;
   if (u.size() != static_cast<Eigen::Index>(mesh.num_nodes()) * dpn)
     throw std::invalid_argument("stiffness_form: u has the wrong size");
-  // Each element's values less their mean per component: the element matrices of both physics
-  // annihilate constants per component (translations), so the form is the same, and the
-  // cancellation of a large rigid part of u (a floating subdomain) is avoided.
   Eigen::VectorXd ue(ed);
   double sum = 0;
   for_each_element_matrix(mesh, ph, [&](const int* cn, const Eigen::MatrixXd& ke, double scale) {
-    for (int i = 0; i < dpn; ++i) {
-      double mean = 0;
-      for (int a = 0; a < nc; ++a) mean += u[cn[a] * dpn + i];
-      mean /= nc;
-      for (int a = 0; a < nc; ++a) ue[a * dpn + i] = u[cn[a] * dpn + i] - mean;
-    }
+    for (int a = 0; a < nc; ++a)
+      for (int i = 0; i < dpn; ++i) ue[a * dpn + i] = u[cn[a] * dpn + i];
     sum += scale * ue.dot(ke * ue);
   });
   return sum;

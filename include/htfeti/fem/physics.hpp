@@ -65,10 +65,8 @@ struct AssembledSubdomain {
 /// Stiffness only (for rebuilding K after it was freed).
 Eigen::SparseMatrix<double> assemble_stiffness(const SubdomainMesh& mesh, const Physics& physics);
 /// u'K u element by element, without assembling K (the same element matrices and coefficient
-/// as assemble_stiffness), each element's values taken less their mean per component (K
-/// annihilates translations): equal to u'K u, and free of the cancellation that a large rigid
-/// part of u causes in u'(K u). For the energy of the report once K has been freed; on
-/// generated boxes a few element matrices serve all cells.
+/// as assemble_stiffness; equal to u'(K u) up to the order of the sums). For the energy of the
+/// report once K has been freed; on generated boxes a few element matrices serve all cells.
 double stiffness_form(const SubdomainMesh& mesh, const Physics& physics, const Eigen::VectorXd& u);
 /// K, the volume load (source for Laplace, density * gravity for elasticity), kernel, fixed dofs.
 AssembledSubdomain assemble_subdomain(const SubdomainMesh& mesh, const Physics& physics,

@@ -244,6 +244,16 @@ int run(int argc, char** argv, const Comm& comm) {
                       "(by default a cluster frees them after its setup, and they are rebuilt for "
                       "the reconstruction, once the available memory has fallen below 30% of "
                       "what it was when the factorizations began)");
+  double numeric_cache_mb = 512;
+  auto* o_numcache =
+      solve_cmd
+          ->add_option("--numeric-cache", numeric_cache_mb,
+                       "MB per rank of numeric factors kept for subdomains whose matrix repeats a "
+                       "kept one entry for entry (generated boxes): such a subdomain copies the "
+                       "factor instead of factoring; the factors are the same either way (0: off; "
+                       "needs --symbolic-cache > 0)")
+          ->check(CLI::NonNegativeNumber)
+          ->capture_default_str();
   bool release_factors = false;
   auto* o_release =
       solve_cmd
@@ -430,6 +440,7 @@ int run(int argc, char** argv, const Comm& comm) {
       model = make_builtin_model(opt.decomposition);
     }
     if (o_symcache->count()) opt.feti.symbolic_cache_patterns = symbolic_cache;
+    if (o_numcache->count()) opt.feti.numeric_cache_bytes = numeric_cache_mb * 1048576.0;
     if (release_factors) {
       if (opt.feti.keep_factors)
         throw std::invalid_argument("--release-factors contradicts solver.keep_factors = true");

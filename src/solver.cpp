@@ -302,6 +302,8 @@ SolveOutput solve(std::shared_ptr<const Model> model_ptr, const SolveOptions& op
       {"numeric_core_s", comm.sum(st.factor_numeric)},
       {"symbolic_analyses", comm.sum(static_cast<long long>(st.symbolic_analyses))},
       {"symbolic_reuses", comm.sum(static_cast<long long>(st.symbolic_reuses))},
+      {"numeric_reuses", comm.sum(static_cast<long long>(st.numeric_reuses))},
+      {"cached_matrices", comm.sum(static_cast<long long>(st.numeric_matrices))},
       {"cached_patterns", comm.sum(static_cast<long long>(st.symbolic_patterns))}};
   struct rusage usage {};
   getrusage(RUSAGE_SELF, &usage);

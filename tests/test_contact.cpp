@@ -128,15 +128,28 @@ TEST(SymbolicCache, SameResultsWithAndWithoutSharedAnalyses) {
       opt.feti.symbolic_cache_patterns = 0;
       const auto off = solve(opt, comm);
       opt.feti.symbolic_cache_patterns = 64;
+      opt.feti.numeric_cache_bytes = 0;
       const auto on = solve(opt, comm);
-      EXPECT_EQ(on.report["objective"], off.report["objective"]) << "m = " << m;
-      EXPECT_EQ(on.report["matvecs"], off.report["matvecs"]);
+      opt.feti.numeric_cache_bytes = 512.0 * (1 << 20);  // equal matrices copy their factor
+      const auto numeric = solve(opt, comm);
+      for (const auto* r : {&on, &numeric}) {
+        EXPECT_EQ(r->report["objective"], off.report["objective"]) << "m = " << m;
+        EXPECT_EQ(r->report["matvecs"], off.report["matvecs"]);
+        ASSERT_EQ(r->u.size(), off.u.size());
+        for (size_t i = 0; i < off.u.size(); ++i) EXPECT_TRUE(r->u[i] == off.u[i]) << i;
+      }
       EXPECT_EQ(off.report["factorization"]["symbolic_reuses"], 0);
       const long long subdomains = comm.sum(static_cast<long long>(on.u.size()));
       const long long reuses = on.report["factorization"]["symbolic_reuses"];
       const long long analyses = on.report["factorization"]["symbolic_analyses"];
       EXPECT_EQ(reuses + analyses, subdomains);
       EXPECT_LE(analyses, 9 * comm.size());  // corner, edge, interior types (+ contact sides)
+      EXPECT_EQ(on.report["factorization"]["numeric_reuses"], 0);
+      const auto& f = numeric.report["factorization"];
+      EXPECT_GT(f["numeric_reuses"].get<long long>(), 0) << "m = " << m;
+      EXPECT_EQ(f["numeric_reuses"].get<long long>() + f["symbolic_reuses"].get<long long>() +
+                    f["symbolic_analyses"].get<long long>(),
+                subdomains);
     }
 }
 

@@ -138,6 +138,36 @@ TEST(SymbolicCache, SharesAnalysesOnlyBetweenEqualPatterns) {
     EXPECT_EQ(o1, o2);
     EXPECT_EQ((L1 - L2).cwiseAbs().maxCoeff(), 0.0);
   }
+  {  // numeric factors: kept for a repeated pattern, copied for an equal matrix only
+    SymbolicCache cache(64, 1e9);
+    SparseCholesky f1, f2, f3, f4, f5, plain;
+    f1.factorize(A1, last, &cache);  // analysed
+    f2.factorize(A1, last, &cache);  // analysis reused; its numeric factor kept
+    f3.factorize(A1, last, &cache);  // copies f2's factor
+    f4.factorize(A2, last, &cache);  // the same pattern, other values: factored
+    f5.factorize(A1, other_last, &cache);  // another set ordered last: analysed
+    plain.factorize(A1, last);
+    EXPECT_EQ(cache.analyses(), 2);
+    EXPECT_EQ(cache.reuses(), 2);
+    EXPECT_EQ(cache.numeric_reuses(), 1);
+    EXPECT_EQ(cache.matrices(), 2);
+    EXPECT_EQ(f3.numeric_seconds(), 0.0);
+    Eigen::MatrixXd L1, L2;
+    std::vector<int> o1, o2;
+    f3.schur_factor(L1, o1);
+    plain.schur_factor(L2, o2);
+    EXPECT_EQ(o1, o2);
+    EXPECT_EQ((L1 - L2).cwiseAbs().maxCoeff(), 0.0);  // the same factor, bit for bit
+    EXPECT_EQ((solve(f3) - solve(plain)).cwiseAbs().maxCoeff(), 0.0);
+    EXPECT_GT((solve(f4) - solve(plain)).cwiseAbs().maxCoeff(), 0.0);
+    SymbolicCache small(64, 1.0);  // a byte budget too small for any factor: none kept
+    SparseCholesky g1, g2, g3;
+    g1.factorize(A1, &small);
+    g2.factorize(A1, &small);
+    g3.factorize(A1, &small);
+    EXPECT_EQ(small.numeric_reuses(), 0);
+    EXPECT_EQ(small.matrices(), 0);
+  }
   {  // capacity 1: the second pattern is analysed but not kept, the first is still reused
     SymbolicCache cache(1);
     SparseCholesky a, b2, c;

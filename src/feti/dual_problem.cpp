@@ -306,7 +306,8 @@ DualProblem::DualProblem(const FetiLayout& layout,
   // 3. Clusters: factorizations, explicit blocks, the primal-constraint systems; d.
   t = now();
   if (options.symbolic_cache_patterns > 0)
-    symbolic_ = std::make_unique<SymbolicCache>(options.symbolic_cache_patterns);
+    symbolic_ = std::make_unique<SymbolicCache>(options.symbolic_cache_patterns,
+                                                options.numeric_cache_bytes);
   clusters_.resize(ncl);
   error.clear();
   input_error = false;
@@ -386,6 +387,8 @@ DualProblem::DualProblem(const FetiLayout& layout,
     setup_.symbolic_analyses = symbolic_->analyses();
     setup_.symbolic_reuses = symbolic_->reuses();
     setup_.symbolic_patterns = symbolic_->patterns();
+    setup_.numeric_reuses = symbolic_->numeric_reuses();
+    setup_.numeric_matrices = symbolic_->matrices();
   }
   setup_.peak_mb_factorization = peak_rss_mb();
   for (const auto& c : clusters_) setup_.cluster_setup += c->setup_seconds();

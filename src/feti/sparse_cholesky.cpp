@@ -47,6 +47,9 @@ struct SymbolicCache::Entry {
   std::uint64_t hash = 0;
   int method = 0;  // 0 AMD, 1 METIS, 2 constrained AMD with `last` ordered last
   std::vector<int> p, i, last;
+  std::uint64_t value_hash = 0;  // numeric entries: the values and their hash
+  std::vector<double> x;
+  double bytes = 0;
   cholmod_common common;
   cholmod_factor* L = nullptr;
   Entry() { cholmod_start(&common), common.print = 0, common.error_handler = nullptr; }
@@ -56,7 +59,16 @@ struct SymbolicCache::Entry {
   }
 };
 
-SymbolicCache::SymbolicCache(int capacity) : capacity_(capacity) {}
+SymbolicCache::SymbolicCache(int capacity, double numeric_bytes)
+    : capacity_(capacity), numeric_bytes_(numeric_bytes) {}
+long SymbolicCache::numeric_reuses() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return numeric_reuses_;
+}
+int SymbolicCache::matrices() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return static_cast<int>(numeric_.size());
+}
 SymbolicCache::~SymbolicCache() = default;
 long SymbolicCache::analyses() const {
   std::lock_guard<std::mutex> lock(mutex_);
@@ -150,6 +162,11 @@ void SparseCholesky::factorize_impl(const Eigen::SparseMatrix<double>& A,
            std::equal(e.i.begin(), e.i.end(), upper.innerIndexPtr());
   };
   bool reused = false;
+  std::uint64_t value_hash = 1469598103934665603ULL;
+  const auto same_values = [&](const SymbolicCache::Entry& e) {
+    return e.value_hash == value_hash && same(e) &&
+           std::equal(e.x.begin(), e.x.end(), upper.valuePtr());
+  };
   if (cache) {
     if (last) {
       last_sorted = *last;
@@ -160,7 +177,25 @@ void SparseCholesky::factorize_impl(const Eigen::SparseMatrix<double>& A,
     mix(last_sorted.data(), static_cast<long>(last_sorted.size()));
     mix(upper.outerIndexPtr(), n + 1);
     mix(upper.innerIndexPtr(), nnz);
+    if (cache->numeric_bytes_ > 0) {
+      for (long k = 0; k < nnz; ++k) {  // FNV-1a over the values' 64-bit words
+        std::uint64_t w;
+        std::memcpy(&w, upper.valuePtr() + k, sizeof w);
+        value_hash = (value_hash ^ w) * 1099511628211ULL;
+      }
+    }
     std::lock_guard<std::mutex> lock(cache->mutex_);
+    for (const auto& e : cache->numeric_)
+      if (same_values(*e)) {  // an equal matrix was factored: its factor, copied
+        impl_->factor = cholmod_copy_factor(e->L, &c);
+        if (!impl_->factor) throw std::bad_alloc();
+        ++cache->numeric_reuses_;
+        impl_->n = n;
+        impl_->symbolic_seconds =
+            std::chrono::duration<double>(clock::now() - t0).count();
+        impl_->numeric_seconds = 0;
+        return;
+      }
     for (const auto& e : cache->entries_)
       if (same(*e)) {
         impl_->factor = cholmod_copy_factor(e->L, &c);
@@ -256,6 +291,30 @@ void SparseCholesky::factorize_impl(const Eigen::SparseMatrix<double>& A,
   impl_->n = static_cast<int>(A.rows());
   cholmod_free_work(&c);  // the analysis workspace is O(n) per factor: do not keep it
   const auto t2 = clock::now();
+  // A repeated pattern (its analysis was reused): keep this numeric factor for equal matrices.
+  if (cache && reused && cache->numeric_bytes_ > 0) {
+    const double bytes = static_cast<double>(factor_bytes()) + 8.0 * nnz;
+    std::lock_guard<std::mutex> lock(cache->mutex_);
+    bool known = false;
+    for (const auto& e : cache->numeric_) known = known || same_values(*e);
+    if (!known && static_cast<int>(cache->numeric_.size()) < cache->capacity_ &&
+        cache->numeric_held_ + bytes <= cache->numeric_bytes_) {
+      auto e = std::make_unique<SymbolicCache::Entry>();
+      e->hash = hash;
+      e->method = method;
+      e->p.assign(upper.outerIndexPtr(), upper.outerIndexPtr() + n + 1);
+      e->i.assign(upper.innerIndexPtr(), upper.innerIndexPtr() + nnz);
+      e->last = last_sorted;
+      e->value_hash = value_hash;
+      e->x.assign(upper.valuePtr(), upper.valuePtr() + nnz);
+      e->bytes = bytes;
+      e->L = cholmod_copy_factor(impl_->factor, &e->common);
+      if (e->L) {
+        cache->numeric_held_ += bytes;
+        cache->numeric_.push_back(std::move(e));
+      }
+    }
+  }
   impl_->symbolic_seconds = std::chrono::duration<double>(t1 - t0).count();
   impl_->numeric_seconds = std::chrono::duration<double>(t2 - t1).count();
 }

@@ -68,6 +68,10 @@ struct FetiOptions {
   /// sparsity pattern (SymbolicCache); this many patterns are kept per rank (0: every subdomain
   /// is analysed on its own). The factors are the same either way.
   int symbolic_cache_patterns = 64;
+  /// With the symbolic cache on, numeric factors of repeated patterns are kept too, up to this
+  /// many bytes per rank, and a subdomain whose K_rr equals a kept one entry for entry copies
+  /// its factor instead of factoring (SymbolicCache; the same factor bit for bit). 0: off.
+  double numeric_cache_bytes = 512.0 * (1 << 20);
   /// With automatic storage, what to use when the dense S_i do not fit: the implicit Dirichlet
   /// preconditioner (dirichlet), or another kind (the automatic choice falls back to none: the
   /// implicit one needs a second factor per subdomain, which the memory check does not count).
@@ -91,6 +95,8 @@ struct SetupTimings {
   /// The rank's SymbolicCache after the setup's factorizations (subdomains and preconditioner):
   /// analyses done, analyses reused, patterns held (all 0 when the cache is off).
   long symbolic_analyses = 0, symbolic_reuses = 0, symbolic_patterns = 0;
+  /// Factorizations that copied the numeric factor of an equal matrix; numeric factors held.
+  long numeric_reuses = 0, numeric_matrices = 0;
   /// Peak resident memory of the rank (MiB) at the end of each setup phase.
   double factor_mb = 0;  ///< the rank's subdomain factors as built (before any release)
   double peak_mb_assembly = 0, peak_mb_constraints = 0, peak_mb_factorization = 0,

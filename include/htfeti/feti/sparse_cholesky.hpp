@@ -24,23 +24,35 @@ std::string to_string(Ordering ordering);
 /// Dirichlet and contact rows); a Gmsh mesh split by METIS has as many as subdomains, so the
 /// cache keeps at most `capacity` patterns (the first ones analysed) and analyses the rest anew.
 /// Thread-safe; the pattern is compared in full, not only its hash.
+/// Numeric factors too, optionally: matrices equal entry for entry (pattern, values and the set
+/// ordered last) have the same factor, so a factorization finding an equal matrix copies its
+/// factor (a memory copy) instead of factoring; the result is the same bit for bit. On a
+/// generated box with one material the subdomain matrices are translates of each other and
+/// mostly equal. A numeric factor is kept only for a pattern that has been seen before (a
+/// symbolic reuse), so a METIS-split mesh, whose matrices all differ, keeps none; at most
+/// numeric_bytes are kept per cache.
 class SymbolicCache {
  public:
-  explicit SymbolicCache(int capacity = 64);
+  /// numeric_bytes > 0 also keeps numeric factors (see above), up to that many bytes in all.
+  explicit SymbolicCache(int capacity = 64, double numeric_bytes = 0);
   ~SymbolicCache();
   SymbolicCache(const SymbolicCache&) = delete;
   SymbolicCache& operator=(const SymbolicCache&) = delete;
   long analyses() const;  ///< symbolic analyses done (cache misses)
   long reuses() const;    ///< factorizations that reused a cached analysis
   int patterns() const;   ///< patterns held
+  long numeric_reuses() const;  ///< factorizations that copied a cached numeric factor
+  int matrices() const;         ///< numeric factors held
 
  private:
   friend class SparseCholesky;
   struct Entry;
   mutable std::mutex mutex_;
   int capacity_;
-  long analyses_ = 0, reuses_ = 0;
+  double numeric_bytes_, numeric_held_ = 0;
+  long analyses_ = 0, reuses_ = 0, numeric_reuses_ = 0;
   std::vector<std::unique_ptr<Entry>> entries_;
+  std::vector<std::unique_ptr<Entry>> numeric_;  // entries with the values too
 };
 
 class SparseCholesky {

@@ -159,6 +159,15 @@ TEST(SymbolicCache, SharesAnalysesOnlyBetweenEqualPatterns) {
     EXPECT_EQ(o1, o2);
     EXPECT_EQ((L1 - L2).cwiseAbs().maxCoeff(), 0.0);  // the same factor, bit for bit
     EXPECT_EQ((solve(f3) - solve(plain)).cwiseAbs().maxCoeff(), 0.0);
+    // S^{-1}: computed once for f2 and f3 (shared), equal to the plain factor's, and the inverse
+    // of S = L_s L_s^T.
+    const auto s2 = f2.schur_inverse(), s3 = f3.schur_inverse(), sp = plain.schur_inverse();
+    EXPECT_EQ(s2.get(), s3.get());
+    EXPECT_NE(sp.get(), s3.get());
+    EXPECT_EQ(s3->order, sp->order);
+    EXPECT_EQ((s3->S - sp->S).cwiseAbs().maxCoeff(), 0.0);
+    const Eigen::MatrixXd Sm = L2 * L2.transpose();
+    EXPECT_LT((Sm * sp->S - Eigen::MatrixXd::Identity(Sm.rows(), Sm.cols())).norm(), 1e-10);
     EXPECT_GT((solve(f4) - solve(plain)).cwiseAbs().maxCoeff(), 0.0);
     SymbolicCache small(64, 1.0);  // a byte budget too small for any factor: none kept
     SparseCholesky g1, g2, g3;

@@ -8,6 +8,8 @@
 #include <cstring>
 #include <stdexcept>
 
+extern "C" void dpotri_(const char* uplo, const int* n, double* a, const int* lda, int* info);
+
 namespace htfeti {
 
 Ordering parse_ordering(const std::string& name) {
@@ -41,6 +43,12 @@ cholmod_sparse upper_view(Eigen::SparseMatrix<double>& upper) {
 }
 }  // namespace
 
+// S^{-1} of a numeric factor, computed by the first that asks (SparseCholesky::schur_inverse).
+struct SchurSlot {
+  std::mutex mutex;
+  std::shared_ptr<const SparseCholesky::SchurInverse> value;
+};
+
 // One cached symbolic analysis: the pattern it belongs to (compared in full) and the symbolic
 // factor, allocated through the cache's own CHOLMOD common.
 struct SymbolicCache::Entry {
@@ -50,6 +58,7 @@ struct SymbolicCache::Entry {
   std::uint64_t value_hash = 0;  // numeric entries: the values and their hash
   std::vector<double> x;
   double bytes = 0;
+  std::shared_ptr<SchurSlot> slot;  // numeric entries with a set ordered last: S^{-1}, once
   cholmod_common common;
   cholmod_factor* L = nullptr;
   Entry() { cholmod_start(&common), common.print = 0, common.error_handler = nullptr; }
@@ -99,6 +108,7 @@ struct SparseCholesky::Impl {
   int nlast = 0;  // rows ordered last by factorize(A, last)
   int method = 0;  // 0 AMD, 1 METIS (the constructor's ordering)
   double symbolic_seconds = 0, numeric_seconds = 0;
+  std::shared_ptr<SchurSlot> slot;  // shared with a numeric cache entry, if any
 
   explicit Impl(Ordering ordering) : method(ordering == Ordering::amd ? 0 : 1) {
     cholmod_start(&common);
@@ -144,6 +154,7 @@ void SparseCholesky::factorize_impl(const Eigen::SparseMatrix<double>& A,
   Eigen::SparseMatrix<double> upper = A.triangularView<Eigen::Upper>();
   cholmod_sparse view = upper_view(upper);
   cholmod_free_factor(&impl_->factor, &c);
+  impl_->slot.reset();
   impl_->nlast = last ? static_cast<int>(last->size()) : 0;
 
   // The pattern's key for the cache: method, the sorted set ordered last, the upper triangle.
@@ -184,26 +195,40 @@ void SparseCholesky::factorize_impl(const Eigen::SparseMatrix<double>& A,
         value_hash = (value_hash ^ w) * 1099511628211ULL;
       }
     }
-    std::lock_guard<std::mutex> lock(cache->mutex_);
-    for (const auto& e : cache->numeric_)
-      if (same_values(*e)) {  // an equal matrix was factored: its factor, copied
-        impl_->factor = cholmod_copy_factor(e->L, &c);
-        if (!impl_->factor) throw std::bad_alloc();
-        ++cache->numeric_reuses_;
-        impl_->n = n;
-        impl_->symbolic_seconds =
-            std::chrono::duration<double>(clock::now() - t0).count();
-        impl_->numeric_seconds = 0;
-        return;
-      }
-    for (const auto& e : cache->entries_)
-      if (same(*e)) {
-        impl_->factor = cholmod_copy_factor(e->L, &c);
-        if (!impl_->factor) throw std::bad_alloc();
-        ++cache->reuses_;
-        reused = true;
-        break;
-      }
+    // Entries are never removed while the cache lives, so a found one is copied outside the lock
+    // (the copies of two threads do not wait for each other).
+    const SymbolicCache::Entry* numeric = nullptr;
+    const SymbolicCache::Entry* symbolic = nullptr;
+    {
+      std::lock_guard<std::mutex> lock(cache->mutex_);
+      for (const auto& e : cache->numeric_)
+        if (same_values(*e)) {
+          numeric = e.get();
+          ++cache->numeric_reuses_;
+          break;
+        }
+      if (!numeric)
+        for (const auto& e : cache->entries_)
+          if (same(*e)) {
+            symbolic = e.get();
+            ++cache->reuses_;
+            break;
+          }
+    }
+    if (numeric) {  // an equal matrix was factored: its factor, copied
+      impl_->factor = cholmod_copy_factor(numeric->L, &c);
+      if (!impl_->factor) throw std::bad_alloc();
+      impl_->slot = numeric->slot;
+      impl_->n = n;
+      impl_->symbolic_seconds = std::chrono::duration<double>(clock::now() - t0).count();
+      impl_->numeric_seconds = 0;
+      return;
+    }
+    if (symbolic) {
+      impl_->factor = cholmod_copy_factor(symbolic->L, &c);
+      if (!impl_->factor) throw std::bad_alloc();
+      reused = true;
+    }
   }
   if (reused) {
     // the cached analysis is the one this pattern would get
@@ -293,12 +318,12 @@ void SparseCholesky::factorize_impl(const Eigen::SparseMatrix<double>& A,
   const auto t2 = clock::now();
   // A repeated pattern (its analysis was reused): keep this numeric factor for equal matrices.
   if (cache && reused && cache->numeric_bytes_ > 0) {
-    const double bytes = static_cast<double>(factor_bytes()) + 8.0 * nnz;
+    const double bytes = static_cast<double>(factor_bytes()) + 8.0 * nnz +
+                         8.0 * impl_->nlast * impl_->nlast;
     std::lock_guard<std::mutex> lock(cache->mutex_);
     bool known = false;
     for (const auto& e : cache->numeric_) known = known || same_values(*e);
-    if (!known && static_cast<int>(cache->numeric_.size()) < cache->capacity_ &&
-        cache->numeric_held_ + bytes <= cache->numeric_bytes_) {
+    if (!known && cache->numeric_held_ + bytes <= cache->numeric_bytes_) {
       auto e = std::make_unique<SymbolicCache::Entry>();
       e->hash = hash;
       e->method = method;
@@ -310,6 +335,7 @@ void SparseCholesky::factorize_impl(const Eigen::SparseMatrix<double>& A,
       e->bytes = bytes;
       e->L = cholmod_copy_factor(impl_->factor, &e->common);
       if (e->L) {
+        if (last) e->slot = impl_->slot = std::make_shared<SchurSlot>();
         cache->numeric_held_ += bytes;
         cache->numeric_.push_back(std::move(e));
       }
@@ -367,6 +393,25 @@ void SparseCholesky::schur_factor(Eigen::MatrixXd& Ls, std::vector<int>& order) 
         Ls(row - p0, j - p0) = Lx[px[s] + static_cast<long>(j - k1) * nsrow + i];
       }
   }
+}
+
+std::shared_ptr<const SparseCholesky::SchurInverse> SparseCholesky::schur_inverse() const {
+  auto compute = [this]() {
+    auto r = std::make_shared<SchurInverse>();
+    schur_factor(r->S, r->order);  // L_s, then S^{-1} in place
+    const int nb = static_cast<int>(r->S.rows());
+    if (nb > 0) {
+      int info = 0;
+      dpotri_("L", &nb, r->S.data(), &nb, &info);
+      if (info != 0) throw std::runtime_error("the Schur complement is singular");
+      r->S.triangularView<Eigen::StrictlyUpper>() = r->S.transpose();
+    }
+    return std::shared_ptr<const SchurInverse>(std::move(r));
+  };
+  if (!impl_->slot) return compute();
+  std::lock_guard<std::mutex> lock(impl_->slot->mutex);
+  if (!impl_->slot->value) impl_->slot->value = compute();
+  return impl_->slot->value;
 }
 
 long SparseCholesky::factor_nonzeros() const {

@@ -5,7 +5,6 @@
 #include <stdexcept>
 #include <string>
 
-extern "C" void dpotri_(const char* uplo, const int* n, double* a, const int* lda, int* info);
 
 namespace htfeti {
 
@@ -56,9 +55,9 @@ void Subdomain::factorize_with_interface_last(const std::vector<int>& interface_
 }
 
 Eigen::MatrixXd Subdomain::dual_block(const std::vector<BEntry>& b, int nmult) const {
-  Eigen::MatrixXd S;  // L_s, then S^{-1} in place
-  std::vector<int> order;
-  chol_.schur_factor(S, order);
+  const auto inverse = chol_.schur_inverse();  // S^{-1} (shared by equal matrices)
+  const Eigen::MatrixXd& S = inverse->S;
+  const std::vector<int>& order = inverse->order;
   // order[i]: reduced index of the dof standing for row i of L_s.
   std::vector<int> dof_of_reduced(size() - sys_.fixed_dofs.size());
   for (int d = 0; d < size(); ++d)
@@ -80,19 +79,12 @@ Eigen::MatrixXd Subdomain::dual_block(const std::vector<BEntry>& b, int nmult) c
   std::stable_sort(entries.begin(), entries.end(),
                    [](const Entry& x, const Entry& y) { return x.mult < y.mult; });
   const int nb = static_cast<int>(S.rows());
-  // (K_rr^{-1}) on the interface is S^{-1} = (L_s L_s^T)^{-1}: LAPACK's dpotri (a triangular
-  // inverse and a triangular product, 2/3 n_b^3 flops), lower half, then mirrored.
-  if (nb > 0) {
-    int info = 0;
-    dpotri_("L", &nb, S.data(), &nb, &info);
-    if (info != 0) throw std::runtime_error("dual_block: the Schur complement is singular");
-    S.triangularView<Eigen::StrictlyUpper>() = S.transpose();
-  }
+  // (K_rr^{-1}) on the interface is S^{-1} = (L_s L_s^T)^{-1} (SparseCholesky::schur_inverse:
+  // LAPACK's dpotri, 2/3 n_b^3 flops).
   // W = S^{-1} B_i^T (one column per multiplier: n_b flops per entry of B_i), then the lower
   // half of F_i = B_i W (n_mult flops per entry), mirrored.
   Eigen::MatrixXd W = Eigen::MatrixXd::Zero(nb, nmult);
   for (const auto& e : entries) W.col(e.mult) += e.value * S.col(e.p);
-  S = Eigen::MatrixXd();
   Eigen::MatrixXd F = Eigen::MatrixXd::Zero(nmult, nmult);
   size_t first = 0;  // first entry with mult >= col
   for (int col = 0; col < nmult; ++col) {

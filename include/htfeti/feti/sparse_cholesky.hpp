@@ -30,7 +30,7 @@ std::string to_string(Ordering ordering);
 /// generated box with one material the subdomain matrices are translates of each other and
 /// mostly equal. A numeric factor is kept only for a pattern that has been seen before (a
 /// symbolic reuse), so a METIS-split mesh, whose matrices all differ, keeps none; at most
-/// numeric_bytes are kept per cache.
+/// numeric_bytes are kept per cache (factors and values; any number of matrices).
 class SymbolicCache {
  public:
   /// numeric_bytes > 0 also keeps numeric factors (see above), up to that many bytes in all.
@@ -80,6 +80,14 @@ class SparseCholesky {
   /// After factorize(A, last): lower-triangular L_s (|last| x |last|) with L_s L_s^T the Schur
   /// complement, and order[i] = the row of A that row i of L_s stands for.
   void schur_factor(Eigen::MatrixXd& L, std::vector<int>& order) const;
+  /// After factorize(A, last): S^{-1} (both halves) with S = L_s L_s^T, and `order` as for
+  /// schur_factor(); LAPACK's dpotri, 2/3 |last|^3 flops. A factor copied from the cache's
+  /// numeric entry shares the entry's S^{-1}: computed once for all equal matrices.
+  struct SchurInverse {
+    Eigen::MatrixXd S;
+    std::vector<int> order;
+  };
+  std::shared_ptr<const SchurInverse> schur_inverse() const;
   /// x = A^{-1} b; x and b may alias. Work arrays are kept between calls, so a solve allocates
   /// nothing once the first one has run. Not safe to call concurrently on one object.
   void solve(const double* b, double* x);

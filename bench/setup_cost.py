@@ -17,7 +17,9 @@ Per build and case, medians of --repeat runs, from the reports:
   - the reconstruction per subdomain (here the factors are kept: one solve per subdomain).
 
 Usage: bench/setup_cost.py [--before OLD/htfeti] [--after build/htfeti] [--repeat 3]
-                           [--cases 2d 3d]
+                           [--cases 2d 3d] [--after-args "--numeric-cache 0"]
+--after-args: further arguments for the after build's explicit runs (the committed rows were
+measured before the numeric cache existed: pass "--numeric-cache 0" to compare like with like).
 The builds take turns run by run (one run of each per repetition), so that the drift of a shared
 machine's speed falls on all of them alike.
 Writes bench/results/setup_cost.json and prints a markdown table."""
@@ -34,6 +36,7 @@ p.add_argument("--before", default=None, help="an older htfeti binary")
 p.add_argument("--after", default=os.path.join(ROOT, "build", "htfeti"))
 p.add_argument("--repeat", type=int, default=3)
 p.add_argument("--cases", nargs="+", default=["2d", "3d"], help="2d and/or 3d")
+p.add_argument("--after-args", default="", help="further arguments for the after build")
 a = p.parse_args()
 
 CASES = {
@@ -61,7 +64,8 @@ def summarize(runs):
 
 builds = [("after", a.after)] + ([("before", a.before)] if a.before else [])
 result = {"command": "bench/setup_cost.py" + (" --before BEFORE" if a.before else "") +
-          f" --repeat {a.repeat}", "cases": {}}
+          f" --repeat {a.repeat}" + (f' --after-args "{a.after_args}"' if a.after_args else ""),
+          "cases": {}}
 path = os.path.join(RESULTS, "setup_cost.json")
 if os.path.exists(path):  # cases not rerun are kept
     with open(path) as f:
@@ -70,7 +74,9 @@ for case in a.cases:
     args = CASES[case]
     # The builds and the plain reference take turns, one run each per repetition: this VM's
     # speed drifts over minutes, and interleaving spreads the drift over all of them alike.
-    variants = [(label, binary, args + ["--dual-operator", "explicit"]) for label, binary in builds]
+    variants = [(label, binary, args + ["--dual-operator", "explicit"] +
+                 (a.after_args.split() if label == "after" else []))
+                for label, binary in builds]
     variants.append(("plain", a.after,
                      args + ["--dual-operator", "implicit", "--symbolic-cache", 0]))
     runs = {label: [] for label, _, _ in variants}

@@ -226,26 +226,41 @@ std::string write_vtu(const std::string& path, const Model& model, DualProblem& 
       write_ascii_piece(piece_tmp, static_cast<long>(base), static_cast<long>(b.types.size()), pa,
                         coords, cs, ca);
     } else {
-      // Binary, streamed: a first pass over the meshes gives every array's size, so the header
-      // (with the offsets of the appended data) is written first; then each subdomain's values
-      // go to their places in the file by positioned writes. Memory: one subdomain's buffers.
-      std::vector<std::int64_t> nodes(subs.size()), cells(subs.size()), corners(subs.size());
-      std::int64_t P = 0, C = 0, K = 0;
-      for (size_t i = 0; i < subs.size(); ++i) {
-        const SubdomainMesh m = model.mesh(subs[i]->id());
-        nodes[i] = m.num_nodes(), cells[i] = m.num_cells();
-        corners[i] = cells[i] * cell_nodes(m.type);
-        P += nodes[i], C += cells[i], K += corners[i];
+      // Binary, streamed: a first pass over the meshes gives every array's size and every
+      // subdomain's place in each array, so the header (with the offsets of the appended data)
+      // is written first; then threads take subdomains and write their values to their places
+      // in the file by positioned writes. Memory: one subdomain's buffers per thread.
+      const int ns = static_cast<int>(subs.size());
+      std::vector<std::int64_t> nodes(ns + 1, 0), cells(ns + 1, 0), corners(ns + 1, 0);
+      std::string merr;
+#pragma omp parallel for schedule(dynamic)
+      for (int i = 0; i < ns; ++i) {
+        try {
+          const SubdomainMesh m = model.mesh(subs[i]->id());
+          nodes[i + 1] = m.num_nodes(), cells[i + 1] = m.num_cells();
+          corners[i + 1] = cells[i + 1] * cell_nodes(m.type);
+        } catch (const std::exception& e) {
+#pragma omp critical
+          merr = e.what();
+        }
       }
-      std::vector<std::uint64_t> sizes;
+      if (!merr.empty()) throw std::runtime_error(merr);
+      for (int i = 0; i < ns; ++i)  // prefix sums: where subdomain i starts
+        nodes[i + 1] += nodes[i], cells[i + 1] += cells[i], corners[i + 1] += corners[i];
+      const std::int64_t P = nodes[ns], C = cells[ns], K = corners[ns];
+      std::vector<std::uint64_t> sizes, item;  // bytes of each array, bytes per point/cell/corner
+      std::vector<const std::vector<std::int64_t>*> index;  // the prefix sums that place it
       for (const Array* a : arrays) {
         const bool point = a == &coords || a->name == "u" || a->name == "contact_force" ||
                            a->name == "contact_gap";
         const std::uint64_t width = a->type == "Float64" || a->type == "Int64" ? 8
                                     : a->type == "Int32"                       ? 4
                                                                                : 1;
-        const std::int64_t count = point ? P : a->name == "connectivity" ? K : C;
-        sizes.push_back(width * a->components * static_cast<std::uint64_t>(count));
+        const bool corner = a->name == "connectivity";
+        const std::int64_t count = point ? P : corner ? K : C;
+        item.push_back(width * static_cast<std::uint64_t>(a->components));
+        sizes.push_back(item.back() * static_cast<std::uint64_t>(count));
+        index.push_back(point ? &nodes : corner ? &corners : &cells);
       }
       const std::string head = piece_header(static_cast<long>(P), static_cast<long>(C), pa, coords,
                                             cs, ca, false, sizes);
@@ -253,36 +268,44 @@ std::string write_vtu(const std::string& path, const Model& model, DualProblem& 
       if (fd < 0) throw std::runtime_error("cannot write " + piece_tmp);
       std::string werr;
       auto put = [&](const char* data, size_t n, std::uint64_t at) {
-        while (n > 0 && werr.empty()) {
+        while (n > 0) {
           const ssize_t w = ::pwrite(fd, data, n, static_cast<off_t>(at));
           if (w <= 0) {
+#pragma omp critical
             werr = "error while writing " + piece + " (disk full?)";
-            break;
+            return;
           }
           data += w, n -= static_cast<size_t>(w), at += static_cast<std::uint64_t>(w);
         }
       };
       put(head.data(), head.size(), 0);
-      std::vector<std::uint64_t> cursor;  // where each array's next values go
+      std::vector<std::uint64_t> start;  // where each array's values begin
       std::uint64_t at = head.size();
       for (size_t k = 0; k < arrays.size(); ++k) {
         put(reinterpret_cast<const char*>(&sizes[k]), sizeof(std::uint64_t), at);
-        cursor.push_back(at + sizeof(std::uint64_t));
+        start.push_back(at + sizeof(std::uint64_t));
         at += sizeof(std::uint64_t) + sizes[k];
       }
       const std::string tail = "\n</AppendedData>\n</VTKFile>\n";
       put(tail.data(), tail.size(), at);
-      Buffers b;
-      std::int64_t base = 0, off = 0;
-      for (size_t i = 0; i < subs.size() && werr.empty(); ++i) {
-        b.clear();
-        const SubdomainMesh m = model.mesh(subs[i]->id());
-        fill(i, m, base, off, b);
-        base += m.num_nodes();
-        for (size_t k = 0; k < arrays.size(); ++k) {
-          const auto [data, n] = bytes_of(*arrays[k], b);
-          put(data, n, cursor[k]);
-          cursor[k] += n;
+#pragma omp parallel
+      {
+        Buffers b;
+#pragma omp for schedule(dynamic)
+        for (int i = 0; i < ns; ++i) {
+          try {
+            b.clear();
+            const SubdomainMesh m = model.mesh(subs[i]->id());
+            std::int64_t off = corners[i];
+            fill(static_cast<size_t>(i), m, nodes[i], off, b);
+            for (size_t k = 0; k < arrays.size(); ++k) {
+              const auto [data, n] = bytes_of(*arrays[k], b);
+              put(data, n, start[k] + item[k] * static_cast<std::uint64_t>((*index[k])[i]));
+            }
+          } catch (const std::exception& e) {
+#pragma omp critical
+            werr = e.what();
+          }
         }
       }
       if (::close(fd) != 0 && werr.empty()) werr = "error while closing " + piece;

@@ -1027,7 +1027,7 @@ std::vector<DualProblem::Vec> DualProblem::reconstruct(const Vec& lambda) {
   try {
     for_each_cluster([&](int c) {
       // Freed factors are rebuilt plain (ordering_, no interface last): solve() is all the
-      // reconstruction needs, and that factor costs 30% less here (docs/performance.md); u then
+      // reconstruction needs, and that factor is cheaper (docs/method.md); u then
       // agrees with the kept factors' u to round-off.
       if (released_[c]) clusters_[c]->refactor(ordering_, symbolic_.get(), false);
       cluster_rhs_from_ext(c, true, -1.0);  // f - B~^T lambda

@@ -172,6 +172,17 @@ void SparseCholesky::factorize_impl(const Eigen::SparseMatrix<double>& A,
            std::equal(e.p.begin(), e.p.end(), upper.outerIndexPtr()) &&
            std::equal(e.i.begin(), e.i.end(), upper.innerIndexPtr());
   };
+  // A cache entry for this pattern, holding a copy of the current factor (symbolic or numeric).
+  const auto new_entry = [&]() {
+    auto e = std::make_unique<SymbolicCache::Entry>();
+    e->hash = hash;
+    e->method = method;
+    e->p.assign(upper.outerIndexPtr(), upper.outerIndexPtr() + n + 1);
+    e->i.assign(upper.innerIndexPtr(), upper.innerIndexPtr() + nnz);
+    e->last = last_sorted;
+    e->L = cholmod_copy_factor(impl_->factor, &e->common);
+    return e;
+  };
   bool reused = false;
   std::uint64_t value_hash = 1469598103934665603ULL;
   const auto same_values = [&](const SymbolicCache::Entry& e) {
@@ -298,13 +309,7 @@ void SparseCholesky::factorize_impl(const Eigen::SparseMatrix<double>& A,
     for (const auto& e : cache->entries_) known = known || same(*e);
     ++cache->analyses_;
     if (!known && static_cast<int>(cache->entries_.size()) < cache->capacity_) {
-      auto e = std::make_unique<SymbolicCache::Entry>();
-      e->hash = hash;
-      e->method = method;
-      e->p.assign(upper.outerIndexPtr(), upper.outerIndexPtr() + n + 1);
-      e->i.assign(upper.innerIndexPtr(), upper.innerIndexPtr() + nnz);
-      e->last = last_sorted;
-      e->L = cholmod_copy_factor(impl_->factor, &e->common);
+      auto e = new_entry();
       if (e->L) cache->entries_.push_back(std::move(e));
     }
   }
@@ -324,16 +329,10 @@ void SparseCholesky::factorize_impl(const Eigen::SparseMatrix<double>& A,
     bool known = false;
     for (const auto& e : cache->numeric_) known = known || same_values(*e);
     if (!known && cache->numeric_held_ + bytes <= cache->numeric_bytes_) {
-      auto e = std::make_unique<SymbolicCache::Entry>();
-      e->hash = hash;
-      e->method = method;
-      e->p.assign(upper.outerIndexPtr(), upper.outerIndexPtr() + n + 1);
-      e->i.assign(upper.innerIndexPtr(), upper.innerIndexPtr() + nnz);
-      e->last = last_sorted;
+      auto e = new_entry();
       e->value_hash = value_hash;
       e->x.assign(upper.valuePtr(), upper.valuePtr() + nnz);
       e->bytes = bytes;
-      e->L = cholmod_copy_factor(impl_->factor, &e->common);
       if (e->L) {
         if (last) e->slot = impl_->slot = std::make_shared<SchurSlot>();
         cache->numeric_held_ += bytes;

@@ -191,9 +191,10 @@ TEST(SymbolicCache, SharesAnalysesOnlyBetweenEqualPatterns) {
 
 // The packed lower triangle: the product equals the dense symmetric product (double: to
 // rounding; single: to the rounding of the values, 2^-24 relative), entries read back, and half
-// the bytes (a quarter in single precision).
+// the bytes (a quarter in single precision). Every n mod 4 and short and long columns: the
+// product takes four columns at a time, then the last n mod 4 one by one.
 TEST(PackedSymmetric, ProductAndStorage) {
-  for (int n : {1, 2, 7, 64}) {
+  for (int n : {1, 2, 3, 4, 5, 6, 7, 8, 9, 12, 64, 65, 66, 67}) {
     Eigen::MatrixXd A = Eigen::MatrixXd::Random(n, n);
     A = (A + A.transpose()).eval();
     A.triangularView<Eigen::StrictlyUpper>().setConstant(1e30);  // not read

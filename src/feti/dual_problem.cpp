@@ -796,11 +796,10 @@ void DualProblem::apply_F(const Vec& lambda, Vec& y) {
       for (size_t j = 0; j < mult.size(); ++j) l[j] = ext_in_[mult[j]];
     }
     clusters_[c]->apply_dual(lam_[c], out_[c]);  // the bottleneck
-  }
-  for (int c = 0; c < nc; ++c)  // F lambda, summed over subdomains in a fixed order
-    for (int i = 0; i < members(c); ++i)
+    for (int i = 0; i < members(c); ++i)          // each subdomain's own segment of flat_
       flat_.segment(flat_off_[sub_of(c, i)], out_[c][i].size()) = out_[c][i];
-  combine_subdomains();
+  }
+  combine_subdomains();  // F lambda, summed over subdomains in a fixed order
   y = ext_out_.head(layout_dual_.n_owned());
 }
 

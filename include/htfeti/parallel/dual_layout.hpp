@@ -73,7 +73,8 @@ class OrderedSum {
   MPI_Comm comm_ = MPI_COMM_NULL;
   int n_owned_ = 0;
   std::vector<int> k_;
-  std::vector<int> local_order_;  // pairs with an owned entry, by contributor (stable)
+  std::vector<int> local_order_;  // pairs with an owned entry, by (entry, contributor)
+  std::vector<int> first_;        // n_owned + 1: entry e's pairs in local_order_
   std::vector<Neighbour> neighbours_;
   std::vector<std::vector<double>> sbuf_, rbuf_;
   std::vector<MPI_Request> req_;

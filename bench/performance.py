@@ -4,10 +4,15 @@
   2. the dual operator on the Table 3 subdomain size (100 x 100 nodes, H_s/h = 99): implicit
      against explicit, setup per subdomain, time per F per subdomain, memory, and the
      bandwidth bound of streaming the factor (implicit) or the dense block (explicit);
-  3. strong scaling on a reduced Table 3 case: 1 and 2 threads, 1 and 2 ranks.
+  3. the packed product kernel alone (build/htfeti_packed_product: 1,200 MB of F_i blocks of the
+     Table 3 size, far beyond the caches), 1 and 2 threads, double and single, against the triad;
+  4. F at scale: the full Table 3 case with m = 1 (2,048 subdomains, 1.3 GB of packed F_i), two
+     threads, ms per F against the two-thread triad bound measured just before each run; with
+     --before BINARY an older build runs interleaved with this one (before and after);
+  5. strong scaling on a reduced Table 3 case: 1 and 2 threads, 1 and 2 ranks.
 Each timing is the median of --repeat runs.
 
-Usage: bench/performance.py [--repeat 3] [--skip-scaling]
+Usage: bench/performance.py [--repeat 3] [--skip-scaling] [--skip-full] [--before BINARY]
 Writes bench/results/performance.json and prints markdown tables."""
 import argparse
 import json
@@ -20,15 +25,21 @@ from common import ROOT, env, save, solve
 p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
 p.add_argument("--repeat", type=int, default=3)
 p.add_argument("--skip-scaling", action="store_true")
+p.add_argument("--skip-full", action="store_true", help="skip section 4 (about 50 s per run)")
+p.add_argument("--before", default=None, help="an older htfeti binary for section 4")
 a = p.parse_args()
-out = {"command": f"bench/performance.py --repeat {a.repeat}"}
+out = {"command": "bench/performance.py --repeat %d%s%s%s" % (
+    a.repeat, " --skip-scaling" if a.skip_scaling else "", " --skip-full" if a.skip_full else "",
+    " --before BEFORE" if a.before else "")}
+
+
+def triad(threads):
+    r = subprocess.run([os.path.join(ROOT, "build", "htfeti_stream"), "512", "10"],
+                       env=env(threads), check=True, capture_output=True, text=True)
+    return json.loads(r.stdout)
 
 # 1. bandwidth
-stream = []
-for t in (1, 2):
-    r = subprocess.run([os.path.join(ROOT, "build", "htfeti_stream"), "512", "10"], env=env(t),
-                       check=True, capture_output=True, text=True)
-    stream.append(json.loads(r.stdout))
+stream = [triad(t) for t in (1, 2)]
 out["stream"] = stream
 print("| threads | triad GB/s (median of 10) |\n|---:|---:|")
 for s in stream:
@@ -60,7 +71,50 @@ for op in ("implicit", "explicit"):
           f"{streamed / bw1 * 1e3:.4f} | {mem:.2f} | {r['matvecs']} |")
 out["dual_operator"] = ops
 
-# 3. strong scaling: membranes N_s = 32, H_s/h = 32, m = 4
+# 3. the packed kernel alone, against the triad of the same thread count
+print("\n| threads | precision | packed product GB/s (median of 10) | triad GB/s | triad / product |")
+print("|---:|---|---:|---:|---:|")
+kernel = []
+for t in (1, 2):
+    tri = triad(t)["triad_gb_s_median"]
+    for prec in ("double", "single"):
+        r = subprocess.run([os.path.join(ROOT, "build", "htfeti_packed_product"), "396", "1200",
+                            prec, "10"], env=env(t), check=True, capture_output=True, text=True)
+        k = json.loads(r.stdout)
+        k["triad_gb_s_median"] = tri
+        kernel.append(k)
+        print(f"| {t} | {prec} | {k['gb_s_median']:.2f} | {tri:.2f} | "
+              f"{tri / k['gb_s_median']:.2f} |")
+out["packed_kernel"] = kernel
+
+# 4. F at scale: Table 3 full, m = 1, two threads
+if not a.skip_full:
+    args = ["--problem", "membranes", "-n", 3168, "--subdomains", 32, "-m", 1]
+    builds = [("before", a.before)] if a.before else []
+    builds.append(("after", None))
+    res = {label: [] for label, _ in builds}
+    for _ in range(a.repeat):
+        for label, binary in builds:  # interleaved: the machine's drift hits both alike
+            tri = triad(2)["triad_gb_s_median"]
+            r = solve(args, threads=2, binary=binary)
+            res[label].append({"triad_gb_s": tri, "ms_per_F": r["timings"]["F"] /
+                               r["F_applications"] * 1e3, "explicit_mb": r["memory"]["explicit_mb"],
+                               "F_applications": r["F_applications"], "objective": r["objective"],
+                               "report": r})
+    print("\n| build | ms per F (median) | packed F_i GB | triad GB/s (median) | bound ms | F / bound |")
+    print("|---|---:|---:|---:|---:|---:|")
+    full = {}
+    for label, runs in res.items():
+        ms = statistics.median(x["ms_per_F"] for x in runs)
+        tri = statistics.median(x["triad_gb_s"] for x in runs)
+        gb = runs[0]["explicit_mb"] * 1048576 / 1e9
+        bound = gb / tri * 1e3
+        full[label] = {"ms_per_F": ms, "triad_gb_s": tri, "packed_gb": gb, "bound_ms": bound,
+                       "ratio": ms / bound, "runs": runs}
+        print(f"| {label} | {ms:.1f} | {gb:.2f} | {tri:.2f} | {bound:.1f} | {ms / bound:.2f} |")
+    out["F_at_scale"] = full
+
+# 5. strong scaling: membranes N_s = 32, H_s/h = 32, m = 4
 if not a.skip_scaling:
     args = ["--problem", "membranes", "-n", 1024, "--subdomains", 32, "-m", 4]
     print("\n| ranks x threads | total s | setup+factorization s | solve s | speed-up (total) |")

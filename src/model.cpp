@@ -3,6 +3,9 @@
 #include <algorithm>
 #include <cmath>
 
+#include "htfeti/fem/element.hpp"
+#include "htfeti/mesh/box.hpp"
+
 namespace htfeti {
 
 FetiLayout Model::layout() const {
@@ -18,6 +21,16 @@ FetiLayout Model::layout() const {
   const Physics ph = physics_;
   L.kernel = [ph](const double* xyz, int n) { return physics_kernel(ph, xyz, n); };
   return L;
+}
+
+Model::MeshCounts Model::mesh_counts(int s) const {
+  const SubdomainMesh m = mesh(s);
+  return {m.num_nodes(), m.num_cells(), static_cast<long long>(m.cells.size())};
+}
+
+Model::MeshCounts box_mesh_counts(const BoxGrid& grid) {
+  const long long cells = grid.cells_per_subdomain();
+  return {grid.nodes_per_subdomain(), cells, cells * cell_nodes(grid.options().cell)};
 }
 
 SubdomainInput Model::input(int s) const {
@@ -62,6 +75,7 @@ class BuiltinModel final : public Model {
   long long num_nodes() const override { return grid_.num_nodes(); }
   long long primal_dimension() const override { return dec_.primal_dimension(); }
   SubdomainMesh mesh(int s) const override { return grid_.mesh(s); }
+  MeshCounts mesh_counts(int) const override { return box_mesh_counts(grid_); }
   SourceFunction source() const override {
     const Problem p = dec_.problem();
     return [p](const std::array<double, 3>& x) { return p.load(x[0], x[1]); };

@@ -527,6 +527,9 @@ class GroupModel final : public Model {
   SubdomainMesh mesh(int s) const override {
     return grid_ ? grid_->mesh(s) : extract_subdomain(*mesh_, *part_, s);
   }
+  MeshCounts mesh_counts(int s) const override {
+    return grid_ ? box_mesh_counts(*grid_) : Model::mesh_counts(s);
+  }
   SourceFunction source() const override {
     if (physics_.kind != PhysicsKind::laplace || spec_.source == "0") return {};
     const Expression e = source_;

@@ -121,6 +121,32 @@ TEST(Energy, ElementwiseFormEqualsTheAssembledMatrix) {
   }
 }
 
+// The VTU writer places each subdomain's values by Model::mesh_counts: on generated boxes
+// (arithmetic) and on split meshes (the default, from the mesh) they are the sizes of mesh(s),
+// for every cell type.
+TEST(Model, MeshCountsAreTheSizesOfTheMesh) {
+  std::vector<ProblemSpec> specs{laplace_plate(), plane_strain_plate()};
+  for (CellType cell : {CellType::quad4, CellType::tri3, CellType::hex8, CellType::tet4}) {
+    specs.push_back(hex8_box());
+    specs.back().box.cell = cell;
+    if (cell == CellType::quad4 || cell == CellType::tri3) {  // a 2D box: no z faces
+      specs.back().box.dim = 2;
+      specs.back().loads.clear();
+    }
+  }
+  for (auto& spec : specs) {
+    spec.subdomains = spec.mesh_file.empty() ? std::vector<int>(spec.box.dim, 2) : std::vector<int>{3};
+    const auto model = make_model(spec);
+    for (int s = 0; s < model->num_subdomains(); ++s) {
+      const SubdomainMesh mesh = model->mesh(s);
+      const Model::MeshCounts c = model->mesh_counts(s);
+      EXPECT_EQ(c.points, mesh.num_nodes()) << spec.mesh_file << " " << s;
+      EXPECT_EQ(c.cells, mesh.num_cells()) << spec.mesh_file << " " << s;
+      EXPECT_EQ(c.corners, static_cast<long long>(mesh.cells.size())) << spec.mesh_file << " " << s;
+    }
+  }
+}
+
 class AgainstUndecomposed : public ::testing::TestWithParam<Case> {};
 
 TEST_P(AgainstUndecomposed, SameSolution) {

@@ -35,6 +35,12 @@ class Model {
   /// Primal unknowns of the decomposed problem (every subdomain with its own copies).
   virtual long long primal_dimension() const = 0;
   virtual SubdomainMesh mesh(int s) const = 0;
+  /// The sizes of mesh(s): points, cells and cell corners (the writers place each subdomain's
+  /// values by them). Generated boxes know them by arithmetic; the default builds the mesh.
+  struct MeshCounts {
+    long long points = 0, cells = 0, corners = 0;
+  };
+  virtual MeshCounts mesh_counts(int s) const;
   /// The load of a Laplace problem at a point (unused for elasticity).
   virtual SourceFunction source() const { return {}; }
   /// Adds the subdomain's boundary loads to f and its Dirichlet dofs and contact rows.
@@ -52,6 +58,10 @@ class Model {
   Physics physics_;
   Glue glue_ = Glue::averages;
 };
+
+class BoxGrid;
+/// Model::mesh_counts of every subdomain of a generated box (all have the same sizes).
+Model::MeshCounts box_mesh_counts(const BoxGrid& grid);
 
 /// The built-in 2D benchmarks (DESIGN.md, "Built-in problems") on the generated squares.
 std::unique_ptr<Model> make_builtin_model(const DecompositionOptions& options);

@@ -443,6 +443,7 @@ DualProblem::DualProblem(const FetiLayout& layout,
     std::vector<int> pk;
     std::vector<long long> pc;
     g_pairs_.resize(ncl);
+    g_first_.assign(ncl + 1, 0);
     for (int c = 0; c < ncl; ++c) {
       std::vector<int> ks;
       for (const auto& row : g_rows_[c])
@@ -456,6 +457,7 @@ DualProblem::DualProblem(const FetiLayout& layout,
         for (const auto& [k, g] : g_rows_[c][j])
           g_pairs_[c][j].push_back(
               {base + static_cast<int>(std::lower_bound(ks.begin(), ks.end(), k) - ks.begin()), g});
+      g_first_[c + 1] = static_cast<int>(pk.size());
     }
     clu_sum_ = OrderedSum(comm_, layout_dual_, pk, pc, owner_);
     gflat_ = Vec::Zero(static_cast<int>(pk.size()));
@@ -803,10 +805,14 @@ void DualProblem::apply_F(const Vec& lambda, Vec& y) {
   y = ext_out_.head(layout_dual_.n_owned());
 }
 
+// G~ and G~^T: every cluster has its own rows of the coarse vector and its own pairs of gflat_,
+// so threads take clusters and each value is formed in the same order as by one thread.
 void DualProblem::apply_G(const Vec& lambda, Vec& coarse) {
   gather_to_ext(lambda);
   coarse.setZero(coarse_dimension());
-  for (size_t c = 0; c < clusters_.size(); ++c) {
+  const int nc = static_cast<int>(clusters_.size());
+#pragma omp parallel for schedule(dynamic, 16) if (outer_parallel_)
+  for (int c = 0; c < nc; ++c) {
     const int base = coarse_first_[clusters_[c]->id()];
     for (size_t j = 0; j < g_rows_[c].size(); ++j) {
       double s = 0;
@@ -818,8 +824,10 @@ void DualProblem::apply_G(const Vec& lambda, Vec& coarse) {
 }
 
 void DualProblem::gt_into_ext(const Vec& coarse) {
-  gflat_.setZero();
-  for (size_t c = 0; c < clusters_.size(); ++c) {
+  const int nc = static_cast<int>(clusters_.size());
+#pragma omp parallel for schedule(dynamic, 16) if (outer_parallel_)
+  for (int c = 0; c < nc; ++c) {
+    for (int p = g_first_[c]; p < g_first_[c + 1]; ++p) gflat_[p] = 0.0;
     const int base = coarse_first_[clusters_[c]->id()];
     for (size_t j = 0; j < g_pairs_[c].size(); ++j) {
       const double z = coarse[base + static_cast<int>(j)];

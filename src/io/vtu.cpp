@@ -226,8 +226,8 @@ std::string write_vtu(const std::string& path, const Model& model, DualProblem& 
       write_ascii_piece(piece_tmp, static_cast<long>(base), static_cast<long>(b.types.size()), pa,
                         coords, cs, ca);
     } else {
-      // Binary, streamed: a first pass over the meshes gives every array's size and every
-      // subdomain's place in each array, so the header (with the offsets of the appended data)
+      // Binary, streamed: the mesh sizes (Model::mesh_counts, arithmetic on generated boxes) give
+      // every array's size and every subdomain's place in each array, so the header (with the offsets of the appended data)
       // is written first; then threads take subdomains and write their values to their places
       // in the file by positioned writes. Memory: one subdomain's buffers per thread.
       const int ns = static_cast<int>(subs.size());
@@ -236,9 +236,8 @@ std::string write_vtu(const std::string& path, const Model& model, DualProblem& 
 #pragma omp parallel for schedule(dynamic)
       for (int i = 0; i < ns; ++i) {
         try {
-          const SubdomainMesh m = model.mesh(subs[i]->id());
-          nodes[i + 1] = m.num_nodes(), cells[i + 1] = m.num_cells();
-          corners[i + 1] = cells[i + 1] * cell_nodes(m.type);
+          const Model::MeshCounts m = model.mesh_counts(subs[i]->id());
+          nodes[i + 1] = m.points, cells[i + 1] = m.cells, corners[i + 1] = m.corners;
         } catch (const std::exception& e) {
 #pragma omp critical
           merr = e.what();
@@ -296,6 +295,10 @@ std::string write_vtu(const std::string& path, const Model& model, DualProblem& 
           try {
             b.clear();
             const SubdomainMesh m = model.mesh(subs[i]->id());
+            if (m.num_nodes() != nodes[i + 1] - nodes[i] || m.num_cells() != cells[i + 1] - cells[i] ||
+                static_cast<std::int64_t>(m.cells.size()) != corners[i + 1] - corners[i])
+              throw std::logic_error("VTU: the mesh of subdomain " + std::to_string(m.id) +
+                                     " differs from its counted size");
             std::int64_t off = corners[i];
             fill(static_cast<size_t>(i), m, nodes[i], off, b);
             for (size_t k = 0; k < arrays.size(); ++k) {

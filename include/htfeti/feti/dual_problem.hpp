@@ -292,6 +292,7 @@ class DualProblem {
   std::vector<int> flat_off_;          // per local subdomain: its first pair in flat_
   Vec flat_, gflat_;                   // work: one value per pair
   std::vector<std::vector<std::vector<std::pair<int, double>>>> g_pairs_;  // G~ rows by pair
+  std::vector<int> g_first_;  // cluster c's pairs in gflat_: [g_first_[c], g_first_[c + 1])
   std::vector<int> block_;             // per owned entry: its owner cluster
   mutable std::vector<double> partial_;  // per cluster partial sums
   std::vector<int> owner_;                // owner rank of each extended entry

@@ -1,5 +1,9 @@
-// A symmetric matrix stored as its lower triangle packed column by column (LAPACK's 'L' packed
-// layout): n(n+1)/2 values instead of the n^2 of a full array, in double or single precision.
+// A symmetric matrix stored as its lower triangle: n(n+1)/2 values instead of the n^2 of a full
+// array, in double or single precision. The values are grouped in panels of four columns, each
+// its 4 x 4 diagonal block and then the rows below it in tiles of 8 rows (column-major within a
+// tile), so that the product reads them as one stream (packed_symmetric.cpp); the last n mod 4
+// columns are packed column by column, as in LAPACK's 'L' packed layout, where each panel also
+// starts.
 // Products accumulate in double whatever the storage. Used for the explicit local dual operators
 // F_i, whose product streams the stored values once per application of F (memory-bound: the
 // values are read once, 4 flops each).

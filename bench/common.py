@@ -20,6 +20,24 @@ def env(threads=1):
     return e
 
 
+def cpu_times():
+    """The machine's CPU time counters (/proc/stat "cpu" line: user ... steal), or None."""
+    try:
+        with open("/proc/stat") as f:
+            return [int(v) for v in f.readline().split()[1:9]]
+    except (OSError, ValueError):
+        return None
+
+
+def steal_fraction(before, after):
+    """The share of CPU time that the hypervisor gave to other guests between two cpu_times()
+    (the "st" column of vmstat): the runs of a shared VM that were slowed by its neighbours."""
+    if not before or not after:
+        return None
+    d = [b - a for a, b in zip(before, after)]
+    return d[7] / sum(d) if sum(d) > 0 else 0.0
+
+
 def solve(args, ranks=1, threads=1, extra_env=None, binary=None, vtu=False):
     """Runs htfeti solve (build/htfeti, or `binary`) with the given argument list; returns the
     report as a dict. vtu: also write the VTU output (to a temporary directory beside the report,
@@ -36,15 +54,16 @@ def solve(args, ranks=1, threads=1, extra_env=None, binary=None, vtu=False):
         e = env(threads)
         if extra_env:
             e.update(extra_env)
-        t0 = time.perf_counter()
+        t0, c0 = time.perf_counter(), cpu_times()
         done = subprocess.run(cmd, env=e, stdout=subprocess.DEVNULL)
-        wall = time.perf_counter() - t0
+        wall, c1 = time.perf_counter() - t0, cpu_times()
         # exit 3: not converged; the report is written and says why (a result, not a failure)
         if done.returncode not in (0, 3):
             raise subprocess.CalledProcessError(done.returncode, cmd)
         with open(report) as f:
             r = json.load(f)
         r["wall_seconds"] = wall  # the whole process, output included (added by the bench)
+        r["steal_fraction"] = steal_fraction(c0, c1)  # CPU time taken by other guests (bench)
         return r
 
 

@@ -82,6 +82,18 @@ TEST(Subdomain, NotPositiveDefiniteIsAnError) {
 // The symbolic cache: the same pattern reuses the analysis and gives the factor of its own
 // analysis bit for bit (other values, same pattern); another pattern or another set ordered last
 // is analysed anew; a full cache analyses without keeping.
+// Two interface-last factors have the same trailing Schur factor, bit for bit, in the same order;
+// returns it.
+Eigen::MatrixXd expect_same_schur_factor(const SparseCholesky& a, const SparseCholesky& b) {
+  Eigen::MatrixXd La, Lb;
+  std::vector<int> oa, ob;
+  a.schur_factor(La, oa);
+  b.schur_factor(Lb, ob);
+  EXPECT_EQ(oa, ob);
+  EXPECT_EQ((La - Lb).cwiseAbs().maxCoeff(), 0.0);
+  return Lb;
+}
+
 TEST(SymbolicCache, SharesAnalysesOnlyBetweenEqualPatterns) {
   const auto grid = [](int n, double shift) {  // 5-point Laplacian on n x n, diagonal shifted
     std::vector<Eigen::Triplet<double>> t;
@@ -131,12 +143,7 @@ TEST(SymbolicCache, SharesAnalysesOnlyBetweenEqualPatterns) {
     plain.factorize(A2, last);
     EXPECT_EQ(cache.analyses(), 2);
     EXPECT_EQ(cache.reuses(), 1);
-    Eigen::MatrixXd L1, L2;
-    std::vector<int> o1, o2;
-    p2.schur_factor(L1, o1);
-    plain.schur_factor(L2, o2);
-    EXPECT_EQ(o1, o2);
-    EXPECT_EQ((L1 - L2).cwiseAbs().maxCoeff(), 0.0);
+    expect_same_schur_factor(p2, plain);
   }
   {  // numeric factors: kept for a repeated pattern, copied for an equal matrix only
     SymbolicCache cache(64, 1e9);
@@ -152,12 +159,7 @@ TEST(SymbolicCache, SharesAnalysesOnlyBetweenEqualPatterns) {
     EXPECT_EQ(cache.numeric_reuses(), 1);
     EXPECT_EQ(cache.matrices(), 2);
     EXPECT_EQ(f3.numeric_seconds(), 0.0);
-    Eigen::MatrixXd L1, L2;
-    std::vector<int> o1, o2;
-    f3.schur_factor(L1, o1);
-    plain.schur_factor(L2, o2);
-    EXPECT_EQ(o1, o2);
-    EXPECT_EQ((L1 - L2).cwiseAbs().maxCoeff(), 0.0);  // the same factor, bit for bit
+    const Eigen::MatrixXd L2 = expect_same_schur_factor(f3, plain);  // the same, bit for bit
     EXPECT_EQ((solve(f3) - solve(plain)).cwiseAbs().maxCoeff(), 0.0);
     // S^{-1}: computed once for f2 and f3 (shared), equal to the plain factor's, and the inverse
     // of S = L_s L_s^T.

@@ -1,0 +1,81 @@
+#!/usr/bin/env python3
+"""Wall time of the clean builds that scripts/test.sh makes (the part of CI's time that is not
+the tests): the Release build of everything, and the sanitizer build of the suites that
+scripts/sanitize.sh runs, each configured from scratch in a temporary directory.
+
+Usage: bench/build_time.py [--configs release sanitize] [--unity on off] [--debug-info g1 g]
+                           [--out build_time.json]
+--unity: HTFETI_UNITY_BUILD (the library compiled in batches of 8 sources); --debug-info: the
+sanitizer build's -g level (-g1: line tables, what the sanitizers' stack traces print; -g: full).
+Each combination is built once (a clean build takes minutes; run the script again for more
+samples). The steal fraction of the VM during each build is recorded. Writes
+bench/results/<out>."""
+import argparse
+import os
+import shutil
+import subprocess
+import tempfile
+import time
+
+from common import ROOT, cpu_times, save, steal_fraction
+
+SANITIZE_TARGETS = ["test_fem", "test_qp", "test_tfeti", "test_dual", "test_contact",
+                    "test_preconditioner"]
+
+
+def sanitize_flags(debug):
+    return (f"-O1 -{debug} -fno-omit-frame-pointer -fsanitize=address,undefined "
+            "-fno-sanitize-recover=undefined")
+
+
+def build(config, unity, debug, jobs):
+    work = tempfile.mkdtemp(prefix="htfeti-build-")
+    try:
+        cmake = ["cmake", "-S", ROOT, "-B", work, f"-DHTFETI_UNITY_BUILD={unity.upper()}"]
+        if config == "release":
+            cmake.append("-DCMAKE_BUILD_TYPE=Release")
+            targets = []
+        else:
+            cmake += ["-DCMAKE_BUILD_TYPE=Sanitize",
+                      f"-DCMAKE_CXX_FLAGS_SANITIZE={sanitize_flags(debug)}",
+                      "-DCMAKE_EXE_LINKER_FLAGS=-fsanitize=address,undefined"]
+            targets = ["--target"] + SANITIZE_TARGETS
+        c0, t0 = cpu_times(), time.perf_counter()
+        subprocess.run(cmake, check=True, stdout=subprocess.DEVNULL)
+        subprocess.run(["cmake", "--build", work, "-j", str(jobs)] + targets, check=True,
+                       stdout=subprocess.DEVNULL)
+        wall = time.perf_counter() - t0
+        return {"config": config, "unity": unity, "debug_info": debug if config == "sanitize"
+                else None, "jobs": jobs, "wall_s": round(wall, 1),
+                "steal_fraction": steal_fraction(c0, cpu_times())}
+    finally:
+        shutil.rmtree(work, ignore_errors=True)
+
+
+def main():
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--configs", nargs="+", default=["release", "sanitize"],
+                   choices=["release", "sanitize"])
+    p.add_argument("--unity", nargs="+", default=["on", "off"], choices=["on", "off"])
+    p.add_argument("--debug-info", nargs="+", default=["g1"], choices=["g1", "g"])
+    p.add_argument("--jobs", type=int, default=os.cpu_count())
+    p.add_argument("--out", default="build_time.json")
+    a = p.parse_args()
+    runs = []
+    print("| config | unity | -g | wall s | steal |")
+    print("|---|---|---|---:|---:|")
+    for config in a.configs:
+        for unity in a.unity:
+            for debug in (a.debug_info if config == "sanitize" else [None]):
+                r = build(config, unity, debug or "g1", a.jobs)
+                runs.append(r)
+                steal = r["steal_fraction"]
+                print(f"| {config} | {unity} | {r['debug_info'] or '-'} | {r['wall_s']} | "
+                      f"{'-' if steal is None else f'{steal:.2f}'} |", flush=True)
+    commit = subprocess.run(["git", "-C", ROOT, "rev-parse", "--short", "HEAD"],
+                            capture_output=True, text=True).stdout.strip()
+    print(save(a.out, {"command": "bench/build_time.py", "commit": commit, "runs": runs}))
+
+
+if __name__ == "__main__":
+    main()

@@ -62,6 +62,11 @@ TEST(Subdomain, GeneralizedInverseAndKernel) {
       sd.apply_pinv(col.data(), KpK.col(j).data());
     }
     EXPECT_LT((K * KpK - K).norm(), 1e-12 * K.norm());  // K K^+ K = K
+    // All columns at once (one multi-column solve) give the single solves up to round-off.
+    Eigen::MatrixXd many = K.leftCols(5);
+    sd.apply_pinv_many(many);
+    EXPECT_LT((many - KpK.leftCols(5)).norm(), 1e-13 * KpK.leftCols(5).norm());
+    EXPECT_GT(many.norm(), 0.0);
     EXPECT_LT((K * sd.kernel()).norm(), 1e-13);         // K R = 0
     EXPECT_NEAR(sd.kernel().norm(), 1.0, 1e-14);
     const Eigen::VectorXd u = Eigen::VectorXd::LinSpaced(K.rows(), -1.0, 2.0);

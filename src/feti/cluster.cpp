@@ -156,8 +156,7 @@ Cluster::Cluster(int id, std::vector<Subdomain*> subs, std::vector<std::vector<C
           static_cast<int>(std::lower_bound(cols.begin(), cols.end(), e.constraint) - cols.begin());
       W_[i](e.dof, col) += e.value;
     }
-    for (int col = 0; col < W_[i].cols(); ++col)
-      subs_[i]->apply_pinv(W_[i].col(col).data(), W_[i].col(col).data());
+    subs_[i]->apply_pinv_many(W_[i]);  // all columns in one pass over the factor
   }
   for (int i = 0; i < s; ++i) {
     const auto& cols = cols_of_sub_[i];

@@ -358,6 +358,26 @@ void SparseCholesky::solve(const double* b, double* out) {
   std::memcpy(out, impl_->x->x, sizeof(double) * impl_->n);
 }
 
+void SparseCholesky::solve_many(double* X, int ncols) {
+  if (ncols <= 0) return;
+  auto& c = impl_->common;
+  cholmod_dense rhs{};
+  rhs.nrow = rhs.d = static_cast<size_t>(impl_->n);
+  rhs.ncol = static_cast<size_t>(ncols);
+  rhs.nzmax = rhs.nrow * rhs.ncol;
+  rhs.x = X;
+  rhs.xtype = CHOLMOD_REAL;
+  rhs.dtype = CHOLMOD_DOUBLE;
+  // Work arrays of this call: solve()'s are sized for one column and stay so.
+  cholmod_dense *x = nullptr, *y = nullptr, *e = nullptr;
+  const bool ok = cholmod_solve2(CHOLMOD_A, impl_->factor, &rhs, nullptr, &x, nullptr, &y, &e, &c);
+  if (ok) std::memcpy(X, x->x, sizeof(double) * rhs.nzmax);
+  cholmod_free_dense(&x, &c);
+  cholmod_free_dense(&y, &c);
+  cholmod_free_dense(&e, &c);
+  if (!ok) throw std::runtime_error("CHOLMOD solve failed");
+}
+
 int SparseCholesky::rows() const { return impl_->n; }
 
 void SparseCholesky::schur_factor(Eigen::MatrixXd& Ls, std::vector<int>& order) const {

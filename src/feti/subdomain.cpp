@@ -162,4 +162,18 @@ void Subdomain::apply_pinv(const double* x, double* y) {
   for (int k = nn - 1; k >= 0; --k) y[k] = reduced_[k] < 0 ? 0.0 : w[reduced_[k]];
 }
 
+void Subdomain::apply_pinv_many(Eigen::MatrixXd& X) {
+  const int nn = size(), nr = static_cast<int>(work_.size()), nc = static_cast<int>(X.cols());
+  if (nc == 0) return;
+  Eigen::MatrixXd W(nr, nc);
+  for (int k = 0; k < nn; ++k)
+    if (reduced_[k] >= 0) W.row(reduced_[k]) = X.row(k);
+  chol_.solve_many(W.data(), nc);
+  for (int k = 0; k < nn; ++k)
+    if (reduced_[k] >= 0)
+      X.row(k) = W.row(reduced_[k]);
+    else
+      X.row(k).setZero();
+}
+
 }  // namespace htfeti

@@ -24,8 +24,8 @@
 // y = K_0^+ x: plain TFETI.
 //
 // Cost of one application: one K_i^+ solve per subdomain, plus a dense solve of size above and
-// products with the precomputed K_i^+ C_i^T. Setup: one K_i^+ solve per constraint touching a
-// subdomain, one dense LU.
+// products with the precomputed K_i^+ C_i^T. Setup: one multi-column K_i^+ solve per subdomain
+// (a column per constraint touching it, one pass over the factor for all of them), one dense LU.
 #pragma once
 
 #include <Eigen/Dense>

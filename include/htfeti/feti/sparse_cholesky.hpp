@@ -91,6 +91,10 @@ class SparseCholesky {
   /// x = A^{-1} b; x and b may alias. Work arrays are kept between calls, so a solve allocates
   /// nothing once the first one has run. Not safe to call concurrently on one object.
   void solve(const double* b, double* x);
+  /// X = A^{-1} X for the ncols columns of X (column-major, rows() x ncols), in place. One pass
+  /// over the factor in each direction for all columns (BLAS-3 in the supernodes) instead of one
+  /// per column; setup work, with work arrays of its own that it frees (it allocates).
+  void solve_many(double* X, int ncols);
   int rows() const;
   /// Nonzeros of the factor L (memory is about 8 bytes per nonzero plus the pattern).
   long factor_nonzeros() const;

@@ -69,6 +69,9 @@ class Subdomain {
   Eigen::MatrixXd dual_block(const std::vector<BEntry>& b, int nmult) const;
   /// y = K^+ x (x and y of length size(); they may alias). Allocates nothing.
   void apply_pinv(const double* x, double* y);
+  /// X = K^+ X for every column of X (size() rows), in place: one multi-column solve, each
+  /// column the same as apply_pinv() gives up to round-off. Setup work (allocates).
+  void apply_pinv_many(Eigen::MatrixXd& X);
   /// Nonzeros of the last factorization (also after release_factor()).
   long factor_nonzeros() const { return factor_nonzeros_; }
   /// Bytes factorize(ordering) would hold, from CHOLMOD's symbolic analysis alone.

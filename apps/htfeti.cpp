@@ -289,6 +289,22 @@ int run(int argc, char** argv, const Comm& comm) {
                                  "several ranks; binary)")
                     ->capture_default_str();
   solve_cmd->add_flag("--no-vtu", no_vtu, "do not write VTU output");
+  double explicit_budget_gb = opt.feti.explicit_budget_bytes / (1 << 30);
+  auto* o_expbudget =
+      solve_cmd
+          ->add_option("--explicit-budget", explicit_budget_gb,
+                       "GB per rank: --dual-operator auto takes the explicit operator only when "
+                       "its F_i fit this, or when the implicit operator would not fit in memory")
+          ->check(CLI::NonNegativeNumber)
+          ->capture_default_str();
+  double memory_limit_gb = 0;
+  auto* o_memlimit =
+      solve_cmd
+          ->add_option("--memory-limit", memory_limit_gb,
+                       "GB the solve may use on each machine (default: the machine's available "
+                       "memory); the memory check, the automatic dual operator and the factor "
+                       "release count with it")
+          ->check(CLI::PositiveNumber);
   solve_cmd->add_flag("--no-memory-check", no_memory_check,
                       "skip the memory estimate before setup (exit 2 when the estimate exceeds "
                       "the available memory)");
@@ -451,6 +467,8 @@ int run(int argc, char** argv, const Comm& comm) {
     if (no_report) out_opt.write_report = false;
     if (no_vtu) out_opt.write_vtu = false;
     if (no_memory_check) opt.check_memory = false;
+    if (o_memlimit->count()) opt.feti.memory_limit_mb = memory_limit_gb * 1024.0;
+    if (o_expbudget->count()) opt.feti.explicit_budget_bytes = explicit_budget_gb * (1 << 30);
     if (out_opt.write_report) check_output_path(out_opt.report, "--report");
     if (out_opt.write_vtu) {
       check_output_path(out_opt.vtu, "--vtu");

@@ -27,9 +27,13 @@ double lower_nonzeros_per_row(const Physics& ph) {
   return 0.5 * (nodes * ph.dofs_per_node() + 1);
 }
 
+// A size for the messages: GB with one decimal, MB below 1 GB.
 std::string gb(double mb) {
   char buf[32];
-  std::snprintf(buf, sizeof buf, "%.1f GB", mb / 1024.0);
+  if (mb >= 1024.0)
+    std::snprintf(buf, sizeof buf, "%.1f GB", mb / 1024.0);
+  else
+    std::snprintf(buf, sizeof buf, "%.*f MB", mb < 10 ? 1 : 0, mb);
   return buf;
 }
 
@@ -74,6 +78,8 @@ MemoryEstimate estimate_memory(const Model& model, const FetiOptions& options, c
       options.ordering == Ordering::automatic
           ? (layout.dim == 3 || is_explicit ? Ordering::metis : Ordering::amd)
           : options.ordering;
+  e.explicit_operator = is_explicit;
+  e.explicit_eligible = nodes >= kExplicitMinNodes;
   Subdomain sample(std::move(in.system));
   const double f_bytes = static_cast<double>(sample.symbolic_factor_bytes(ordering));
   e.matrices_mb = std::max(e.matrices_mb, k_bytes / n * unknowns / kMiB);
@@ -99,39 +105,77 @@ MemoryEstimate estimate_memory(const Model& model, const FetiOptions& options, c
   return e;
 }
 
-MemoryEstimate check_memory(const Model& model, const FetiOptions& options, const Comm& comm) {
+MemoryEstimate check_memory(const Model& model, FetiOptions& options, const Comm& comm) {
   // The lower bound first, everywhere (nothing is assembled); then the sample where the bound
   // fits. Both are summed over the ranks of each machine.
   MPI_Comm node;
   MPI_Comm_split_type(comm.raw(), MPI_COMM_TYPE_SHARED, comm.rank(), MPI_INFO_NULL, &node);
-  std::string error;
-  MemoryEstimate e;
-  try {
-    e = estimate_memory(model, options, comm);
-  } catch (const std::bad_alloc&) {
-    error = "out of memory while estimating the memory needed";
-  } catch (const std::exception& ex) {
-    error = ex.what();
-  }
-  double mine[6] = {e.peak_mb(),  e.factors_mb,  e.matrices_mb,
-                    e.vectors_mb, e.explicit_mb, e.factors_held_mb},
-         sum[6];
-  MPI_Allreduce(mine, sum, 6, MPI_DOUBLE, MPI_SUM, node);
-  double available = available_memory_mb();
-  MPI_Allreduce(MPI_IN_PLACE, &available, 1, MPI_DOUBLE, MPI_MIN, node);
   int node_ranks = 1;
   MPI_Comm_size(node, &node_ranks);
+  double available = available_memory_mb();
+  MPI_Allreduce(MPI_IN_PLACE, &available, 1, MPI_DOUBLE, MPI_MIN, node);
+  if (options.memory_limit_mb > 0 && (available <= 0 || options.memory_limit_mb < available))
+    available = options.memory_limit_mb;
+  // One estimate and its sums over the machine: peak, factors, matrices, vectors, explicit,
+  // factors held.
+  struct Sums {
+    MemoryEstimate e;
+    std::string error;
+    double sum[6] = {0, 0, 0, 0, 0, 0};
+    bool fits(double avail) const { return error.empty() && !(avail > 0 && sum[0] > avail); }
+  };
+  auto estimate = [&](const FetiOptions& o) {
+    Sums s;
+    try {
+      s.e = estimate_memory(model, o, comm);
+    } catch (const std::bad_alloc&) {
+      s.error = "out of memory while estimating the memory needed";
+    } catch (const std::exception& ex) {
+      s.error = ex.what();
+    }
+    const MemoryEstimate& e = s.e;
+    double mine[6] = {e.peak_mb(),  e.factors_mb,  e.matrices_mb,
+                      e.vectors_mb, e.explicit_mb, e.factors_held_mb};
+    MPI_Allreduce(mine, s.sum, 6, MPI_DOUBLE, MPI_SUM, node);
+    return s;
+  };
+  Sums s = estimate(options);
+  // The implicit operator keeps every factor; the explicit one can free them. When the automatic
+  // choice (the explicit blocks' size budget) gives the implicit operator and it does not fit,
+  // the explicit operator is taken if it fits everywhere.
+  const bool implicit_over =
+      comm.max(s.fits(available) ? 0.0 : 1.0) > 0 && comm.max(s.error.empty() ? 0.0 : 1.0) == 0;
+  if (options.dual_operator == DualOperator::automatic && implicit_over &&
+      comm.min(s.e.sampled && s.e.explicit_eligible && !s.e.explicit_operator ? 1.0 : 0.0) > 0) {
+    FetiOptions alt = options;
+    alt.dual_operator = DualOperator::explicit_;
+    Sums t = estimate(alt);
+    if (comm.min(t.fits(available) ? 1.0 : 0.0) > 0) {
+      const double implicit_peak = comm.max(s.sum[0]);
+      options.dual_operator = DualOperator::explicit_;
+      s = std::move(t);
+      s.e.explicit_for_memory = true;
+      s.e.implicit_peak_mb = implicit_peak;
+    }
+  }
   MPI_Comm_free(&node);
+  s.e.machine_peak_mb = comm.max(s.sum[0]);
+  s.e.available_mb = comm.min(available);
+  const double* sum = s.sum;
+  std::string error = s.error;
   if (error.empty() && available > 0 && sum[0] > available)
     error = "the problem does not fit in memory: estimated " + gb(sum[0]) + " on " +
             std::to_string(node_ranks) + " rank(s) of this machine (factors " + gb(sum[1]) +
             (sum[5] < sum[1] ? " of which " + gb(sum[5]) + " held at once" : std::string()) +
             ", matrices " + gb(sum[2]) + ", vectors " + gb(sum[3]) +
-            (sum[4] > 0 ? ", explicit F_i " + gb(sum[4]) : std::string()) + "), available " +
+            (sum[4] > 0 ? ", explicit F_i " + gb(sum[4]) : std::string()) + "), " +
+            (options.memory_limit_mb > 0 && available == options.memory_limit_mb
+                 ? "limit (--memory-limit) "
+                 : "available ") +
             gb(available) +
             "; use fewer unknowns, more machines, or --no-memory-check to try anyway";
   comm.agree(error, true);
-  return e;
+  return s.e;
 }
 
 }  // namespace htfeti

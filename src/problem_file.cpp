@@ -380,7 +380,7 @@ ProblemSpec read_problem_file(const std::string& path, SolveOptions& solver, Out
   }
   if (const toml::table* s = table_of(root, "solver", false)) {
     check_keys(*s, "solver", {"rtol", "max_iterations", "ordering", "dual_operator", "keep_factors", "release_factors",
-                              "preconditioner", "scaling", "dirichlet_storage", "explicit_precision", "norm_estimate", "rho_factor", "M0_factor", "eta_factor", "beta", "gamma", "progress"});
+                              "preconditioner", "scaling", "dirichlet_storage", "explicit_precision", "explicit_budget_gb", "memory_limit_gb", "norm_estimate", "rho_factor", "M0_factor", "eta_factor", "beta", "gamma", "progress"});
     solver.rtol = get_double(*s, "solver", "rtol", solver.rtol);
     const long long mi = get_int(*s, "solver", "max_iterations", solver.max_iterations);
     if (mi < 0 || mi > 100000000) bad("solver.max_iterations", "must be a non-negative integer");
@@ -414,6 +414,16 @@ ProblemSpec read_problem_file(const std::string& path, SolveOptions& solver, Out
       if (solver.feti.keep_factors)
         bad("solver.release_factors", "cannot be true together with solver.keep_factors");
       solver.feti.factor_budget_bytes = 0;
+    }
+    if (s->contains("explicit_budget_gb")) {
+      const double gb = get_double(*s, "solver", "explicit_budget_gb", 0);
+      if (!(gb >= 0) || !std::isfinite(gb)) bad("solver.explicit_budget_gb", "must be a non-negative number");
+      solver.feti.explicit_budget_bytes = gb * (1 << 30);
+    }
+    if (s->contains("memory_limit_gb")) {
+      const double gb = get_double(*s, "solver", "memory_limit_gb", 0);
+      if (!(gb > 0) || !std::isfinite(gb)) bad("solver.memory_limit_gb", "must be a positive number");
+      solver.feti.memory_limit_mb = gb * 1024.0;
     }
     solver.smalbe.rho_factor = get_double(*s, "solver", "rho_factor", solver.smalbe.rho_factor);
     solver.smalbe.M0_factor = get_double(*s, "solver", "M0_factor", solver.smalbe.M0_factor);

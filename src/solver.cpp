@@ -96,6 +96,16 @@ SolveOutput solve(std::shared_ptr<const Model> model_ptr, const SolveOptions& op
   resolve_preconditioner(model, feti);
   MemoryEstimate estimate;
   if (options.check_memory) estimate = check_memory(model, feti, comm);
+  if (verbose && estimate.explicit_for_memory)
+    std::fprintf(stderr,
+                 "  memory: the implicit operator would need %.0f MB on this machine, more than "
+                 "the %.0f MB %s; taking the explicit operator (estimated %.0f MB, factors freed "
+                 "as memory runs short)\n",
+                 estimate.implicit_peak_mb, estimate.available_mb,
+                 feti.memory_limit_mb > 0 && estimate.available_mb == feti.memory_limit_mb
+                     ? "of --memory-limit"
+                     : "available",
+                 estimate.machine_peak_mb);
   double t0 = now();
   if (verbose)
     std::fprintf(stderr,
@@ -254,6 +264,12 @@ SolveOutput solve(std::shared_ptr<const Model> model_ptr, const SolveOptions& op
   rep["rtol"] = options.rtol;
   rep["ordering"] = dual.ordering_in_effect();
   rep["dual_operator"] = dual.explicit_operator() ? "explicit" : "implicit";
+  // Why: "requested", "automatic" (FetiOptions' rule) or "memory" (the implicit operator would
+  // not fit: check_memory).
+  rep["dual_operator_reason"] = estimate.explicit_for_memory ? "memory"
+                                : options.feti.dual_operator == DualOperator::automatic
+                                    ? "automatic"
+                                    : "requested";
   if (dual.explicit_operator()) rep["explicit_precision"] = to_string(feti.explicit_precision);
   rep["factors_released"] = dual.factors_released();
   rep["clusters_released"] = comm.sum(static_cast<long long>(dual.clusters_released()));
@@ -326,7 +342,10 @@ SolveOutput solve(std::shared_ptr<const Model> model_ptr, const SolveOptions& op
                      {"vectors", comm.sum(estimate.vectors_mb)},
                      {"explicit", comm.sum(estimate.explicit_mb)},
                      {"factors_held", comm.sum(estimate.factors_held_mb)},
-                     {"sampled", comm.min(estimate.sampled ? 1.0 : 0.0) > 0}}},
+                     {"sampled", comm.min(estimate.sampled ? 1.0 : 0.0) > 0},
+                     // The implicit operator's, when it was estimated not to fit (0 otherwise).
+                     {"implicit_peak", estimate.implicit_peak_mb}}},
+                   {"limit_mb", options.feti.memory_limit_mb},
                    {"factor_nonzeros", comm.sum(static_cast<long long>(dual.factor_nonzeros()))},
                    {"coarse_factor_nonzeros", dual.coarse_factor_nonzeros()},
                    {"explicit_mb", comm.sum(static_cast<double>(dual.explicit_bytes())) / 1048576.0},

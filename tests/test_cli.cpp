@@ -60,6 +60,8 @@ TEST_F(Cli, BadArgumentsExitWithCode2AndWriteNothing) {
                        "--ordering nd",
                        "--preconditioner jacobi",
                        "--scaling rho",
+                       "--memory-limit 0",
+                       "--explicit-budget -1",
                        // cannot fit in memory: refused by the estimate before any work
                        "-n 20000 --subdomains 100",
                        "-n 100000 --subdomains 10"};
@@ -310,6 +312,68 @@ TEST_F(Cli, ContactResultsAreIdenticalOnOneToFourRanks) {
         EXPECT_EQ(a[key], b[key]) << p << ", " << r << " ranks: " << key;
     }
     EXPECT_GT(reports[0]["displacement"]["max_norm"].get<double>(), 0.0);
+  }
+}
+
+// The automatic dual operator under a memory limit: with the explicit blocks over their budget
+// it is the implicit operator, which keeps every factor; when that does not fit in the limit but
+// the explicit operator (factors freed) does, the explicit one is taken, and the solution is the
+// same. A limit below both ends with exit 2 and names the limit.
+TEST_F(Cli, AutomaticOperatorFollowsTheMemoryLimit) {
+  const std::string base = bin + " solve --problem poisson2d -n 320 --subdomains 10 --no-vtu ";
+  auto report = [](const char* file) {
+    std::ifstream f(file);
+    return nlohmann::json::parse(f);
+  };
+  // The two estimates, each operator requested.
+  ASSERT_EQ(run(base + "--explicit-budget 0 --report i.json"), 0) << stderr_text();
+  ASSERT_EQ(run(base + "--dual-operator explicit --report e.json"), 0) << stderr_text();
+  const auto ri = report("i.json"), re = report("e.json");
+  EXPECT_EQ(ri["dual_operator"], "implicit");
+  EXPECT_EQ(ri["dual_operator_reason"], "automatic");
+  EXPECT_EQ(re["dual_operator_reason"], "requested");
+  const double peak_i = ri["memory"]["estimate_mb"]["peak"], peak_e = re["memory"]["estimate_mb"]["peak"];
+  ASSERT_LT(peak_e, 0.8 * peak_i) << "the explicit operator frees its factors";
+  // A limit between the two.
+  const double limit_gb = 0.5 * (peak_i + peak_e) / 1024.0;
+  ASSERT_EQ(run(base + "--explicit-budget 0 --progress --report m.json --memory-limit " +
+                std::to_string(limit_gb)),
+            0)
+      << stderr_text();
+  EXPECT_NE(stderr_text().find("taking the explicit operator"), std::string::npos) << stderr_text();
+  const auto rm = report("m.json");
+  EXPECT_EQ(rm["dual_operator"], "explicit");
+  EXPECT_EQ(rm["dual_operator_reason"], "memory");
+  EXPECT_NEAR(rm["memory"]["estimate_mb"]["implicit_peak"].get<double>(), peak_i, 1e-9 * peak_i);
+  EXPECT_LE(rm["memory"]["estimate_mb"]["peak"].get<double>(), limit_gb * 1024.0);
+  EXPECT_EQ(rm["converged"], true);
+  const double obj = ri["objective"];
+  EXPECT_NEAR(rm["objective"].get<double>(), obj, 1e-8 * std::abs(obj));
+  // Below both: refused, naming the limit, no report written.
+  ASSERT_EQ(run(base + "--explicit-budget 0 --report x.json --memory-limit " +
+                std::to_string(0.5 * peak_e / 1024.0)),
+            2);
+  EXPECT_NE(stderr_text().find("limit (--memory-limit)"), std::string::npos) << stderr_text();
+  EXPECT_FALSE(fs::exists("x.json"));
+  // The same from a problem file's keys; bad values name the key.
+  const std::string box =
+      "[mesh]\ngenerator = \"box\"\nsize = [1.0, 1.0]\nelements = [320, 320]\n"
+      "element = \"quad4\"\n[physics]\ntype = \"laplace\"\nsource = 1.0\n"
+      "[[dirichlet]]\ngroup = \"x0\"\nvalue = 0.0\n[decomposition]\nsubdomains = [10, 10]\n"
+      "[solver]\nexplicit_budget_gb = 0.0\n";
+  write_file("limit.toml", box + "memory_limit_gb = " + std::to_string(limit_gb) + "\n");
+  ASSERT_EQ(run(bin + " solve limit.toml --no-vtu --report f.json"), 0) << stderr_text();
+  EXPECT_EQ(report("f.json")["dual_operator_reason"], "memory");
+  write_file("nolimit.toml", box);
+  ASSERT_EQ(run(bin + " solve nolimit.toml --no-vtu --report f.json"), 0) << stderr_text();
+  EXPECT_EQ(report("f.json")["dual_operator"], "implicit");
+  for (const char* bad : {"memory_limit_gb = 0.0\n", "explicit_budget_gb = -1.0\n"}) {
+    write_file("bad.toml", box.substr(0, box.find("[solver]")) + "[solver]\n" + bad);
+    EXPECT_EQ(run(bin + " solve bad.toml --no-vtu --report b.json"), 2) << bad;
+    EXPECT_NE(stderr_text().find(std::string(bad).substr(0, std::string(bad).find(' '))),
+              std::string::npos)
+        << stderr_text();
+    EXPECT_FALSE(fs::exists("b.json"));
   }
 }
 

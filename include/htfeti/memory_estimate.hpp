@@ -22,10 +22,11 @@
 // unless they are released. Before the sample is assembled, a lower bound from the element type
 // alone refuses sizes that cannot fit without building anything (a subdomain of 10^10 unknowns).
 // The ranks of one machine (MPI_COMM_TYPE_SHARED) add their estimates and compare the sum with
-// MemAvailable. The estimate leaves out the dual vectors, the coarse problem and the
-// preconditioner, and the interface-last factors of the explicit operator have more fill than
-// the sample's plain analysis (1.46 times on the Table 3 subdomain), so it errs low: what it
-// refuses cannot fit.
+// MemAvailable (and the limit, when one is given). The estimate leaves out the dual vectors,
+// the coarse problem, the preconditioner and the H-TFETI-DP clusters' dense K_i^+ C_i^T (2.4 GB
+// on the paper's Table 2 row 1, docs/performance.md), and the interface-last factors of the
+// explicit operator have more fill than the sample's plain analysis (1.46 times on the Table 3
+// subdomain), so it errs low: what it refuses cannot fit.
 #pragma once
 
 #include <string>
@@ -41,6 +42,17 @@ struct MemoryEstimate {
   /// The factors held at the peak: factors_mb, or the working set when they are released.
   double factors_held_mb = 0;
   bool sampled = false;  ///< false: the lower bound only (no subdomain was assembled)
+  /// The dual operator the estimate counted, and whether the explicit one was possible (the
+  /// sample has at least kExplicitMinNodes nodes).
+  bool explicit_operator = false, explicit_eligible = false;
+  /// check_memory took the explicit operator because the implicit one does not fit; the
+  /// implicit operator's estimated peak summed over the ranks of the fullest machine (MiB).
+  bool explicit_for_memory = false;
+  double implicit_peak_mb = 0;
+  /// Set by check_memory: the peak summed over the ranks of the fullest machine (MiB).
+  double machine_peak_mb = 0;
+  /// Set by check_memory: the memory compared with (the smallest over the machines; MiB).
+  double available_mb = 0;
   double peak_mb() const {
     return (matrices_mb > factors_held_mb ? matrices_mb : factors_held_mb) + vectors_mb +
            explicit_mb;
@@ -51,7 +63,11 @@ struct MemoryEstimate {
 MemoryEstimate estimate_memory(const Model& model, const FetiOptions& options, const Comm& comm);
 
 /// Throws std::invalid_argument on every rank, with the estimate, when the ranks of some machine
-/// together need more than its available memory; returns this rank's estimate. Collective.
-MemoryEstimate check_memory(const Model& model, const FetiOptions& options, const Comm& comm);
+/// together need more than its available memory (or options.memory_limit_mb); returns this
+/// rank's estimate. With the automatic dual operator, when the operator DualProblem would pick
+/// is the implicit one, which keeps every factor, and it does not fit on some machine while the
+/// explicit one (its F_i, factors released as memory runs short) fits on all, it sets
+/// options.dual_operator to explicit (explicit_for_memory). Collective.
+MemoryEstimate check_memory(const Model& model, FetiOptions& options, const Comm& comm);
 
 }  // namespace htfeti

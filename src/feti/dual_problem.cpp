@@ -257,7 +257,10 @@ DualProblem::DualProblem(const FetiLayout& layout,
                            options.factor_budget_bytes >= 0 &&
                            factor_bytes_estimate > options.factor_budget_bytes;
   const bool release_adaptive = explicit_ && !options.keep_factors && options.factor_budget_bytes < 0;
-  const double reserve_mb = release_adaptive ? kFactorReserve * available_memory_mb() : 0.0;
+  const int machine_ranks =
+      release_adaptive && options.memory_limit_mb > 0 ? ranks_on_this_machine(comm_.raw()) : 1;
+  auto usable_mb = [&] { return usable_memory_mb(options.memory_limit_mb, machine_ranks); };
+  const double reserve_mb = release_adaptive ? kFactorReserve * usable_mb() : 0.0;
   released_.assign(ncl, 0);
   contrib_.resize(nsub);
   for (int s = 0; s < nsub; ++s) contrib_[s].assign(rows_[s].size(), 0.0);
@@ -368,7 +371,7 @@ DualProblem::DualProblem(const FetiLayout& layout,
       setup_.factor_symbolic += tsym;
 #pragma omp atomic
       setup_.factor_numeric += tnum;
-      if (release_all || (release_adaptive && available_memory_mb() < reserve_mb)) {
+      if (release_all || (release_adaptive && usable_mb() < reserve_mb)) {
         clusters_[c]->release_factors();
         released_[c] = 1;
       }

@@ -50,6 +50,11 @@ struct FetiOptions {
   /// keep_factors = true always keeps them.
   bool keep_factors = false;
   double factor_budget_bytes = -1;  ///< see keep_factors
+  /// The memory the solve may use on each machine, in MiB (0: no limit but the machine's). The
+  /// automatic factor release and the memory check (memory_estimate.hpp) then count with the
+  /// smaller of it and the available memory; with R ranks on a machine, each rank's share is
+  /// memory_limit_mb / R less what the rank already holds.
+  double memory_limit_mb = 0;
   /// automatic picks the explicit operator only when its dense blocks (8 n_i^2 bytes per
   /// subdomain, n_i its multipliers) fit this budget on every rank.
   double explicit_budget_bytes = 4.0 * (1LL << 30);

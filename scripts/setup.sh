@@ -7,7 +7,8 @@ build=${1:-$here/build}
 
 pkgs=(cmake g++ make pkg-config libeigen3-dev libsuitesparse-dev libmetis-dev
       libopenblas0-openmp libopenmpi-dev openmpi-bin libcli11-dev nlohmann-json3-dev
-      libgtest-dev libfmt-dev libgmsh-dev gmsh libtomlplusplus-dev libmuparser-dev)
+      libgtest-dev libfmt-dev libgmsh-dev gmsh libtomlplusplus-dev libmuparser-dev
+      python3-vtk9 python3-numpy)
 missing=()
 for p in "${pkgs[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")

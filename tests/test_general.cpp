@@ -9,6 +9,7 @@
 
 #include <Eigen/SparseLU>
 #include <map>
+#include <set>
 
 #include "helpers.hpp"
 #include "htfeti/mesh/mesh.hpp"
@@ -144,6 +145,41 @@ TEST(Model, MeshCountsAreTheSizesOfTheMesh) {
       EXPECT_EQ(c.cells, mesh.num_cells()) << spec.mesh_file << " " << s;
       EXPECT_EQ(c.corners, static_cast<long long>(mesh.cells.size())) << spec.mesh_file << " " << s;
     }
+  }
+}
+
+// Each node's copy list names exactly the subdomains whose meshes hold that global node (found
+// here by collecting every subdomain's nodes), on boxes in 2D and 3D with clusters and on a split
+// Gmsh mesh.
+TEST(Model, NodeCopiesAreTheSubdomainsHoldingTheNode) {
+  std::vector<ProblemSpec> specs{laplace_plate()};
+  specs.back().subdomains = {5};
+  for (int dim : {2, 3}) {
+    specs.push_back(hex8_box());
+    auto& b = specs.back();
+    if (dim == 2) b.box.dim = 2, b.box.cell = CellType::quad4, b.loads.clear();
+    b.subdomains = std::vector<int>(dim, 4);
+    b.cluster_size = 2;
+  }
+  for (const auto& spec : specs) {
+    const auto model = make_model(spec);
+    std::map<long long, std::set<int>> holders;
+    std::vector<SubdomainMesh> meshes;
+    for (int s = 0; s < model->num_subdomains(); ++s) {
+      meshes.push_back(model->mesh(s));
+      for (long long g : meshes.back().global_node) holders[g].insert(s);
+    }
+    long long shared = 0;
+    for (const auto& m : meshes)
+      for (int k = 0; k < m.num_nodes(); ++k) {
+        const std::set<int> listed(m.copy_list.begin() + m.copy_offset[k],
+                                   m.copy_list.begin() + m.copy_offset[k + 1]);
+        ASSERT_EQ(listed, holders.at(m.global_node[k]))
+            << spec.mesh_file << " subdomain " << m.id << " node " << k;
+        ASSERT_EQ(listed.size(), static_cast<size_t>(m.num_copies(k)));
+        shared += listed.size() > 1;
+      }
+    EXPECT_GT(shared, 0) << spec.mesh_file;
   }
 }
 

@@ -46,11 +46,16 @@ void write_ascii_values(std::ostream& o, const std::string& bytes) {
 struct Buffers {
   std::vector<double> xyz, u, cf, cg, vm;
   std::vector<std::int64_t> conn, offs;
+  std::vector<std::int32_t> conn32, offs32;  // the same, narrowed (Int32 arrays)
   std::vector<std::uint8_t> types;
   std::vector<std::int32_t> sub, clu, rank;
   void clear() {
     xyz.clear(), u.clear(), cf.clear(), cg.clear(), vm.clear(), conn.clear(), offs.clear();
-    types.clear(), sub.clear(), clu.clear(), rank.clear();
+    conn32.clear(), offs32.clear(), types.clear(), sub.clear(), clu.clear(), rank.clear();
+  }
+  void narrow() {
+    conn32.assign(conn.begin(), conn.end());
+    offs32.assign(offs.begin(), offs.end());
   }
 };
 
@@ -188,6 +193,12 @@ std::string write_vtu(const std::string& path, const Model& model, DualProblem& 
     Array coords{"Points", "Float64", 3, {}};
     std::vector<Array> cs{{"connectivity", "Int64", 1, {}}, {"offsets", "Int64", 1, {}},
                           {"types", "UInt8", 1, {}}};
+    // Point ids and offsets as Int32 where the piece's points and cell corners allow (a fifth
+    // less to write for quadrilaterals; VTK reads either).
+    auto use_int32 = [&](std::int64_t points, std::int64_t corners) {
+      if (points <= INT32_MAX && corners <= INT32_MAX) cs[0].type = cs[1].type = "Int32";
+      return cs[0].type == "Int32";
+    };
     // The arrays in file order, each with its source in the buffers.
     std::vector<Array*> arrays;
     for (auto& a : pa) arrays.push_back(&a);
@@ -207,8 +218,9 @@ std::string write_vtu(const std::string& path, const Model& model, DualProblem& 
       if (a.name == "rank") return raw(b.rank);
       if (a.name == "von_mises") return raw(b.vm);
       if (a.name == "Points") return raw(b.xyz);
-      if (a.name == "connectivity") return raw(b.conn);
-      if (a.name == "offsets") return raw(b.offs);
+      const bool narrow = a.type == "Int32";
+      if (a.name == "connectivity") return narrow ? raw(b.conn32) : raw(b.conn);
+      if (a.name == "offsets") return narrow ? raw(b.offs32) : raw(b.offs);
       return raw(b.types);
     };
     if (options.ascii) {  // small outputs: everything in memory, then written as text
@@ -219,6 +231,7 @@ std::string write_vtu(const std::string& path, const Model& model, DualProblem& 
         fill(i, m, base, off, b);
         base += m.num_nodes();
       }
+      if (use_int32(base, off)) b.narrow();
       for (Array* a : arrays) {
         const auto [data, n] = bytes_of(*a, b);
         a->bytes.assign(data, n);
@@ -247,6 +260,7 @@ std::string write_vtu(const std::string& path, const Model& model, DualProblem& 
       for (int i = 0; i < ns; ++i)  // prefix sums: where subdomain i starts
         nodes[i + 1] += nodes[i], cells[i + 1] += cells[i], corners[i + 1] += corners[i];
       const std::int64_t P = nodes[ns], C = cells[ns], K = corners[ns];
+      const bool narrow = use_int32(P, K);
       std::vector<std::uint64_t> sizes, item;  // bytes of each array, bytes per point/cell/corner
       std::vector<const std::vector<std::int64_t>*> index;  // the prefix sums that place it
       for (const Array* a : arrays) {
@@ -301,6 +315,7 @@ std::string write_vtu(const std::string& path, const Model& model, DualProblem& 
                                      " differs from its counted size");
             std::int64_t off = corners[i];
             fill(static_cast<size_t>(i), m, nodes[i], off, b);
+            if (narrow) b.narrow();
             for (size_t k = 0; k < arrays.size(); ++k) {
               const auto [data, n] = bytes_of(*arrays[k], b);
               put(data, n, start[k] + item[k] * static_cast<std::uint64_t>((*index[k])[i]));

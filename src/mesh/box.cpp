@@ -170,10 +170,17 @@ SubdomainMesh BoxGrid::mesh(int sub) const {
             m.on_boundary[k] = 1;
             m.node_groups[face[d][g[d] == 0 ? 0 : 1]].push_back(k);
           }
-        int cp[8];
-        const int kc = node_copies(p.q, g, cp);
         m.copy_offset[k] = static_cast<int>(m.copy_list.size());
-        m.copy_list.insert(m.copy_list.end(), cp, cp + kc);
+        // A node inside the subdomain has no other copy (node_copies would find only `sub`,
+        // after ten integer divisions per node).
+        const bool inside = a > 0 && a < Hx && b > 0 && b < Hy && (dim == 2 || (c > 0 && c < Hz));
+        if (inside) {
+          m.copy_list.push_back(sub);
+        } else {
+          int cp[8];
+          const int kc = node_copies(p.q, g, cp);
+          m.copy_list.insert(m.copy_list.end(), cp, cp + kc);
+        }
       }
   m.copy_offset[nn] = static_cast<int>(m.copy_list.size());
 

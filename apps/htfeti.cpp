@@ -242,8 +242,9 @@ int run(int argc, char** argv, const Comm& comm) {
   auto* o_keep = solve_cmd->add_flag("--keep-factors", opt.feti.keep_factors,
                       "explicit operator: always keep the subdomain factors during the iterations "
                       "(by default a cluster frees them after its setup, and they are rebuilt for "
-                      "the reconstruction, once the available memory has fallen below 30% of "
-                      "what it was when the factorizations began)");
+                      "the reconstruction, once the available memory, less what the clusters "
+                      "still to be set up will allocate, has fallen below 30% of what it was "
+                      "when the factorizations began)");
   double numeric_cache_mb = 512;
   auto* o_numcache =
       solve_cmd

@@ -261,6 +261,21 @@ DualProblem::DualProblem(const FetiLayout& layout,
       release_adaptive && options.memory_limit_mb > 0 ? ranks_on_this_machine(comm_.raw()) : 1;
   auto usable_mb = [&] { return usable_memory_mb(options.memory_limit_mb, machine_ranks); };
   const double reserve_mb = release_adaptive ? kFactorReserve * usable_mb() : 0.0;
+  // What the clusters not yet set up will still allocate, for the adaptive release: their F_i
+  // (known from the multipliers) and their dense K_i^+ C_i^T (estimated from the clusters done
+  // so far). A cluster keeps its factors only while the memory left after those stays above
+  // the reserve (MiB; updated as clusters finish).
+  std::vector<double> cluster_explicit_mb(ncl, 0.0);
+  double pending_explicit_mb = 0, dense_done_mb = 0;
+  int clusters_done = 0;
+  if (release_adaptive)
+    for (int c = 0; c < ncl; ++c) {
+      for (int i = 0; i < members(c); ++i) {
+        const double m = static_cast<double>(mult_[sub_of(c, i)].size());
+        cluster_explicit_mb[c] += value_bytes * m * (m + 1) / 2 / 1048576.0;
+      }
+      pending_explicit_mb += cluster_explicit_mb[c];
+    }
   released_.assign(ncl, 0);
   contrib_.resize(nsub);
   for (int s = 0; s < nsub; ++s) contrib_[s].assign(rows_[s].size(), 0.0);
@@ -371,7 +386,20 @@ DualProblem::DualProblem(const FetiLayout& layout,
       setup_.factor_symbolic += tsym;
 #pragma omp atomic
       setup_.factor_numeric += tnum;
-      if (release_all || (release_adaptive && usable_mb() < reserve_mb)) {
+      bool release = release_all;
+      if (release_adaptive) {
+        double pending_mb = 0;
+#pragma omp critical(htfeti_factor_release)
+        {
+          pending_explicit_mb -= cluster_explicit_mb[c];
+          dense_done_mb += 8.0 * static_cast<double>(clusters_[c]->dense_doubles()) / 1048576.0;
+          ++clusters_done;
+          pending_mb = std::max(0.0, pending_explicit_mb) +
+                       dense_done_mb / clusters_done * (ncl - clusters_done);
+        }
+        release = usable_mb() - pending_mb < reserve_mb;
+      }
+      if (release) {
         clusters_[c]->release_factors();
         released_[c] = 1;
       }

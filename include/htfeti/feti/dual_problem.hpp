@@ -42,9 +42,11 @@ struct FetiOptions {
   /// With the explicit operator the subdomain factors are needed only for d (setup) and the
   /// primal reconstruction. A cluster frees them right after its setup, and factors again for
   /// the reconstruction (a plain factor, without the interface last: u agrees to round-off), when
-  ///  - factor_budget_bytes < 0 (automatic, the default): the machine's available memory has
-  ///    fallen below kFactorReserve of what was available when the factorizations began
-  ///    (measured after each cluster: clusters keep their factors while memory is plentiful);
+  ///  - factor_budget_bytes < 0 (automatic, the default): the machine's available memory, less
+  ///    what the clusters not yet set up will still allocate (their F_i, known from the
+  ///    multipliers, and their dense K_i^+ C_i^T, estimated from the clusters done), has fallen
+  ///    below kFactorReserve of what was available when the factorizations began (measured after
+  ///    each cluster: clusters keep their factors while memory is plentiful);
   ///  - factor_budget_bytes >= 0: the rank's factors, estimated at 100 nonzeros per node, exceed
   ///    it (0: always free them).
   /// keep_factors = true always keeps them.

@@ -320,6 +320,7 @@ SolveOutput solve(std::shared_ptr<const Model> model_ptr, const SolveOptions& op
       {"symbolic_reuses", comm.sum(static_cast<long long>(st.symbolic_reuses))},
       {"numeric_reuses", comm.sum(static_cast<long long>(st.numeric_reuses))},
       {"cached_matrices", comm.sum(static_cast<long long>(st.numeric_matrices))},
+      {"solve_reuses", comm.sum(static_cast<long long>(st.solve_reuses))},
       {"cached_patterns", comm.sum(static_cast<long long>(st.symbolic_patterns))}};
   struct rusage usage {};
   getrusage(RUSAGE_SELF, &usage);

@@ -176,6 +176,28 @@ TEST(SymbolicCache, SharesAnalysesOnlyBetweenEqualPatterns) {
     const Eigen::MatrixXd Sm = L2 * L2.transpose();
     EXPECT_LT((Sm * sp->S - Eigen::MatrixXd::Identity(Sm.rows(), Sm.cols())).norm(), 1e-10);
     EXPECT_GT((solve(f4) - solve(plain)).cwiseAbs().maxCoeff(), 0.0);
+    // Multi-column solves: f3 finds f2's solve of an equal right-hand side (sharing the factor)
+    // and gives what the plain factor's solve gives, bit for bit; another right-hand side, or a
+    // factor outside the numeric cache (f4), is solved.
+    Eigen::MatrixXd X0 = Eigen::MatrixXd::Zero(144, 3);
+    for (int k = 0; k < 12; ++k) X0(k, 0) = 1.0 / 12, X0(12 * k, 1) = 0.5, X0(143 - k, 2) = -1.0;
+    Eigen::MatrixXd X2 = X0, X3 = X0, Xp = X0, X4 = X0, Y3 = X0;
+    Y3(5, 2) = 0.25;
+    f2.solve_many(X2.data(), 3);
+    EXPECT_EQ(cache.solve_reuses(), 0);
+    f3.solve_many(X3.data(), 3);
+    EXPECT_EQ(cache.solve_reuses(), 1);
+    plain.solve_many(Xp.data(), 3);
+    EXPECT_EQ((X3 - Xp).cwiseAbs().maxCoeff(), 0.0);
+    EXPECT_EQ((X2 - Xp).cwiseAbs().maxCoeff(), 0.0);
+    EXPECT_LT((A1 * Xp - X0).norm(), 1e-12 * X0.norm());
+    f3.solve_many(Y3.data(), 3);
+    f4.solve_many(X4.data(), 3);
+    EXPECT_EQ(cache.solve_reuses(), 1);
+    Eigen::MatrixXd Y3in = X0;
+    Y3in(5, 2) = 0.25;
+    EXPECT_LT((A1 * Y3 - Y3in).norm(), 1e-12 * Y3in.norm());  // its own right-hand side
+    EXPECT_LT((A2 * X4 - X0).norm(), 1e-12 * X0.norm());
     SymbolicCache small(64, 1.0);  // a byte budget too small for any factor: none kept
     SparseCholesky g1, g2, g3;
     g1.factorize(A1, &small);

@@ -420,6 +420,7 @@ DualProblem::DualProblem(const FetiLayout& layout,
     setup_.symbolic_patterns = symbolic_->patterns();
     setup_.numeric_reuses = symbolic_->numeric_reuses();
     setup_.numeric_matrices = symbolic_->matrices();
+    setup_.solve_reuses = symbolic_->solve_reuses();
   }
   setup_.peak_mb_factorization = peak_rss_mb();
   for (const auto& c : clusters_) setup_.cluster_setup += c->setup_seconds();

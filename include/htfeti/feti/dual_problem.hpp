@@ -104,6 +104,7 @@ struct SetupTimings {
   long symbolic_analyses = 0, symbolic_reuses = 0, symbolic_patterns = 0;
   /// Factorizations that copied the numeric factor of an equal matrix; numeric factors held.
   long numeric_reuses = 0, numeric_matrices = 0;
+  long solve_reuses = 0;  ///< cluster solves K_i^+ C_i^T taken from an equal subdomain's
   /// Peak resident memory of the rank (MiB) at the end of each setup phase.
   double factor_mb = 0;  ///< the rank's subdomain factors as built (before any release)
   double peak_mb_assembly = 0, peak_mb_constraints = 0, peak_mb_factorization = 0,

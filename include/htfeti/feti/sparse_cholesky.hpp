@@ -42,6 +42,8 @@ class SymbolicCache {
   long reuses() const;    ///< factorizations that reused a cached analysis
   int patterns() const;   ///< patterns held
   long numeric_reuses() const;  ///< factorizations that copied a cached numeric factor
+  /// Multi-column solves (SparseCholesky::solve_many) answered from an earlier equal one.
+  long solve_reuses() const;
   int matrices() const;         ///< numeric factors held
 
  private:
@@ -93,7 +95,10 @@ class SparseCholesky {
   void solve(const double* b, double* x);
   /// X = A^{-1} X for the ncols columns of X (column-major, rows() x ncols), in place. One pass
   /// over the factor in each direction for all columns (BLAS-3 in the supernodes) instead of one
-  /// per column; setup work, with work arrays of its own that it frees (it allocates).
+  /// per column; setup work, with work arrays of its own that it frees (it allocates). A factor
+  /// shared with the numeric cache (equal matrices, a set ordered last) remembers up to 16 such
+  /// solves with all its holders: an equal X (its nonzeros compared in full) takes the stored
+  /// result, which is what the solve gives for it, without solving.
   void solve_many(double* X, int ncols);
   int rows() const;
   /// Nonzeros of the factor L (memory is about 8 bytes per nonzero plus the pattern).

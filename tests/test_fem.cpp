@@ -198,6 +198,13 @@ TEST(SymbolicCache, SharesAnalysesOnlyBetweenEqualPatterns) {
     Y3in(5, 2) = 0.25;
     EXPECT_LT((A1 * Y3 - Y3in).norm(), 1e-12 * Y3in.norm());  // its own right-hand side
     EXPECT_LT((A2 * X4 - X0).norm(), 1e-12 * X0.norm());
+    // Single solves with a shared factor go through the same memo: b, solved with f3 above, is
+    // found for f2 and f3, bit for bit the plain factor's solution.
+    const long before = cache.solve_reuses();
+    const Eigen::VectorXd x2 = solve(f2), x3 = solve(f3);
+    EXPECT_EQ(cache.solve_reuses(), before + 2);
+    EXPECT_EQ((x3 - solve(plain)).cwiseAbs().maxCoeff(), 0.0);
+    EXPECT_EQ((x2 - x3).cwiseAbs().maxCoeff(), 0.0);
     SymbolicCache small(64, 1.0);  // a byte budget too small for any factor: none kept
     SparseCholesky g1, g2, g3;
     g1.factorize(A1, &small);

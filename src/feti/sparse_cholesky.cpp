@@ -367,6 +367,11 @@ void SparseCholesky::factorize_impl(const Eigen::SparseMatrix<double>& A,
 }
 
 void SparseCholesky::solve(const double* b, double* out) {
+  if (impl_->slot) {  // shared through the numeric cache: through solve_many's memo
+    if (out != b) std::memmove(out, b, sizeof(double) * impl_->n);
+    solve_many(out, 1);
+    return;
+  }
   auto& c = impl_->common;
   cholmod_dense rhs{};
   rhs.nrow = rhs.d = rhs.nzmax = static_cast<size_t>(impl_->n);

@@ -91,7 +91,10 @@ class SparseCholesky {
   };
   std::shared_ptr<const SchurInverse> schur_inverse() const;
   /// x = A^{-1} b; x and b may alias. Work arrays are kept between calls, so a solve allocates
-  /// nothing once the first one has run. Not safe to call concurrently on one object.
+  /// nothing once the first one has run. Not safe to call concurrently on one object. A factor
+  /// shared through the numeric cache (interface-last factors of the explicit operator, which
+  /// solve only in the setup and the reconstruction, never in the iterations) goes through
+  /// solve_many and its memo instead (equal subdomains with equal loads: K_i^+ f_i of d).
   void solve(const double* b, double* x);
   /// X = A^{-1} X for the ncols columns of X (column-major, rows() x ncols), in place. One pass
   /// over the factor in each direction for all columns (BLAS-3 in the supernodes) instead of one

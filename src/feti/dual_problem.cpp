@@ -236,8 +236,12 @@ DualProblem::DualProblem(const FetiLayout& layout,
   // as the factors (3D subdomains have large interfaces: 1,806 interface dofs per subdomain at
   // H_s/h = 10).
   const double value_bytes = options.explicit_precision == Precision::single ? 4.0 : 8.0;
+  std::vector<double> packed_bytes(nsub);  // F_i of each subdomain, packed
   double explicit_bytes = 0;
-  for (const auto& m : mult_) explicit_bytes += value_bytes * m.size() * (m.size() + 1) / 2;
+  for (int s = 0; s < nsub; ++s) {
+    const double m = static_cast<double>(mult_[s].size());
+    explicit_bytes += packed_bytes[s] = value_bytes * m * (m + 1) / 2;
+  }
   explicit_bytes = comm_.max(explicit_bytes);
   explicit_ = options.dual_operator == DualOperator::explicit_ ||
               (options.dual_operator == DualOperator::automatic && min_nodes >= kExplicitMinNodes &&
@@ -270,10 +274,8 @@ DualProblem::DualProblem(const FetiLayout& layout,
   int clusters_done = 0;
   if (release_adaptive)
     for (int c = 0; c < ncl; ++c) {
-      for (int i = 0; i < members(c); ++i) {
-        const double m = static_cast<double>(mult_[sub_of(c, i)].size());
-        cluster_explicit_mb[c] += value_bytes * m * (m + 1) / 2 / 1048576.0;
-      }
+      for (int i = 0; i < members(c); ++i)
+        cluster_explicit_mb[c] += packed_bytes[sub_of(c, i)] / 1048576.0;
       pending_explicit_mb += cluster_explicit_mb[c];
     }
   released_.assign(ncl, 0);

@@ -43,8 +43,9 @@ cholmod_sparse upper_view(Eigen::SparseMatrix<double>& upper) {
 }
 }  // namespace
 
-// S^{-1} of a numeric factor, computed by the first that asks (SparseCholesky::schur_inverse).
-struct SchurSlot {
+// What the holders of one cached numeric factor (the entry and its copies) share: S^{-1},
+// computed by the first that asks (SparseCholesky::schur_inverse), and the solves done so far.
+struct SharedFactor {
   std::mutex mutex;
   std::shared_ptr<const SparseCholesky::SchurInverse> value;
   // solve_many's results for the right-hand sides solved so far with this factor (the same bit
@@ -70,7 +71,7 @@ struct SymbolicCache::Entry {
   std::uint64_t value_hash = 0;  // numeric entries: the values and their hash
   std::vector<double> x;
   double bytes = 0;
-  std::shared_ptr<SchurSlot> slot;  // numeric entries with a set ordered last: S^{-1}, once
+  std::shared_ptr<SharedFactor> slot;  // numeric entries with a set ordered last: S^{-1}, once
   cholmod_common common;
   cholmod_factor* L = nullptr;
   Entry() { cholmod_start(&common), common.print = 0, common.error_handler = nullptr; }
@@ -130,7 +131,7 @@ struct SparseCholesky::Impl {
   int nlast = 0;  // rows ordered last by factorize(A, last)
   int method = 0;  // 0 AMD, 1 METIS (the constructor's ordering)
   double symbolic_seconds = 0, numeric_seconds = 0;
-  std::shared_ptr<SchurSlot> slot;  // shared with a numeric cache entry, if any
+  std::shared_ptr<SharedFactor> slot;  // shared with a numeric cache entry, if any
 
   explicit Impl(Ordering ordering) : method(ordering == Ordering::amd ? 0 : 1) {
     cholmod_start(&common);
@@ -356,7 +357,7 @@ void SparseCholesky::factorize_impl(const Eigen::SparseMatrix<double>& A,
       e->x.assign(upper.valuePtr(), upper.valuePtr() + nnz);
       e->bytes = bytes;
       if (e->L) {
-        if (last) e->slot = impl_->slot = std::make_shared<SchurSlot>();
+        if (last) e->slot = impl_->slot = std::make_shared<SharedFactor>();
         cache->numeric_held_ += bytes;
         cache->numeric_.push_back(std::move(e));
       }
@@ -390,10 +391,10 @@ void SparseCholesky::solve_many(double* X, int ncols) {
   // A factor shared through the numeric cache looks the right-hand side up among those already
   // solved with it (equal subdomains with equal constraints: the columns of K_i^+ C_i^T repeat).
   const long total = static_cast<long>(impl_->n) * ncols;
-  SchurSlot* slot = impl_->slot.get();
-  std::shared_ptr<SchurSlot::Solve> mine;
+  SharedFactor* slot = impl_->slot.get();
+  std::shared_ptr<SharedFactor::Solve> mine;
   if (slot) {
-    mine = std::make_shared<SchurSlot::Solve>();
+    mine = std::make_shared<SharedFactor::Solve>();
     mine->ncols = ncols;
     std::uint64_t hash = 1469598103934665603ULL;  // FNV-1a over positions and values
     for (long k = 0; k < total; ++k)
@@ -405,7 +406,7 @@ void SparseCholesky::solve_many(double* X, int ncols) {
         mine->value.push_back(X[k]);
       }
     mine->hash = hash;
-    std::shared_ptr<const SchurSlot::Solve> found;
+    std::shared_ptr<const SharedFactor::Solve> found;
     {
       std::lock_guard<std::mutex> lock(slot->mutex);
       for (const auto& e : slot->solves)
@@ -438,7 +439,7 @@ void SparseCholesky::solve_many(double* X, int ncols) {
   if (!ok) throw std::runtime_error("CHOLMOD solve failed");
   if (slot) {
     std::lock_guard<std::mutex> lock(slot->mutex);
-    if (static_cast<int>(slot->solves.size()) < SchurSlot::kMaxSolves) {
+    if (static_cast<int>(slot->solves.size()) < SharedFactor::kMaxSolves) {
       mine->out.assign(X, X + total);
       slot->solves.push_back(std::move(mine));
     }

@@ -250,8 +250,8 @@ int run(int argc, char** argv, const Comm& comm) {
       solve_cmd
           ->add_option("--numeric-cache", numeric_cache_mb,
                        "MB per rank of numeric factors kept for subdomains whose matrix repeats a "
-                       "kept one entry for entry (generated boxes): such a subdomain copies the "
-                       "factor instead of factoring; the factors are the same either way (0: off; "
+                       "kept one entry for entry (generated boxes): such a subdomain shares the "
+                       "kept factor instead of factoring; the factors are the same either way (0: off; "
                        "needs --symbolic-cache > 0)")
           ->check(CLI::NonNegativeNumber)
           ->capture_default_str();

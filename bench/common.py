@@ -2,6 +2,7 @@
 import json
 import os
 import platform
+import resource
 import subprocess
 import sys
 import tempfile
@@ -54,9 +55,10 @@ def solve(args, ranks=1, threads=1, extra_env=None, binary=None, vtu=False):
         e = env(threads)
         if extra_env:
             e.update(extra_env)
-        t0, c0 = time.perf_counter(), cpu_times()
+        t0, c0, u0 = time.perf_counter(), cpu_times(), resource.getrusage(resource.RUSAGE_CHILDREN)
         done = subprocess.run(cmd, env=e, stdout=subprocess.DEVNULL)
         wall, c1 = time.perf_counter() - t0, cpu_times()
+        u1 = resource.getrusage(resource.RUSAGE_CHILDREN)
         # exit 3: not converged; the report is written and says why (a result, not a failure)
         if done.returncode not in (0, 3):
             raise subprocess.CalledProcessError(done.returncode, cmd)
@@ -64,6 +66,10 @@ def solve(args, ranks=1, threads=1, extra_env=None, binary=None, vtu=False):
             r = json.load(f)
         r["wall_seconds"] = wall  # the whole process, output included (added by the bench)
         r["steal_fraction"] = steal_fraction(c0, c1)  # CPU time taken by other guests (bench)
+        # the process's CPU seconds in user and kernel mode and its minor page faults (bench;
+        # with mpiexec: all ranks and the launcher)
+        r["process"] = {"user_s": u1.ru_utime - u0.ru_utime, "system_s": u1.ru_stime - u0.ru_stime,
+                        "minor_faults": u1.ru_minflt - u0.ru_minflt}
         return r
 
 

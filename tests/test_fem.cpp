@@ -225,6 +225,55 @@ TEST(SymbolicCache, SharesAnalysesOnlyBetweenEqualPatterns) {
   }
 }
 
+// A numeric factor found in the cache is shared, not copied: it lives as long as any of its
+// holders (the cache itself included), refactoring one holder leaves the others as they were,
+// and holders in different threads solve with it at the same time (each with its own work
+// arrays), all giving the plain factor's solution bit for bit.
+TEST(SymbolicCache, SharedNumericFactorOutlivesItsOtherHolders) {
+  const int n = 14;
+  std::vector<Eigen::Triplet<double>> t;
+  for (int y = 0; y < n; ++y)
+    for (int x = 0; x < n; ++x) {
+      const int i = y * n + x;
+      t.emplace_back(i, i, 4.0 + 0.02 * i);
+      if (x + 1 < n) t.emplace_back(i, i + 1, -1.0), t.emplace_back(i + 1, i, -1.0);
+      if (y + 1 < n) t.emplace_back(i, i + n, -1.0), t.emplace_back(i + n, i, -1.0);
+    }
+  Eigen::SparseMatrix<double> A(n * n, n * n), A2;
+  A.setFromTriplets(t.begin(), t.end());
+  A2 = A * 2.0;
+  SparseCholesky plain;
+  plain.factorize(A);
+  const int holders = 8;
+  std::vector<SparseCholesky> f(holders);
+  {
+    SymbolicCache cache(64, 1e9);
+    for (auto& c : f) c.factorize(A, &cache);
+    EXPECT_EQ(cache.matrices(), 1);
+    EXPECT_EQ(cache.numeric_reuses(), holders - 2);  // the first analyses, the second is kept
+  }  // the cache is gone; its factor lives on in the holders
+  f[1] = SparseCholesky();              // the holder that factored the kept matrix
+  f[2].factorize(A2);                   // another holder refactored with other values
+  const Eigen::VectorXd b = Eigen::VectorXd::LinSpaced(n * n, -1.0, 2.0);
+  Eigen::VectorXd x_plain(n * n);
+  plain.solve(b.data(), x_plain.data());
+  std::vector<Eigen::VectorXd> x(holders, Eigen::VectorXd::Zero(n * n));
+#pragma omp parallel for schedule(static, 1) num_threads(2)
+  for (int k = 0; k < 4 * holders; ++k) {
+    const int h = k % holders;
+    if (h == 1) continue;
+    for (int rep = 0; rep < 50; ++rep) f[h].solve(b.data(), x[h].data());
+  }
+  for (int h = 0; h < holders; ++h) {
+    if (h == 1) continue;
+    if (h == 2) {
+      EXPECT_LT((A2 * x[h] - b).norm(), 1e-12 * b.norm());
+      continue;
+    }
+    EXPECT_EQ((x[h] - x_plain).cwiseAbs().maxCoeff(), 0.0) << "holder " << h;
+  }
+}
+
 // The packed lower triangle: the product equals the dense symmetric product (double: to
 // rounding; single: to the rounding of the values, 2^-24 relative), entries read back, and half
 // the bytes (a quarter in single precision). Every n mod 4 and short and long columns: the

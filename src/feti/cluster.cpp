@@ -68,7 +68,7 @@ Cluster::Cluster(int id, std::vector<Subdomain*> subs, std::vector<std::vector<C
         std::sort(dofs.begin(), dofs.end());
         dofs.erase(std::unique(dofs.begin(), dofs.end()), dofs.end());
         subs_[i]->factorize_with_interface_last(dofs, cache, ordering);
-        F_[i] = PackedSymmetric(subs_[i]->dual_block(b_[i], nmult[i]), precision);
+        F_[i] = subs_[i]->dual_block(b_[i], nmult[i], precision);
         V_[i] = Eigen::MatrixXd::Zero(nmult[i], subs_[i]->kernel_dimension());
         for (const auto& e : b_[i]) V_[i].row(e.mult) += e.value * subs_[i]->kernel().row(e.dof);
       } else {

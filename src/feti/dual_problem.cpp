@@ -414,6 +414,10 @@ DualProblem::DualProblem(const FetiLayout& layout,
     }
   }
   comm_.agree(error, input_error);
+  if (explicit_) {  // every thread frees its F_i work arrays (they are kept between subdomains)
+#pragma omp parallel
+    Subdomain::release_dual_block_work();
+  }
   setup_.factorization = now() - t;
   factors_released_ = comm_.max(static_cast<double>(clusters_released())) > 0;
   if (symbolic_) {

@@ -43,7 +43,7 @@ cholmod_sparse upper_view(Eigen::SparseMatrix<double>& upper) {
 }
 }  // namespace
 
-// What the holders of one cached numeric factor (the entry and its copies) share: S^{-1},
+// What the holders of one cached numeric factor (the entry and the factorizations of equal matrices) share: S^{-1},
 // computed by the first that asks (SparseCholesky::schur_inverse), and the solves done so far.
 struct SharedFactor {
   std::mutex mutex;
@@ -73,7 +73,8 @@ struct SymbolicCache::Entry {
   double bytes = 0;
   std::shared_ptr<SharedFactor> slot;  // numeric entries with a set ordered last: S^{-1}, once
   cholmod_common common;
-  cholmod_factor* L = nullptr;
+  cholmod_factor* L = nullptr;  // symbolic entries: the analysis (copied by its users)
+  std::shared_ptr<cholmod_factor> numeric;  // numeric entries: the factor, shared by its users
   Entry() { cholmod_start(&common), common.print = 0, common.error_handler = nullptr; }
   ~Entry() {
     cholmod_free_factor(&L, &common);
@@ -115,6 +116,21 @@ int SymbolicCache::patterns() const {
   return static_cast<int>(entries_.size());
 }
 
+namespace {
+// A numeric factor held by several owners (a numeric cache entry and the factorizations of equal
+// matrices), freed with the last of them. It is only read once factored (solves, the Schur
+// block), and every holder solves with its own CHOLMOD common and work arrays, so holders in
+// different threads solve with it at the same time.
+std::shared_ptr<cholmod_factor> share_factor(cholmod_factor* L) {
+  return std::shared_ptr<cholmod_factor>(L, [](cholmod_factor* f) {
+    cholmod_common c;
+    cholmod_start(&c);
+    cholmod_free_factor(&f, &c);
+    cholmod_finish(&c);
+  });
+}
+}  // namespace
+
 // METIS keeps its random number generator in global state (GKlib), reseeded at the start of
 // every call: two threads ordering at once interleave it and get orderings that depend on the
 // timing, and so results that depend on the number of threads. METIS calls are serialized (with
@@ -132,6 +148,7 @@ struct SparseCholesky::Impl {
   int method = 0;  // 0 AMD, 1 METIS (the constructor's ordering)
   double symbolic_seconds = 0, numeric_seconds = 0;
   std::shared_ptr<SharedFactor> slot;  // shared with a numeric cache entry, if any
+  std::shared_ptr<cholmod_factor> shared;  // set when `factor` is a numeric cache entry's
 
   explicit Impl(Ordering ordering) : method(ordering == Ordering::amd ? 0 : 1) {
     cholmod_start(&common);
@@ -146,8 +163,14 @@ struct SparseCholesky::Impl {
     cholmod_free_dense(&x, &common);
     cholmod_free_dense(&y, &common);
     cholmod_free_dense(&e, &common);
-    cholmod_free_factor(&factor, &common);
+    drop_factor();
     cholmod_finish(&common);
+  }
+  void drop_factor() {
+    if (shared)
+      factor = nullptr, shared.reset();
+    else
+      cholmod_free_factor(&factor, &common);
   }
 };
 
@@ -176,7 +199,7 @@ void SparseCholesky::factorize_impl(const Eigen::SparseMatrix<double>& A,
   auto& c = impl_->common;
   Eigen::SparseMatrix<double> upper = A.triangularView<Eigen::Upper>();
   cholmod_sparse view = upper_view(upper);
-  cholmod_free_factor(&impl_->factor, &c);
+  impl_->drop_factor();
   impl_->slot.reset();
   impl_->nlast = last ? static_cast<int>(last->size()) : 0;
 
@@ -195,15 +218,21 @@ void SparseCholesky::factorize_impl(const Eigen::SparseMatrix<double>& A,
            std::equal(e.p.begin(), e.p.end(), upper.outerIndexPtr()) &&
            std::equal(e.i.begin(), e.i.end(), upper.innerIndexPtr());
   };
-  // A cache entry for this pattern, holding a copy of the current factor (symbolic or numeric).
-  const auto new_entry = [&]() {
+  // A cache entry for this pattern: a copy of the current (symbolic) factor, or with `numeric`
+  // the current numeric factor itself, from then on shared by this factorization and the entry.
+  const auto new_entry = [&](bool numeric) {
     auto e = std::make_unique<SymbolicCache::Entry>();
     e->hash = hash;
     e->method = method;
     e->p.assign(upper.outerIndexPtr(), upper.outerIndexPtr() + n + 1);
     e->i.assign(upper.innerIndexPtr(), upper.innerIndexPtr() + nnz);
     e->last = last_sorted;
-    e->L = cholmod_copy_factor(impl_->factor, &e->common);
+    if (numeric) {
+      if (!impl_->shared) impl_->shared = share_factor(impl_->factor);
+      e->numeric = impl_->shared;
+    } else {
+      e->L = cholmod_copy_factor(impl_->factor, &e->common);
+    }
     return e;
   };
   bool reused = false;
@@ -229,8 +258,8 @@ void SparseCholesky::factorize_impl(const Eigen::SparseMatrix<double>& A,
         value_hash = (value_hash ^ w) * 1099511628211ULL;
       }
     }
-    // Entries are never removed while the cache lives, so a found one is copied outside the lock
-    // (the copies of two threads do not wait for each other).
+    // Entries are never removed while the cache lives, so a found one is used outside the lock
+    // (the analysis copies of two threads do not wait for each other).
     const SymbolicCache::Entry* numeric = nullptr;
     const SymbolicCache::Entry* symbolic = nullptr;
     {
@@ -249,9 +278,9 @@ void SparseCholesky::factorize_impl(const Eigen::SparseMatrix<double>& A,
             break;
           }
     }
-    if (numeric) {  // an equal matrix was factored: its factor, copied
-      impl_->factor = cholmod_copy_factor(numeric->L, &c);
-      if (!impl_->factor) throw std::bad_alloc();
+    if (numeric) {  // an equal matrix was factored: its factor, shared (read only)
+      impl_->shared = numeric->numeric;
+      impl_->factor = impl_->shared.get();
       impl_->slot = numeric->slot;
       impl_->n = n;
       impl_->symbolic_seconds = std::chrono::duration<double>(clock::now() - t0).count();
@@ -332,7 +361,7 @@ void SparseCholesky::factorize_impl(const Eigen::SparseMatrix<double>& A,
     for (const auto& e : cache->entries_) known = known || same(*e);
     ++cache->analyses_;
     if (!known && static_cast<int>(cache->entries_.size()) < cache->capacity_) {
-      auto e = new_entry();
+      auto e = new_entry(false);
       if (e->L) cache->entries_.push_back(std::move(e));
     }
   }
@@ -352,15 +381,13 @@ void SparseCholesky::factorize_impl(const Eigen::SparseMatrix<double>& A,
     bool known = false;
     for (const auto& e : cache->numeric_) known = known || same_values(*e);
     if (!known && cache->numeric_held_ + bytes <= cache->numeric_bytes_) {
-      auto e = new_entry();
+      auto e = new_entry(true);
       e->value_hash = value_hash;
       e->x.assign(upper.valuePtr(), upper.valuePtr() + nnz);
       e->bytes = bytes;
-      if (e->L) {
-        if (last) e->slot = impl_->slot = std::make_shared<SharedFactor>();
-        cache->numeric_held_ += bytes;
-        cache->numeric_.push_back(std::move(e));
-      }
+      if (last) e->slot = impl_->slot = std::make_shared<SharedFactor>();
+      cache->numeric_held_ += bytes;
+      cache->numeric_.push_back(std::move(e));
     }
   }
   impl_->symbolic_seconds = std::chrono::duration<double>(t1 - t0).count();

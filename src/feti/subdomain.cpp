@@ -54,7 +54,21 @@ void Subdomain::factorize_with_interface_last(const std::vector<int>& interface_
   factorize_impl(ordering, &interface_dofs, cache);
 }
 
-Eigen::MatrixXd Subdomain::dual_block(const std::vector<BEntry>& b, int nmult) const {
+namespace {
+// dual_block()'s dense work arrays, kept per thread between subdomains.
+struct DualBlockWork {
+  std::vector<double> w, f;
+};
+thread_local DualBlockWork dual_block_work;
+}  // namespace
+
+void Subdomain::release_dual_block_work() {
+  std::vector<double>().swap(dual_block_work.w);
+  std::vector<double>().swap(dual_block_work.f);
+}
+
+PackedSymmetric Subdomain::dual_block(const std::vector<BEntry>& b, int nmult,
+                                      Precision precision) const {
   const auto inverse = chol_.schur_inverse();  // S^{-1} (shared by equal matrices)
   const Eigen::MatrixXd& S = inverse->S;
   const std::vector<int>& order = inverse->order;
@@ -83,9 +97,11 @@ Eigen::MatrixXd Subdomain::dual_block(const std::vector<BEntry>& b, int nmult) c
   // LAPACK's dpotri, 2/3 n_b^3 flops).
   // W = S^{-1} B_i^T (one column per multiplier: n_b flops per entry of B_i), then the lower
   // half of F_i = B_i W (n_mult flops per entry), mirrored.
-  Eigen::MatrixXd W = Eigen::MatrixXd::Zero(nb, nmult);
+  DualBlockWork& work = dual_block_work;
+  work.w.assign(static_cast<size_t>(nb) * nmult, 0.0);
+  work.f.assign(static_cast<size_t>(nmult) * nmult, 0.0);
+  Eigen::Map<Eigen::MatrixXd> W(work.w.data(), nb, nmult), F(work.f.data(), nmult, nmult);
   for (const auto& e : entries) W.col(e.mult) += e.value * S.col(e.p);
-  Eigen::MatrixXd F = Eigen::MatrixXd::Zero(nmult, nmult);
   size_t first = 0;  // first entry with mult >= col
   for (int col = 0; col < nmult; ++col) {
     while (first < entries.size() && entries[first].mult < col) ++first;
@@ -93,8 +109,7 @@ Eigen::MatrixXd Subdomain::dual_block(const std::vector<BEntry>& b, int nmult) c
     double* f = F.col(col).data();
     for (size_t k = first; k < entries.size(); ++k) f[entries[k].mult] += entries[k].value * w[entries[k].p];
   }
-  F.triangularView<Eigen::StrictlyUpper>() = F.transpose();
-  return F;
+  return PackedSymmetric(F, precision);  // the lower half
 }
 
 Eigen::SparseMatrix<double> Subdomain::reduced_matrix() {

@@ -41,7 +41,7 @@ long position(int i, int j, int n) {  // i >= j
 }
 
 template <class T>
-void pack(const Eigen::MatrixXd& A, std::vector<T>& out) {
+void pack(const Eigen::Ref<const Eigen::MatrixXd>& A, std::vector<T>& out) {
   const int n = static_cast<int>(A.rows());
   out.resize(static_cast<size_t>(n) * (n + 1) / 2);
   for (int j = 0; j < n; ++j)
@@ -133,7 +133,7 @@ HTFETI_ISA_CLONES void packed_symv(const float* a, int n, const double* x, doubl
 
 }  // namespace
 
-PackedSymmetric::PackedSymmetric(const Eigen::MatrixXd& A, Precision precision)
+PackedSymmetric::PackedSymmetric(const Eigen::Ref<const Eigen::MatrixXd>& A, Precision precision)
     : n_(static_cast<int>(A.rows())), single_(precision == Precision::single) {
   if (A.rows() != A.cols()) throw std::invalid_argument("PackedSymmetric: matrix is not square");
   if (single_)

@@ -25,8 +25,9 @@ std::string to_string(Ordering ordering);
 /// cache keeps at most `capacity` patterns (the first ones analysed) and analyses the rest anew.
 /// Thread-safe; the pattern is compared in full, not only its hash.
 /// Numeric factors too, optionally: matrices equal entry for entry (pattern, values and the set
-/// ordered last) have the same factor, so a factorization finding an equal matrix copies its
-/// factor (a memory copy) instead of factoring; the result is the same bit for bit. On a
+/// ordered last) have the same factor, so a factorization finding an equal matrix shares its
+/// factor (held by all of them, read only, freed with the last holder) instead of factoring; the
+/// result is the same bit for bit. On a
 /// generated box with one material the subdomain matrices are translates of each other and
 /// mostly equal. A numeric factor is kept only for a pattern that has been seen before (a
 /// symbolic reuse), so a METIS-split mesh, whose matrices all differ, keeps none; at most
@@ -41,7 +42,7 @@ class SymbolicCache {
   long analyses() const;  ///< symbolic analyses done (cache misses)
   long reuses() const;    ///< factorizations that reused a cached analysis
   int patterns() const;   ///< patterns held
-  long numeric_reuses() const;  ///< factorizations that copied a cached numeric factor
+  long numeric_reuses() const;  ///< factorizations that share a cached numeric factor
   /// Multi-column solves (SparseCholesky::solve_many) answered from an earlier equal one.
   long solve_reuses() const;
   int matrices() const;         ///< numeric factors held
@@ -83,7 +84,7 @@ class SparseCholesky {
   /// complement, and order[i] = the row of A that row i of L_s stands for.
   void schur_factor(Eigen::MatrixXd& L, std::vector<int>& order) const;
   /// After factorize(A, last): S^{-1} (both halves) with S = L_s L_s^T, and `order` as for
-  /// schur_factor(); LAPACK's dpotri, 2/3 |last|^3 flops. A factor copied from the cache's
+  /// schur_factor(); LAPACK's dpotri, 2/3 |last|^3 flops. A factor shared with the cache's
   /// numeric entry shares the entry's S^{-1}: computed once for all equal matrices.
   struct SchurInverse {
     Eigen::MatrixXd S;

@@ -15,6 +15,7 @@
 
 #include "htfeti/feti/input.hpp"
 #include "htfeti/feti/sparse_cholesky.hpp"
+#include "htfeti/linalg/packed_symmetric.hpp"
 
 namespace htfeti {
 
@@ -65,8 +66,13 @@ class Subdomain {
   /// from L_s by LAPACK's dpotri (2/3 n_b^3 flops); then F_i = B_i S^{-1} B_i^T by sparse-dense
   /// products ((n_b + n_mult) flops per entry of B_i). The route through T = L_s^{-1} B_i^T and
   /// F_i = T^T T costs about n_b^2 n_mult + n_b n_mult^2 flops, 3 times more when n_mult is
-  /// about n_b (docs/performance.md).
-  Eigen::MatrixXd dual_block(const std::vector<BEntry>& b, int nmult) const;
+  /// about n_b (docs/performance.md). Returned packed (lower triangle) in `precision`. The dense
+  /// work arrays (n_b x n_mult and n_mult x n_mult) are kept per thread from one call to the next
+  /// (fresh pages for every subdomain made the setup's kernel time, page faults and the TLB
+  /// flushes of their unmapping, larger than its arithmetic); release_dual_block_work() frees them.
+  PackedSymmetric dual_block(const std::vector<BEntry>& b, int nmult, Precision precision) const;
+  /// Frees the calling thread's work arrays of dual_block().
+  static void release_dual_block_work();
   /// y = K^+ x (x and y of length size(); they may alias). Allocates nothing.
   void apply_pinv(const double* x, double* y);
   /// X = K^+ X for every column of X (size() rows), in place: one multi-column solve, each

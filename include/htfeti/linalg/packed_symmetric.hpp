@@ -25,7 +25,7 @@ class PackedSymmetric {
  public:
   PackedSymmetric() = default;
   /// Packs the lower triangle of A (the upper one is not read).
-  PackedSymmetric(const Eigen::MatrixXd& A, Precision precision);
+  PackedSymmetric(const Eigen::Ref<const Eigen::MatrixXd>& A, Precision precision);
   int size() const { return n_; }
   Precision precision() const { return single_ ? Precision::single : Precision::double_; }
   /// Bytes of the stored values.

@@ -8,6 +8,7 @@
 #include <omp.h>
 
 #include <Eigen/SparseLU>
+#include <cstring>
 #include <map>
 #include <set>
 
@@ -120,6 +121,45 @@ TEST(Energy, ElementwiseFormEqualsTheAssembledMatrix) {
           << spec.mesh_file << " subdomain " << s;
     }
   }
+}
+
+// assemble_stiffness sums the element contributions by column in its own work arrays; the
+// matrix is Eigen's setFromTriplets of the same contributions bit for bit (pattern and values),
+// for every element type and physics, with a coefficient field, and twice in a row on one
+// thread (the kept work arrays), and on a generated box's period-cached element matrices.
+TEST(Assembly, StiffnessIsTheTripletsSummedInElementOrder) {
+  std::vector<ProblemSpec> specs{laplace_plate(), laplace_bracket(), plane_strain_plate(),
+                                 hex8_box()};
+  specs.push_back(plane_strain_plate());
+  specs.back().physics.coefficient = "1 + 100 * (x > 0.5)";
+  int checked = 0;
+  for (auto& spec : specs) {
+    spec.subdomains = std::vector<int>(spec.mesh_file.empty() ? spec.box.dim : 1, 2);
+    if (!spec.mesh_file.empty()) spec.subdomains = {4};
+    const auto model = make_model(spec);
+    for (int s = 0; s < std::min(3, model->num_subdomains()); ++s) {
+      const SubdomainMesh mesh = model->mesh(s);
+      const auto trip = stiffness_triplets(mesh, model->physics());
+      const long n = static_cast<long>(mesh.num_nodes()) * model->physics().dofs_per_node();
+      Eigen::SparseMatrix<double> ref(n, n);
+      ref.setFromTriplets(trip.begin(), trip.end());
+      for (int pass = 0; pass < 2; ++pass) {
+        const Eigen::SparseMatrix<double> K = assemble_stiffness(mesh, model->physics());
+        ASSERT_EQ(K.rows(), n);
+        ASSERT_TRUE(K.isCompressed());
+        ASSERT_EQ(K.nonZeros(), ref.nonZeros()) << spec.mesh_file << " subdomain " << s;
+        EXPECT_TRUE(std::equal(ref.outerIndexPtr(), ref.outerIndexPtr() + n + 1, K.outerIndexPtr()));
+        EXPECT_TRUE(std::equal(ref.innerIndexPtr(), ref.innerIndexPtr() + ref.nonZeros(),
+                               K.innerIndexPtr()));
+        long differ = 0;  // bit for bit: the same sums in the same order
+        for (long k = 0; k < ref.nonZeros(); ++k)
+          differ += std::memcmp(ref.valuePtr() + k, K.valuePtr() + k, sizeof(double)) != 0;
+        EXPECT_EQ(differ, 0) << spec.mesh_file << " subdomain " << s;
+        ++checked;
+      }
+    }
+  }
+  EXPECT_GE(checked, 20);
 }
 
 // The VTU writer places each subdomain's values by Model::mesh_counts: on generated boxes

@@ -117,11 +117,12 @@ void for_each_element_matrix(const SubdomainMesh& mesh, const Physics& ph, Visit
 
 }  // namespace
 
-Eigen::SparseMatrix<double> assemble_stiffness(const SubdomainMesh& mesh, const Physics& ph) {
-  const int nc = cell_nodes(mesh.type), dpn = ph.dofs_per_node(), ne = mesh.num_cells();
-  const int n = mesh.num_nodes() * dpn, ed = nc * dpn;
-  std::vector<Eigen::Triplet<double>> trip;
-  trip.reserve(static_cast<size_t>(ne) * ed * ed);
+namespace {
+
+// Appends the element matrices' nonzero entries to `trip`, cell by cell.
+void append_stiffness_triplets(const SubdomainMesh& mesh, const Physics& ph,
+                               std::vector<Eigen::Triplet<double>>& trip) {
+  const int nc = cell_nodes(mesh.type), dpn = ph.dofs_per_node();
   for_each_element_matrix(mesh, ph, [&](const int* cn, const Eigen::MatrixXd& ke, double scale) {
     for (int a = 0; a < nc; ++a)
       for (int i = 0; i < dpn; ++i)
@@ -131,8 +132,105 @@ Eigen::SparseMatrix<double> assemble_stiffness(const SubdomainMesh& mesh, const 
             if (v != 0.0) trip.emplace_back(cn[a] * dpn + i, cn[b] * dpn + j, v);
           }
   });
+}
+
+// assemble_stiffness's work arrays, kept per thread from one subdomain to the next: fresh pages
+// for every subdomain cost more kernel time than the assembly itself on a VM where page faults
+// are expensive (docs/performance.md, "Fresh pages").
+struct StiffnessWork {
+  std::vector<Eigen::Triplet<double>> trip;
+  std::vector<int> start;  // per column: where its contributions begin in row/value
+  std::vector<int> row;
+  std::vector<double> value;
+  std::vector<std::pair<int, double>> pairs;  // a long column, sorted
+  // Kept only up to this many bytes (large 3D subdomains: freed after each assembly).
+  static constexpr size_t kKeepBytes = size_t{32} << 20;
+  void trim() {
+    const size_t bytes = trip.capacity() * sizeof(trip[0]) + start.capacity() * sizeof(int) +
+                         row.capacity() * sizeof(int) + value.capacity() * sizeof(double) +
+                         pairs.capacity() * sizeof(pairs[0]);
+    if (bytes > kKeepBytes) *this = StiffnessWork();
+  }
+};
+thread_local StiffnessWork stiffness_work;
+
+}  // namespace
+
+std::vector<Eigen::Triplet<double>> stiffness_triplets(const SubdomainMesh& mesh,
+                                                       const Physics& ph) {
+  std::vector<Eigen::Triplet<double>> trip;
+  append_stiffness_triplets(mesh, ph, trip);
+  return trip;
+}
+
+Eigen::SparseMatrix<double> assemble_stiffness(const SubdomainMesh& mesh, const Physics& ph) {
+  const int n = mesh.num_nodes() * ph.dofs_per_node();
+  StiffnessWork& w = stiffness_work;
+  w.trip.clear();
+  append_stiffness_triplets(mesh, ph, w.trip);
+  // The contributions grouped by column, in cell order within each (a counting sort).
+  const size_t nt = w.trip.size();
+  w.start.assign(static_cast<size_t>(n) + 1, 0);
+  for (const auto& t : w.trip) ++w.start[t.col() + 1];
+  for (int c = 0; c < n; ++c) w.start[c + 1] += w.start[c];
+  w.row.resize(nt);
+  w.value.resize(nt);
+  for (const auto& t : w.trip) {
+    const int at = w.start[t.col()]++;
+    w.row[at] = t.row(), w.value[at] = t.value();
+  }
+  for (int c = n; c > 0; --c) w.start[c] = w.start[c - 1];
+  w.start[0] = 0;
+  // Each column: its contributions sorted by row, stably (equal rows stay in cell order), then
+  // the equal rows summed left to right: ((v1 + v2) + v3) ..., the order of setFromTriplets.
+  long nnz = 0;
+  std::vector<int> count(n, 0);
+  for (int c = 0; c < n; ++c) {
+    int* r = w.row.data() + w.start[c];
+    double* v = w.value.data() + w.start[c];
+    const int len = w.start[c + 1] - w.start[c];
+    if (len <= 64) {
+      for (int k = 1; k < len; ++k) {  // insertion sort: stable
+        const int rk = r[k];
+        const double vk = v[k];
+        int q = k;
+        for (; q > 0 && r[q - 1] > rk; --q) r[q] = r[q - 1], v[q] = v[q - 1];
+        r[q] = rk, v[q] = vk;
+      }
+    } else {  // long columns (3D elasticity): a stable sort of (row, value) pairs
+      w.pairs.resize(static_cast<size_t>(len));
+      for (int k = 0; k < len; ++k) w.pairs[k] = {r[k], v[k]};
+      std::stable_sort(w.pairs.begin(), w.pairs.end(),
+                       [](const auto& x, const auto& y) { return x.first < y.first; });
+      for (int k = 0; k < len; ++k) r[k] = w.pairs[k].first, v[k] = w.pairs[k].second;
+    }
+    int unique = 0;
+    for (int k = 0; k < len; ++k) {
+      if (unique > 0 && r[unique - 1] == r[k]) {
+        v[unique - 1] += v[k];
+      } else {
+        r[unique] = r[k], v[unique] = v[k];
+        ++unique;
+      }
+    }
+    count[c] = unique;
+    nnz += unique;
+  }
   Eigen::SparseMatrix<double> K(n, n);
-  K.setFromTriplets(trip.begin(), trip.end());
+  K.makeCompressed();
+  K.resizeNonZeros(nnz);
+  int* outer = K.outerIndexPtr();
+  int* inner = K.innerIndexPtr();
+  double* value = K.valuePtr();
+  long k = 0;
+  outer[0] = 0;
+  for (int c = 0; c < n; ++c) {
+    std::copy_n(w.row.data() + w.start[c], count[c], inner + k);
+    std::copy_n(w.value.data() + w.start[c], count[c], value + k);
+    k += count[c];
+    outer[c + 1] = static_cast<int>(k);
+  }
+  w.trim();
   return K;
 }
 

@@ -62,8 +62,15 @@ struct AssembledSubdomain {
   int parts = 1;                ///< connected parts of the subdomain
 };
 
-/// Stiffness only (for rebuilding K after it was freed).
+/// Stiffness only (for rebuilding K after it was freed): the element matrices' nonzero entries
+/// (stiffness_triplets) summed, for each matrix entry, in element order, so the same matrix bit
+/// for bit as Eigen's setFromTriplets of them (tested); assembled column by column in work arrays
+/// kept per thread, so that only the matrix itself is allocated.
 Eigen::SparseMatrix<double> assemble_stiffness(const SubdomainMesh& mesh, const Physics& physics);
+/// The nonzero entries of every element's stiffness matrix (times the coefficient at its
+/// centroid) as (row, column, value), cell by cell in cell order.
+std::vector<Eigen::Triplet<double>> stiffness_triplets(const SubdomainMesh& mesh,
+                                                       const Physics& physics);
 /// u'K u element by element, without assembling K (the same element matrices and coefficient
 /// as assemble_stiffness; equal to u'(K u) up to the order of the sums). For the energy of the
 /// report once K has been freed; on generated boxes a few element matrices serve all cells.

@@ -317,6 +317,15 @@ int run(int argc, char** argv, const Comm& comm) {
                        "bottom node ends in contact; larger A: partial contact)")
           ->capture_default_str();
   auto* o_ascii = solve_cmd->add_flag("--vtu-ascii", out_opt.vtu_ascii, "write the VTU as ASCII");
+  auto* o_vtu_io =
+      solve_cmd
+          ->add_option("--vtu-io", out_opt.vtu_io,
+                       "how the binary VTU reaches the disk: buffered (through the page cache), "
+                       "direct (whole 4 KiB blocks by direct I/O from the writer's buffers, the "
+                       "rest through the page cache; buffered where the file system refuses "
+                       "it) or auto (direct for a piece of 256 MiB and more)")
+          ->check(CLI::IsMember({"auto", "buffered", "direct"}))
+          ->capture_default_str();
   std::string precision_text = "double";
   auto* o_precision =
       solve_cmd
@@ -420,6 +429,7 @@ int run(int argc, char** argv, const Comm& comm) {
       if (o_report->count()) out_opt.report = o_report->as<std::string>(), out_opt.write_report = true;
       if (o_vtu->count()) out_opt.vtu = o_vtu->as<std::string>(), out_opt.write_vtu = true;
       if (o_ascii->count()) out_opt.vtu_ascii = true;
+      if (o_vtu_io->count()) out_opt.vtu_io = o_vtu_io->as<std::string>();
       opt = from_file;
       validate_solver(opt);
       model = make_model(spec);
@@ -492,8 +502,10 @@ int run(int argc, char** argv, const Comm& comm) {
   if (out_opt.write_vtu) {
     VtuOptions vo;
     vo.ascii = out_opt.vtu_ascii;
+    vo.io = parse_vtu_io(out_opt.vtu_io);
     const auto t0 = std::chrono::steady_clock::now();
-    const std::string where = write_vtu(out_opt.vtu, *out.model, *out.dual, out.u, out.lambda, vo);
+    const VtuWritten written = write_vtu(out_opt.vtu, *out.model, *out.dual, out.u, out.lambda, vo);
+    const std::string& where = written.path;
     const double seconds =
         comm.max(std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
     double bytes = 0;
@@ -505,6 +517,7 @@ int run(int argc, char** argv, const Comm& comm) {
     // The output's cost in the report (written after it): seconds and size of the VTU files.
     out.report["timings"]["output"] = seconds;
     out.report["output_mb"] = bytes / 1048576.0;
+    out.report["output_io"] = written.io;  // (rank 0's piece)
     if (comm.rank() == 0)
       std::printf("  solution: %s (%.0f MB in %.2f s)\n", where.c_str(), bytes / 1048576.0, seconds);
   }

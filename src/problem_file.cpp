@@ -438,7 +438,7 @@ ProblemSpec read_problem_file(const std::string& path, SolveOptions& solver, Out
     }
   }
   if (const toml::table* o = table_of(root, "output", false)) {
-    check_keys(*o, "output", {"report", "vtu", "vtu_ascii"});
+    check_keys(*o, "output", {"report", "vtu", "vtu_ascii", "vtu_io"});
     for (const char* key : {"report", "vtu"}) {
       const toml::node* n = o->get(key);
       if (!n) continue;
@@ -455,6 +455,9 @@ ProblemSpec read_problem_file(const std::string& path, SolveOptions& solver, Out
       }
     }
     output.vtu_ascii = get_bool(*o, "output", "vtu_ascii", output.vtu_ascii);
+    output.vtu_io = get_string(*o, "output", "vtu_io", output.vtu_io);
+    if (output.vtu_io != "auto" && output.vtu_io != "buffered" && output.vtu_io != "direct")
+      bad("output.vtu_io", "must be \"auto\", \"buffered\" or \"direct\", not \"" + output.vtu_io + "\"");
   }
   return spec;
 }

@@ -221,6 +221,7 @@ TEST_F(Cli, ProblemFileRunsAndCommandLineOverridesIt) {
   EXPECT_EQ(r["clusters"], 1);
   EXPECT_GT(r["inequalities"].get<int>(), 0);
   EXPECT_TRUE(fs::exists("u.vtu"));
+  EXPECT_EQ(r["output_io"], "buffered");  // a small piece: --vtu-io auto writes through the cache
   ASSERT_EQ(run(bin + " solve good.toml --subdomains 4,2 -m 1 --report r2.json --no-vtu"), 0);
   std::ifstream f2("r2.json");
   const auto r2 = nlohmann::json::parse(f2);
@@ -258,6 +259,7 @@ TEST_F(Cli, BadProblemFilesExitWithCode2NamingTheKeyAndWriteNothing) {
       {with("type = \"laplace\"", "type = \"laplace\"\ncoefficient = \"q\""), "physics.coefficient"},
       {with("type = \"laplace\"", "type = \"laplace\"\ncoefficient = \"x - 0.5\""),
        "physics.coefficient must be positive"},
+      {with("[solver]", "[output]\nvtu_io = \"fast\"\n[solver]"), "output.vtu_io"},
   };
   int i = 0;
   for (const auto& [text, needle] : cases) {
@@ -273,7 +275,7 @@ TEST_F(Cli, BadProblemFilesExitWithCode2NamingTheKeyAndWriteNothing) {
   write_file("good.toml", kGood);
   const char* bad_args[] = {"--subdomains 0x2,2", "--subdomains ' 2,2'", "--subdomains 2,-2",
                             "--report ''",        "--report nodir/r.json", "--report .",
-                            "--vtu r.json --report r.json"};
+                            "--vtu r.json --report r.json", "--vtu-io fast"};
   for (const char* a : bad_args) {
     EXPECT_EQ(run(bin + " solve good.toml " + a), 2) << a;
     EXPECT_TRUE(outputs().empty()) << a;

@@ -183,8 +183,61 @@ CASES = [
     ("bracket (Gmsh tet4, 3D elasticity), 2 ranks", [os.path.join(EXAMPLES, "bracket.toml")], 2),
 ]
 
+
+
+def direct_io_supported(directory):
+    try:
+        fd = os.open(os.path.join(directory, "probe"), os.O_WRONLY | os.O_CREAT | os.O_DIRECT)
+    except OSError:
+        return False
+    os.close(fd)
+    return True
+
+
+def same_bytes_both_ways(name, args, ranks):
+    """--vtu-io direct (whole blocks by direct I/O from each thread's contiguous run of
+    subdomains, the partial blocks through the page cache) writes the same bytes as buffered
+    writes, on 1 to 3 threads, and says so in the report (where the file system allows it)."""
+    print(f"{name}: --vtu-io buffered / direct, htfeti solve {' '.join(args)} ({ranks} ranks)")
+    files = {}
+    with tempfile.TemporaryDirectory() as d:
+        direct_ok = direct_io_supported(d)
+        for io, threads in (("buffered", 1), ("direct", 1), ("direct", 2), ("direct", 3)):
+            out = os.path.join(d, f"{io}{threads}")
+            os.mkdir(out)
+            vtu = os.path.join(out, "u.pvtu" if ranks > 1 else "u.vtu")
+            report_file = os.path.join(out, "r.json")
+            cmd = [HTFETI, "solve", *args, "--report", report_file, "--vtu", vtu, "--vtu-io", io]
+            if ranks > 1:
+                cmd = [MPIEXEC, "-n", str(ranks), *FLAGS, *cmd]
+            env = dict(os.environ, OMP_NUM_THREADS=str(threads))
+            done = subprocess.run(cmd, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
+                                  text=True)
+            if not check(done.returncode == 0, f"{name} {io}: exit {done.returncode}: {done.stderr}"):
+                return
+            with open(report_file) as f:
+                used = json.load(f)["output_io"]
+            expected = io if io == "buffered" or direct_ok else "buffered"
+            check(used == expected, f"{name} {io}: the report says {used}, expected {expected}")
+            files[(io, threads)] = {n: open(os.path.join(out, n), "rb").read()
+                                    for n in sorted(os.listdir(out)) if "vtu" in n}
+        grid, messages = read(os.path.join(d, "direct2", "u.pvtu" if ranks > 1 else "u.vtu"))
+        check(not messages and grid.GetNumberOfPoints() > 0,
+              f"{name}: the direct output is not readable: {messages}")
+    ref = files[("buffered", 1)]
+    size = sum(len(b) for b in ref.values())
+    for key, got in files.items():
+        check(got == ref, f"{name}: {key[0]} on {key[1]} threads differs from buffered")
+    print(f"  {size} bytes, the same in all four runs (direct I/O {'used' if direct_ok else 'refused here'})")
+
+
 for case in CASES:
     run_case(*case)
+same_bytes_both_ways("poisson2d, 3 MB piece", ["--problem", "poisson2d", "-n", "400",
+                                               "--subdomains", "8", "-m", "2", "--rtol", "1e-8"], 1)
+same_bytes_both_ways("membranes (contact), 2 ranks",
+                     ["--problem", "membranes", "-n", "160", "--subdomains", "8", "-m", "2",
+                      "--rtol", "1e-8"], 2)
 if failures:
     print(f"{len(failures)} check(s) failed")
     sys.exit(1)

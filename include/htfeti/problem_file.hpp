@@ -20,7 +20,8 @@
 //   [solver]      rtol, max_iterations, ordering, dual_operator, keep_factors, preconditioner,
 //                 scaling, dirichlet_storage, explicit_precision, norm_estimate, rho_factor,
 //                 M0_factor, eta_factor, beta, gamma, progress
-//   [output]      report = "file" | false, vtu = "file" | false, vtu_ascii = bool
+//   [output]      report = "file" | false, vtu = "file" | false, vtu_ascii = bool,
+//                 vtu_io = "auto" | "buffered" | "direct"
 #pragma once
 
 #include <array>
@@ -42,6 +43,7 @@ struct OutputOptions {
   bool write_report = true;
   bool write_vtu = true;
   bool vtu_ascii = false;
+  std::string vtu_io = "auto";  ///< auto | buffered | direct (VtuIo)
 };
 
 struct ProblemSpec {

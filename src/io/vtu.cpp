@@ -1,9 +1,14 @@
 #include "htfeti/io/vtu.hpp"
 
 #include <fcntl.h>
+#include <omp.h>
 #include <unistd.h>
 
+#include <algorithm>
+#include <cerrno>
 #include <cstdint>
+#include <cstdlib>
+#include <cstring>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -117,6 +122,81 @@ void write_ascii_piece(const std::string& file, long points, long cells,
   if (o.fail()) throw std::runtime_error("error while closing " + file);
 }
 
+// One thread's values of one array: the contiguous byte range [begin, end) of the file, appended
+// in order. The 4 KiB blocks wholly inside the range go to the file by direct I/O from an
+// aligned staging buffer, a MiB at a time; the bytes before the range's first block boundary and
+// after its last lie in blocks shared with the neighbouring ranges and are written through the
+// page cache (`fd`), as is everything when the direct write is refused (EINVAL).
+class DirectStream {
+ public:
+  static constexpr std::uint64_t kBlock = 4096, kStage = std::uint64_t{1} << 20;
+  DirectStream(int fd, int dfd, std::uint64_t begin, std::uint64_t end)
+      : fd_(fd), dfd_(dfd), pos_(begin), end_(end) {
+    lo_ = (begin + kBlock - 1) / kBlock * kBlock;
+    hi_ = end / kBlock * kBlock;
+    if (hi_ <= lo_) lo_ = hi_ = end;  // no whole block: all through the page cache
+    stage_at_ = lo_;
+  }
+  DirectStream(DirectStream&& o) noexcept
+      : fd_(o.fd_), dfd_(o.dfd_), pos_(o.pos_), end_(o.end_), lo_(o.lo_), hi_(o.hi_),
+        stage_at_(o.stage_at_), fill_(o.fill_), stage_(o.stage_) {
+    o.stage_ = nullptr;
+  }
+  DirectStream(const DirectStream&) = delete;
+  ~DirectStream() { std::free(stage_); }
+
+  void append(const char* data, size_t n) {
+    if (pos_ + n > end_) throw std::logic_error("VTU: a piece's values overrun their range");
+    while (n > 0) {
+      if (pos_ < lo_ || pos_ >= hi_) {  // a partial block at either end
+        const size_t k = static_cast<size_t>(std::min<std::uint64_t>(n, (pos_ < lo_ ? lo_ : end_) - pos_));
+        buffered(data, k, pos_);
+        data += k, n -= k, pos_ += k;
+        continue;
+      }
+      if (!stage_) {
+        stage_ = static_cast<char*>(std::aligned_alloc(kBlock, kStage));
+        if (!stage_) throw std::bad_alloc();
+      }
+      const size_t k = static_cast<size_t>(std::min<std::uint64_t>({n, kStage - fill_, hi_ - pos_}));
+      std::memcpy(stage_ + fill_, data, k);
+      fill_ += k, data += k, n -= k, pos_ += k;
+      if (fill_ == kStage || pos_ == hi_) flush();
+    }
+  }
+  void finish() {
+    if (pos_ != end_) throw std::logic_error("VTU: a piece's values fall short of their range");
+  }
+
+ private:
+  void buffered(const char* data, size_t n, std::uint64_t at) {
+    while (n > 0) {
+      const ssize_t w = ::pwrite(fd_, data, n, static_cast<off_t>(at));
+      if (w <= 0) throw std::runtime_error("error while writing the VTU (disk full?)");
+      data += w, n -= static_cast<size_t>(w), at += static_cast<std::uint64_t>(w);
+    }
+  }
+  void flush() {  // fill_ is a whole number of blocks here
+    size_t done = 0;
+    while (done < fill_) {
+      const ssize_t w = ::pwrite(dfd_, stage_ + done, fill_ - done,
+                                 static_cast<off_t>(stage_at_ + done));
+      if (w < 0 && errno == EINVAL) {  // direct I/O refused here: the page cache
+        buffered(stage_ + done, fill_ - done, stage_at_ + done);
+        break;
+      }
+      if (w <= 0) throw std::runtime_error("error while writing the VTU (disk full?)");
+      done += static_cast<size_t>(w);
+    }
+    stage_at_ += fill_;
+    fill_ = 0;
+  }
+  int fd_, dfd_;
+  std::uint64_t pos_, end_, lo_ = 0, hi_ = 0, stage_at_ = 0;
+  size_t fill_ = 0;
+  char* stage_ = nullptr;
+};
+
 }  // namespace
 
 std::vector<std::string> vtu_files(const std::string& path, int ranks) {
@@ -127,9 +207,23 @@ std::vector<std::string> vtu_files(const std::string& path, int ranks) {
   return f;
 }
 
-std::string write_vtu(const std::string& path, const Model& model, DualProblem& dual,
-                      const std::vector<Eigen::VectorXd>& u, const Eigen::VectorXd& lambda,
-                      const VtuOptions& options) {
+VtuIo parse_vtu_io(const std::string& name) {
+  if (name == "auto") return VtuIo::automatic;
+  if (name == "buffered") return VtuIo::buffered;
+  if (name == "direct") return VtuIo::direct;
+  throw std::invalid_argument("unknown VTU output mode '" + name +
+                              "' (expected auto, buffered or direct)");
+}
+
+std::string to_string(VtuIo io) {
+  return io == VtuIo::automatic ? "auto" : io == VtuIo::buffered ? "buffered" : "direct";
+}
+
+VtuWritten write_vtu(const std::string& path, const Model& model, DualProblem& dual,
+                     const std::vector<Eigen::VectorXd>& u, const Eigen::VectorXd& lambda,
+                     const VtuOptions& options) {
+  VtuWritten written;
+  written.io = options.ascii ? "ascii" : "buffered";
   const Comm& comm = dual.comm();
   const auto files = vtu_files(path, comm.size());
   const std::string piece = comm.size() == 1 ? files[0] : files[1 + comm.rank()];
@@ -301,30 +395,77 @@ std::string write_vtu(const std::string& path, const Model& model, DualProblem& 
       }
       const std::string tail = "\n</AppendedData>\n</VTKFile>\n";
       put(tail.data(), tail.size(), at);
+      // Direct I/O: the same file opened a second time with O_DIRECT (refused by some file
+      // systems, tmpfs for one: then everything goes through `fd`).
+      const bool want_direct =
+          options.io == VtuIo::direct ||
+          (options.io == VtuIo::automatic && static_cast<double>(at) >= VtuOptions::kDirectMinBytes);
+      const int dfd = want_direct ? ::open(piece_tmp.c_str(), O_WRONLY | O_DIRECT) : -1;
+      if (dfd >= 0) written.io = "direct";
+      // One subdomain's values, checked against the counted sizes.
+      auto fill_checked = [&](int i, Buffers& b) {
+        b.clear();
+        const SubdomainMesh m = model.mesh(subs[i]->id());
+        if (m.num_nodes() != nodes[i + 1] - nodes[i] || m.num_cells() != cells[i + 1] - cells[i] ||
+            static_cast<std::int64_t>(m.cells.size()) != corners[i + 1] - corners[i])
+          throw std::logic_error("VTU: the mesh of subdomain " + std::to_string(m.id) +
+                                 " differs from its counted size");
+        std::int64_t off = corners[i];
+        fill(static_cast<size_t>(i), m, nodes[i], off, b);
+        if (narrow) b.narrow();
+      };
+      if (dfd < 0) {
+        // Threads take subdomains and write each array's values to their places.
 #pragma omp parallel
-      {
-        Buffers b;
+        {
+          Buffers b;
 #pragma omp for schedule(dynamic)
-        for (int i = 0; i < ns; ++i) {
-          try {
-            b.clear();
-            const SubdomainMesh m = model.mesh(subs[i]->id());
-            if (m.num_nodes() != nodes[i + 1] - nodes[i] || m.num_cells() != cells[i + 1] - cells[i] ||
-                static_cast<std::int64_t>(m.cells.size()) != corners[i + 1] - corners[i])
-              throw std::logic_error("VTU: the mesh of subdomain " + std::to_string(m.id) +
-                                     " differs from its counted size");
-            std::int64_t off = corners[i];
-            fill(static_cast<size_t>(i), m, nodes[i], off, b);
-            if (narrow) b.narrow();
-            for (size_t k = 0; k < arrays.size(); ++k) {
-              const auto [data, n] = bytes_of(*arrays[k], b);
-              put(data, n, start[k] + item[k] * static_cast<std::uint64_t>((*index[k])[i]));
+          for (int i = 0; i < ns; ++i) {
+            try {
+              fill_checked(i, b);
+              for (size_t k = 0; k < arrays.size(); ++k) {
+                const auto [data, n] = bytes_of(*arrays[k], b);
+                put(data, n, start[k] + item[k] * static_cast<std::uint64_t>((*index[k])[i]));
+              }
+            } catch (const std::exception& e) {
+#pragma omp critical
+              werr = e.what();
             }
+          }
+        }
+      } else {
+        // Each thread takes a contiguous run of subdomains (split by points), so that its values
+        // of each array are one contiguous range of the file, appended in subdomain order.
+#pragma omp parallel
+        {
+          const int nt = omp_get_num_threads(), t = omp_get_thread_num();
+          auto split = [&](int part) {  // the first subdomain of thread `part`
+            return static_cast<int>(std::lower_bound(nodes.begin(), nodes.end() - 1,
+                                                     P * part / nt) - nodes.begin());
+          };
+          const int lo = split(t), hi = t + 1 == nt ? ns : split(t + 1);
+          try {
+            std::vector<DirectStream> streams;
+            streams.reserve(arrays.size());
+            for (size_t k = 0; k < arrays.size(); ++k)
+              streams.emplace_back(fd, dfd,
+                                   start[k] + item[k] * static_cast<std::uint64_t>((*index[k])[lo]),
+                                   start[k] + item[k] * static_cast<std::uint64_t>((*index[k])[hi]));
+            Buffers b;
+            for (int i = lo; i < hi; ++i) {
+              fill_checked(i, b);
+              for (size_t k = 0; k < arrays.size(); ++k) {
+                const auto [data, n] = bytes_of(*arrays[k], b);
+                streams[k].append(data, n);
+              }
+            }
+            for (auto& s : streams) s.finish();
           } catch (const std::exception& e) {
 #pragma omp critical
             werr = e.what();
           }
         }
+        ::close(dfd);
       }
       if (::close(fd) != 0 && werr.empty()) werr = "error while closing " + piece;
       if (!werr.empty()) throw std::runtime_error(werr);
@@ -368,7 +509,8 @@ std::string write_vtu(const std::string& path, const Model& model, DualProblem& 
   if (!ec && comm.rank() == 0 && comm.size() > 1)
     std::filesystem::rename(temp_name(files[0]), files[0], ec);
   comm.agree(ec ? "cannot rename the output to " + piece + ": " + ec.message() : "");
-  return files[0];
+  written.path = files[0];
+  return written;
 }
 
 }  // namespace htfeti

@@ -19,15 +19,31 @@
 
 namespace htfeti {
 
+/// How the binary pieces reach the file. buffered: positioned writes through the page cache.
+/// direct: the whole 4 KiB blocks of the data by direct I/O (O_DIRECT: from the writer's own
+/// staging buffers to the disk, no page cache pages to allocate and fill), the partial blocks
+/// where two subdomains' values meet through the page cache; a file system that refuses direct
+/// I/O gets buffered writes. automatic: direct for pieces of kDirectMinBytes and more.
+enum class VtuIo { automatic, buffered, direct };
+VtuIo parse_vtu_io(const std::string& name);  // auto | buffered | direct; std::invalid_argument
+std::string to_string(VtuIo io);
+
 struct VtuOptions {
   bool ascii = false;
+  VtuIo io = VtuIo::automatic;
+  static constexpr double kDirectMinBytes = 256.0 * (1 << 20);
+};
+
+struct VtuWritten {
+  std::string path;  ///< the main file (.vtu or .pvtu)
+  std::string io;    ///< how this rank's piece was written: "ascii", "buffered" or "direct"
 };
 
 /// The file names that write_vtu would write (the .vtu, or the .pvtu and its pieces).
 std::vector<std::string> vtu_files(const std::string& path, int ranks);
 
 /// Writes the solution; returns the path of the main file (.vtu or .pvtu). Collective.
-std::string write_vtu(const std::string& path, const Model& model, DualProblem& dual,
+VtuWritten write_vtu(const std::string& path, const Model& model, DualProblem& dual,
                       const std::vector<Eigen::VectorXd>& u, const Eigen::VectorXd& lambda,
                       const VtuOptions& options = {});
 

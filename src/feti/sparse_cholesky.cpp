@@ -43,8 +43,9 @@ cholmod_sparse upper_view(Eigen::SparseMatrix<double>& upper) {
 }
 }  // namespace
 
-// What the holders of one cached numeric factor (the entry and the factorizations of equal matrices) share: S^{-1},
-// computed by the first that asks (SparseCholesky::schur_inverse), and the solves done so far.
+// What the holders of one cached numeric factor (the entry and the factorizations of equal
+// matrices) share besides the factor: S^{-1}, computed by the first that asks
+// (SparseCholesky::schur_inverse), and the solves done so far.
 struct SharedFactor {
   std::mutex mutex;
   std::shared_ptr<const SparseCholesky::SchurInverse> value;
@@ -228,7 +229,12 @@ void SparseCholesky::factorize_impl(const Eigen::SparseMatrix<double>& A,
     e->i.assign(upper.innerIndexPtr(), upper.innerIndexPtr() + nnz);
     e->last = last_sorted;
     if (numeric) {
-      if (!impl_->shared) impl_->shared = share_factor(impl_->factor);
+      if (!impl_->shared) {  // (should share_factor throw, its deleter has freed the factor)
+        cholmod_factor* own = impl_->factor;
+        impl_->factor = nullptr;
+        impl_->shared = share_factor(own);
+        impl_->factor = impl_->shared.get();
+      }
       e->numeric = impl_->shared;
     } else {
       e->L = cholmod_copy_factor(impl_->factor, &e->common);

@@ -96,7 +96,8 @@ PackedSymmetric Subdomain::dual_block(const std::vector<BEntry>& b, int nmult,
   // (K_rr^{-1}) on the interface is S^{-1} = (L_s L_s^T)^{-1} (SparseCholesky::schur_inverse:
   // LAPACK's dpotri, 2/3 n_b^3 flops).
   // W = S^{-1} B_i^T (one column per multiplier: n_b flops per entry of B_i), then the lower
-  // half of F_i = B_i W (n_mult flops per entry), mirrored.
+  // half of F_i = B_i W (n_mult flops per entry), packed. W and F live in this thread's work
+  // arrays (DualBlockWork), which keep their pages from one subdomain to the next.
   DualBlockWork& work = dual_block_work;
   work.w.assign(static_cast<size_t>(nb) * nmult, 0.0);
   work.f.assign(static_cast<size_t>(nmult) * nmult, 0.0);

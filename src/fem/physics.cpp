@@ -140,6 +140,7 @@ void append_stiffness_triplets(const SubdomainMesh& mesh, const Physics& ph,
 struct StiffnessWork {
   std::vector<Eigen::Triplet<double>> trip;
   std::vector<int> start;  // per column: where its contributions begin in row/value
+  std::vector<int> count;  // per column: its distinct rows, once summed
   std::vector<int> row;
   std::vector<double> value;
   std::vector<std::pair<int, double>> pairs;  // a long column, sorted
@@ -148,6 +149,7 @@ struct StiffnessWork {
   void trim() {
     const size_t bytes = trip.capacity() * sizeof(trip[0]) + start.capacity() * sizeof(int) +
                          row.capacity() * sizeof(int) + value.capacity() * sizeof(double) +
+                         count.capacity() * sizeof(int) +
                          pairs.capacity() * sizeof(pairs[0]);
     if (bytes > kKeepBytes) *this = StiffnessWork();
   }
@@ -184,7 +186,8 @@ Eigen::SparseMatrix<double> assemble_stiffness(const SubdomainMesh& mesh, const 
   // Each column: its contributions sorted by row, stably (equal rows stay in cell order), then
   // the equal rows summed left to right: ((v1 + v2) + v3) ..., the order of setFromTriplets.
   long nnz = 0;
-  std::vector<int> count(n, 0);
+  std::vector<int>& count = w.count;
+  count.assign(static_cast<size_t>(n), 0);
   for (int c = 0; c < n; ++c) {
     int* r = w.row.data() + w.start[c];
     double* v = w.value.data() + w.start[c];

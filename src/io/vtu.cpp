@@ -12,6 +12,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <memory>
 #include <sstream>
 #include <stdexcept>
 
@@ -122,6 +123,17 @@ void write_ascii_piece(const std::string& file, long points, long cells,
   if (o.fail()) throw std::runtime_error("error while closing " + file);
 }
 
+// Writes n bytes at `at` with positioned writes (a write may take less than asked); false on an
+// error (disk full, I/O error).
+bool write_all(int fd, const char* data, size_t n, std::uint64_t at) {
+  while (n > 0) {
+    const ssize_t w = ::pwrite(fd, data, n, static_cast<off_t>(at));
+    if (w <= 0) return false;
+    data += w, n -= static_cast<size_t>(w), at += static_cast<std::uint64_t>(w);
+  }
+  return true;
+}
+
 // One thread's values of one array: the contiguous byte range [begin, end) of the file, appended
 // in order. The 4 KiB blocks wholly inside the range go to the file by direct I/O from an
 // aligned staging buffer, a MiB at a time; the bytes before the range's first block boundary and
@@ -137,13 +149,6 @@ class DirectStream {
     if (hi_ <= lo_) lo_ = hi_ = end;  // no whole block: all through the page cache
     stage_at_ = lo_;
   }
-  DirectStream(DirectStream&& o) noexcept
-      : fd_(o.fd_), dfd_(o.dfd_), pos_(o.pos_), end_(o.end_), lo_(o.lo_), hi_(o.hi_),
-        stage_at_(o.stage_at_), fill_(o.fill_), stage_(o.stage_) {
-    o.stage_ = nullptr;
-  }
-  DirectStream(const DirectStream&) = delete;
-  ~DirectStream() { std::free(stage_); }
 
   void append(const char* data, size_t n) {
     if (pos_ + n > end_) throw std::logic_error("VTU: a piece's values overrun their range");
@@ -155,11 +160,11 @@ class DirectStream {
         continue;
       }
       if (!stage_) {
-        stage_ = static_cast<char*>(std::aligned_alloc(kBlock, kStage));
+        stage_.reset(static_cast<char*>(std::aligned_alloc(kBlock, kStage)));
         if (!stage_) throw std::bad_alloc();
       }
       const size_t k = static_cast<size_t>(std::min<std::uint64_t>({n, kStage - fill_, hi_ - pos_}));
-      std::memcpy(stage_ + fill_, data, k);
+      std::memcpy(stage_.get() + fill_, data, k);
       fill_ += k, data += k, n -= k, pos_ += k;
       if (fill_ == kStage || pos_ == hi_) flush();
     }
@@ -170,19 +175,16 @@ class DirectStream {
 
  private:
   void buffered(const char* data, size_t n, std::uint64_t at) {
-    while (n > 0) {
-      const ssize_t w = ::pwrite(fd_, data, n, static_cast<off_t>(at));
-      if (w <= 0) throw std::runtime_error("error while writing the VTU (disk full?)");
-      data += w, n -= static_cast<size_t>(w), at += static_cast<std::uint64_t>(w);
-    }
+    if (!write_all(fd_, data, n, at))
+      throw std::runtime_error("error while writing the VTU (disk full?)");
   }
   void flush() {  // fill_ is a whole number of blocks here
     size_t done = 0;
     while (done < fill_) {
-      const ssize_t w = ::pwrite(dfd_, stage_ + done, fill_ - done,
+      const ssize_t w = ::pwrite(dfd_, stage_.get() + done, fill_ - done,
                                  static_cast<off_t>(stage_at_ + done));
       if (w < 0 && errno == EINVAL) {  // direct I/O refused here: the page cache
-        buffered(stage_ + done, fill_ - done, stage_at_ + done);
+        buffered(stage_.get() + done, fill_ - done, stage_at_ + done);
         break;
       }
       if (w <= 0) throw std::runtime_error("error while writing the VTU (disk full?)");
@@ -194,7 +196,10 @@ class DirectStream {
   int fd_, dfd_;
   std::uint64_t pos_, end_, lo_ = 0, hi_ = 0, stage_at_ = 0;
   size_t fill_ = 0;
-  char* stage_ = nullptr;
+  struct Free {
+    void operator()(char* p) const { std::free(p); }
+  };
+  std::unique_ptr<char[], Free> stage_;  // aligned_alloc'd, kStage bytes, made on first use
 };
 
 }  // namespace
@@ -375,14 +380,9 @@ VtuWritten write_vtu(const std::string& path, const Model& model, DualProblem& d
       if (fd < 0) throw std::runtime_error("cannot write " + piece_tmp);
       std::string werr;
       auto put = [&](const char* data, size_t n, std::uint64_t at) {
-        while (n > 0) {
-          const ssize_t w = ::pwrite(fd, data, n, static_cast<off_t>(at));
-          if (w <= 0) {
+        if (!write_all(fd, data, n, at)) {
 #pragma omp critical
-            werr = "error while writing " + piece + " (disk full?)";
-            return;
-          }
-          data += w, n -= static_cast<size_t>(w), at += static_cast<std::uint64_t>(w);
+          werr = "error while writing " + piece + " (disk full?)";
         }
       };
       put(head.data(), head.size(), 0);

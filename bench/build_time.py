@@ -3,8 +3,11 @@
 the tests): the Release build of everything, and the sanitizer build of the suites that
 scripts/sanitize.sh runs, each configured from scratch in a temporary directory.
 
-Usage: bench/build_time.py [--configs release sanitize] [--unity off on] [--debug-info g1 g]
-                           [--out build_time.json]
+Usage: bench/build_time.py [--configs release sanitize] [--generators Ninja "Unix Makefiles"]
+                           [--unity off on] [--debug-info g1 g] [--out build_time.json]
+--generators: CMake's generator (scripts/configure.sh uses Ninja: Make does not compile a
+target's sources until the libraries it links are built, so one core idles while the library's
+slowest file compiles).
 --unity: CMake's unity build (CMAKE_UNITY_BUILD, sources compiled in batches of 8 per
 translation unit; htfeti's own build does not use it: it gave nothing, docs/method.md "Build").
 --debug-info: the sanitizer build's -g level (-g1: line tables, what the sanitizers' stack
@@ -30,10 +33,11 @@ def sanitize_flags(debug):
             "-fno-sanitize-recover=undefined")
 
 
-def build(config, unity, debug, jobs):
+def build(config, generator, unity, debug, jobs):
     work = tempfile.mkdtemp(prefix="htfeti-build-")
     try:
-        cmake = ["cmake", "-S", ROOT, "-B", work, f"-DCMAKE_UNITY_BUILD={unity.upper()}"]
+        cmake = ["cmake", "-G", generator, "-S", ROOT, "-B", work,
+                 f"-DCMAKE_UNITY_BUILD={unity.upper()}"]
         if config == "release":
             cmake.append("-DCMAKE_BUILD_TYPE=Release")
             targets = []
@@ -47,7 +51,7 @@ def build(config, unity, debug, jobs):
         subprocess.run(["cmake", "--build", work, "-j", str(jobs)] + targets, check=True,
                        stdout=subprocess.DEVNULL)
         wall = time.perf_counter() - t0
-        return {"config": config, "unity": unity, "debug_info": debug if config == "sanitize"
+        return {"config": config, "generator": generator, "unity": unity, "debug_info": debug if config == "sanitize"
                 else None, "jobs": jobs, "wall_s": round(wall, 1),
                 "steal_fraction": steal_fraction(c0, cpu_times())}
     finally:
@@ -58,22 +62,24 @@ def main():
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--configs", nargs="+", default=["release", "sanitize"],
                    choices=["release", "sanitize"])
+    p.add_argument("--generators", nargs="+", default=["Ninja"],
+                   choices=["Ninja", "Unix Makefiles"])
     p.add_argument("--unity", nargs="+", default=["off"], choices=["on", "off"])
     p.add_argument("--debug-info", nargs="+", default=["g1"], choices=["g1", "g"])
     p.add_argument("--jobs", type=int, default=os.cpu_count())
     p.add_argument("--out", default="build_time.json")
     a = p.parse_args()
     runs = []
-    print("| config | unity | -g | wall s | steal |")
-    print("|---|---|---|---:|---:|")
-    for config in a.configs:
-        for unity in a.unity:
-            for debug in (a.debug_info if config == "sanitize" else [None]):
-                r = build(config, unity, debug or "g1", a.jobs)
-                runs.append(r)
-                steal = r["steal_fraction"]
-                print(f"| {config} | {unity} | {r['debug_info'] or '-'} | {r['wall_s']} | "
-                      f"{'-' if steal is None else f'{steal:.2f}'} |", flush=True)
+    print("| config | generator | unity | -g | wall s | steal |")
+    print("|---|---|---|---|---:|---:|")
+    combos = [(c, g, u, d) for c in a.configs for g in a.generators for u in a.unity
+              for d in (a.debug_info if c == "sanitize" else [None])]
+    for config, generator, unity, debug in combos:
+        r = build(config, generator, unity, debug or "g1", a.jobs)
+        runs.append(r)
+        steal = r["steal_fraction"]
+        print(f"| {config} | {generator} | {unity} | {r['debug_info'] or '-'} | "
+              f"{r['wall_s']} | {'-' if steal is None else f'{steal:.2f}'} |", flush=True)
     commit = subprocess.run(["git", "-C", ROOT, "rev-parse", "--short", "HEAD"],
                             capture_output=True, text=True).stdout.strip()
     print(save(a.out, {"command": "bench/build_time.py", "commit": commit, "runs": runs}))

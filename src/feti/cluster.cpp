@@ -32,16 +32,19 @@ std::string to_string(DualOperator kind) {
 
 namespace {
 
-// An orthonormal basis of Null(A) (A is O(1): orthonormal rows times orthonormal columns).
+// An orthonormal basis of Null(A) (A is O(1): orthonormal rows times orthonormal columns): the
+// trailing columns of Q in the column-pivoted QR of A^T, whose leading columns span the row space
+// of A. (A rank-revealing QR rather than an SVD: the caller makes the basis canonical, so only the
+// subspace matters, and Eigen's SVDs cost a minute of compile time per build.)
 Eigen::MatrixXd null_space(const Eigen::MatrixXd& A) {
   const int n = static_cast<int>(A.cols());
   if (A.rows() == 0) return Eigen::MatrixXd::Identity(n, n);
-  Eigen::BDCSVD<Eigen::MatrixXd> svd(A, Eigen::ComputeFullV);
-  const auto& sv = svd.singularValues();
+  const Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qr(A.transpose());
+  const Eigen::VectorXd r = qr.matrixR().diagonal().cwiseAbs();  // non-increasing
   int rank = 0;
-  for (int i = 0; i < sv.size(); ++i)
-    if (sv[i] > 1e-9) ++rank;
-  return svd.matrixV().rightCols(n - rank);
+  while (rank < r.size() && r[rank] > 1e-9) ++rank;
+  const Eigen::MatrixXd Q = qr.householderQ();
+  return Q.rightCols(n - rank);
 }
 
 }  // namespace

@@ -1,0 +1,14 @@
+#!/usr/bin/env bash
+# Configures a build directory with the Ninja generator: scripts/configure.sh BUILD_DIR [cmake
+# arguments]. A directory configured earlier with another generator (Make) is emptied first,
+# since CMake cannot switch generators in place.
+set -euo pipefail
+here=$(cd "$(dirname "$0")/.." && pwd)
+build=$1
+shift
+cache=$build/CMakeCache.txt
+if [ -f "$cache" ] && ! grep -q '^CMAKE_GENERATOR:INTERNAL=Ninja$' "$cache"; then
+  echo "configure: $build was configured with another generator; reconfiguring it with Ninja"
+  rm -rf "$build"
+fi
+cmake -G Ninja -S "$here" -B "$build" "$@" >/dev/null

@@ -84,6 +84,27 @@ MemoryEstimate estimate_memory(const Model& model, const FetiOptions& options, c
   const double f_bytes = static_cast<double>(sample.symbolic_factor_bytes(ordering));
   e.matrices_mb = std::max(e.matrices_mb, k_bytes / n * unknowns / kMiB);
   e.factors_mb = std::max(e.factors_mb, f_bytes / n * unknowns / kMiB);
+  // Equal subdomains share a factor (SymbolicCache): a generated box gives every subdomain the
+  // same element matrices, so with one material the implicit operator's matrices are equal up
+  // to a few position classes, counted as 3^dim (measured: 3 on the cube-obstacle). The
+  // explicit operator's factors order each subdomain's interface last, which differs with its
+  // Dirichlet and contact rows: counted one per subdomain (they are released as memory runs
+  // short).
+  const bool shareable = !is_explicit && options.symbolic_cache_patterns > 0 &&
+                         options.numeric_cache_bytes > 0 && ph.coefficient.empty() &&
+                         model.mesh(s0).uniform_period > 0;
+  if (shareable) {
+    const double classes = std::pow(3.0, layout.dim);
+    const double kept = std::min(classes, std::floor(options.numeric_cache_bytes / f_bytes));
+    // The cache keeps a factor from the second subdomain of a pattern on; the first holds its
+    // own. Classes the cache cannot hold: a factor per subdomain.
+    const double copies =
+        std::min(subdomains, 2.0 * kept + subdomains * (classes - kept) / classes);
+    if (copies < subdomains) {
+      e.factors_mb = f_bytes * copies / kMiB;
+      e.shared_factors = copies;
+    }
+  }
   e.factors_held_mb = e.factors_mb;
   if (is_explicit) {
     e.explicit_mb = explicit_bytes / kMiB;
@@ -98,7 +119,8 @@ MemoryEstimate estimate_memory(const Model& model, const FetiOptions& options, c
         largest = std::max(largest, layout.cluster_first[c + 1] - layout.cluster_first[c]);
       const double working = std::min(subdomains, static_cast<double>(largest) *
                                                       std::max(1, omp_get_max_threads()));
-      e.factors_held_mb = e.factors_mb * working / subdomains;
+      e.factors_held_mb = e.shared_factors > 0 ? std::min(e.factors_mb, f_bytes * working / kMiB)
+                                               : e.factors_mb * working / subdomains;
     }
   }
   e.sampled = true;

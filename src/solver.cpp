@@ -335,6 +335,7 @@ SolveOutput solve(std::shared_ptr<const Model> model_ptr, const SolveOptions& op
                                         {"reconstruction", comm.max(peak_rss_mb())}};
   rep["memory"] = {{"peak_mb_by_phase", peak_by_phase},
                    {"factor_mb", comm.sum(st.factor_mb)},
+                   {"distinct_factor_mb", comm.sum(st.distinct_factor_mb)},
                    // The estimate made before setup (0 with check_memory off); sums over ranks.
                    {"estimate_mb",
                     {{"peak", comm.sum(estimate.peak_mb())},
@@ -344,6 +345,8 @@ SolveOutput solve(std::shared_ptr<const Model> model_ptr, const SolveOptions& op
                      {"explicit", comm.sum(estimate.explicit_mb)},
                      {"factors_held", comm.sum(estimate.factors_held_mb)},
                      {"sampled", comm.min(estimate.sampled ? 1.0 : 0.0) > 0},
+                     // Factors counted as shared by equal subdomains (a count; 0: one each).
+                     {"shared_factors", comm.sum(estimate.shared_factors)},
                      // The implicit operator's, when it was estimated not to fit (0 otherwise).
                      {"implicit_peak", estimate.implicit_peak_mb}}},
                    {"limit_mb", options.feti.memory_limit_mb},

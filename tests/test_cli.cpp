@@ -320,9 +320,11 @@ TEST_F(Cli, ContactResultsAreIdenticalOnOneToFourRanks) {
 // The automatic dual operator under a memory limit: with the explicit blocks over their budget
 // it is the implicit operator, which keeps every factor; when that does not fit in the limit but
 // the explicit operator (factors freed) does, the explicit one is taken, and the solution is the
-// same. A limit below both ends with exit 2 and names the limit.
+// same. A limit below both ends with exit 2 and names the limit. (The numeric cache is off: with
+// it, the equal subdomains of the box would share their factors and the implicit operator fit.)
 TEST_F(Cli, AutomaticOperatorFollowsTheMemoryLimit) {
-  const std::string base = bin + " solve --problem poisson2d -n 320 --subdomains 10 --no-vtu ";
+  const std::string base =
+      bin + " solve --problem poisson2d -n 320 --subdomains 10 --no-vtu --numeric-cache 0 ";
   auto report = [](const char* file) {
     std::ifstream f(file);
     return nlohmann::json::parse(f);
@@ -366,7 +368,8 @@ TEST_F(Cli, AutomaticOperatorFollowsTheMemoryLimit) {
       "[[dirichlet]]\ngroup = \"x0\"\nvalue = 0.0\n[decomposition]\nsubdomains = [10, 10]\n"
       "[solver]\nexplicit_budget_gb = 0.0\n";
   write_file("limit.toml", box + "memory_limit_gb = " + std::to_string(limit_gb) + "\n");
-  ASSERT_EQ(run(bin + " solve limit.toml --no-vtu --report f.json"), 0) << stderr_text();
+  ASSERT_EQ(run(bin + " solve limit.toml --no-vtu --numeric-cache 0 --report f.json"), 0)
+      << stderr_text();
   EXPECT_EQ(report("f.json")["dual_operator_reason"], "memory");
   write_file("nolimit.toml", box);
   ASSERT_EQ(run(bin + " solve nolimit.toml --no-vtu --report f.json"), 0) << stderr_text();
@@ -382,7 +385,9 @@ TEST_F(Cli, AutomaticOperatorFollowsTheMemoryLimit) {
 }
 
 // The memory estimate made before setup names the sizes and matches the factors that the setup
-// then builds (boxes: every subdomain has the structure of the sampled one).
+// then builds (boxes: every subdomain has the structure of the sampled one): one per subdomain
+// without the numeric cache; with it, equal subdomains share theirs, counted once, and the
+// estimate's shared count is not below the factors built.
 TEST_F(Cli, MemoryEstimateMatchesTheFactorsBuilt) {
   ASSERT_EQ(run(bin + " solve --problem poisson2d -n 20000 --subdomains 100 --no-vtu --report r.json"), 2);
   EXPECT_NE(stderr_text().find("does not fit in memory: estimated"), std::string::npos)
@@ -390,15 +395,36 @@ TEST_F(Cli, MemoryEstimateMatchesTheFactorsBuilt) {
   const char* cases[] = {"--problem poisson2d -n 256 --subdomains 8",
                          "--problem cube-obstacle --elements 12,12,12 --subdomains 2,2,2"};
   for (const char* args : cases) {
-    ASSERT_EQ(run(bin + " solve " + args + " --dual-operator implicit --no-vtu --report r.json"), 0)
-        << args << stderr_text();
+    const std::string cmd = bin + " solve " + args + " --dual-operator implicit --no-vtu ";
+    ASSERT_EQ(run(cmd + "--numeric-cache 0 --report r.json"), 0) << args << stderr_text();
     std::ifstream f("r.json");
     const auto mem = nlohmann::json::parse(f)["memory"];
     const double built = mem["factor_mb"], estimated = mem["estimate_mb"]["factors"];
     EXPECT_TRUE(mem["estimate_mb"]["sampled"].get<bool>()) << args;
     EXPECT_GT(built, 0) << args;
     EXPECT_NEAR(estimated, built, 0.05 * built) << args;
+    EXPECT_EQ(mem["distinct_factor_mb"].get<double>(), built) << args;
+    EXPECT_EQ(mem["estimate_mb"]["shared_factors"].get<double>(), 0) << args;
     EXPECT_GE(mem["estimate_mb"]["peak"].get<double>(), estimated) << args;
+  }
+  // 216 equal subdomains (one factor in all) and 64 (Laplace: the element matrices do not
+  // depend on the cell's position in 2D).
+  for (const char* args : {"--problem cube-obstacle --elements 24,24,24 --subdomains 6,6,6",
+                           "--problem poisson2d -n 256 --subdomains 8"}) {
+    ASSERT_EQ(run(bin + " solve " + args + " --dual-operator implicit --no-vtu --report r.json"), 0)
+        << args << stderr_text();
+    std::ifstream f("r.json");
+    const auto report = nlohmann::json::parse(f);
+    const auto& mem = report["memory"];
+    const double all = mem["factor_mb"], distinct = mem["distinct_factor_mb"];
+    const double estimated = mem["estimate_mb"]["factors"], copies = mem["estimate_mb"]["shared_factors"];
+    EXPECT_GT(report["factorization"]["numeric_reuses"].get<double>(),
+              0.8 * report["subdomains"].get<double>())
+        << args;
+    EXPECT_LT(distinct, 0.2 * all) << args;
+    EXPECT_GT(copies, 0) << args;
+    EXPECT_GE(estimated, distinct) << args;
+    EXPECT_LT(estimated, all) << args;
   }
 }
 

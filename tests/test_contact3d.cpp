@@ -5,13 +5,18 @@
 //   obstacle), TFETI and H-TFETI-DP;
 // - a column on a frictionless rigid plane under its own weight with lateral rollers against the
 //   analytic solution u_z = -(rho g / M)(H z - z^2 / 2), M = E (1 - nu) / ((1 + nu)(1 - 2 nu)),
-//   and the uniform contact pressure rho g H.
+//   and the uniform contact pressure rho g H;
+// - the subdomain matrices of a generated box are equal bit for bit, and the memory estimate
+//   counts the factors they share once.
 #include <gtest/gtest.h>
 
 #include <Eigen/SparseLU>
+#include <algorithm>
+#include <cstring>
 #include <set>
 
 #include "helpers.hpp"
+#include "htfeti/memory_estimate.hpp"
 #include "htfeti/problem_file.hpp"
 #include "htfeti/solver.hpp"
 
@@ -203,3 +208,60 @@ TEST(Column, OwnWeightOnARigidPlaneIsTheAnalyticSolution) {
 }
 
 }  // namespace
+
+// A generated box gives every subdomain the same element matrices, kernel and fixed dofs
+// (computed on the nodes' offsets in whole grid spacings, not on their rounded coordinates), so
+// the subdomain matrices of a box with one material are equal bit for bit: equal subdomains
+// share one factor (numeric cache), and the memory estimate counts the shared factors once.
+TEST(Box, SubdomainMatricesAreEqualBitForBit) {
+  for (CellType cell : {CellType::hex8, CellType::tet4}) {
+    const auto model = make_model(cube_obstacle_spec({12, 12, 12}, {3, 3, 3}, 1, 1.0, cell));
+    const SubdomainSystem first = model->input(0).system;
+    const Eigen::SparseMatrix<double>& K0 = first.K;
+    ASSERT_TRUE(K0.isCompressed());
+    for (int s = 1; s < model->num_subdomains(); ++s) {
+      const SubdomainSystem sys = model->input(s).system;
+      EXPECT_EQ(sys.fixed_dofs, first.fixed_dofs) << "subdomain " << s;
+      ASSERT_EQ(sys.R.size(), first.R.size());
+      EXPECT_EQ(std::memcmp(sys.R.data(), first.R.data(), sizeof(double) * sys.R.size()), 0)
+          << "subdomain " << s;
+      const Eigen::SparseMatrix<double>& K = sys.K;
+      ASSERT_TRUE(K.isCompressed());
+      ASSERT_EQ(K.rows(), K0.rows());
+      ASSERT_EQ(K.nonZeros(), K0.nonZeros());
+      EXPECT_TRUE(std::equal(K.outerIndexPtr(), K.outerIndexPtr() + K.outerSize() + 1,
+                             K0.outerIndexPtr()));
+      EXPECT_TRUE(std::equal(K.innerIndexPtr(), K.innerIndexPtr() + K.nonZeros(),
+                             K0.innerIndexPtr()));
+      EXPECT_EQ(std::memcmp(K.valuePtr(), K0.valuePtr(), sizeof(double) * K.nonZeros()), 0)
+          << "subdomain " << s << " of " << to_string(cell);
+    }
+  }
+}
+
+TEST(MemoryEstimate, EqualSubdomainsOfABoxShareTheirFactors) {
+  Comm comm;
+  ProblemSpec spec = cube_obstacle_spec({16, 16, 16}, {8, 8, 8}, 1);
+  FetiOptions o;
+  o.dual_operator = DualOperator::implicit;
+  const FetiLayout layout = make_model(spec)->layout();
+  const auto [c0, c1] = layout.cluster_range(comm.rank(), comm.size());
+  const double mine = layout.cluster_first[c1] - layout.cluster_first[c0];
+  auto model = make_model(spec);
+  const MemoryEstimate shared = estimate_memory(*model, o, comm);
+  o.numeric_cache_bytes = 0;  // no numeric cache: a factor per subdomain
+  const MemoryEstimate own = estimate_memory(*model, o, comm);
+  ASSERT_TRUE(shared.sampled && own.sampled);
+  EXPECT_EQ(own.shared_factors, 0);
+  ASSERT_GT(shared.shared_factors, 0);
+  EXPECT_LT(shared.shared_factors, mine);
+  // The same factor size, counted shared.shared_factors times instead of once per subdomain.
+  EXPECT_NEAR(shared.factors_mb / shared.shared_factors, own.factors_mb / mine,
+              1e-9 * own.factors_mb);
+  EXPECT_EQ(shared.matrices_mb, own.matrices_mb);
+  // A coefficient field makes the matrices differ: a factor per subdomain again.
+  o.numeric_cache_bytes = 512.0 * (1 << 20);
+  spec.physics.coefficient = "1 + x / 100";
+  const MemoryEstimate field = estimate_memory(*make_model(spec), o, comm);
+  EXPECT_EQ(field.shared_factors, 0);
+}

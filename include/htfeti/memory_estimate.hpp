@@ -7,7 +7,13 @@
 //  - matrices: the assembled K_i, all alive at the end of the assembly phase: 12 bytes per
 //    stored nonzero;
 //  - factors: CHOLMOD's symbolic analysis of one subdomain of the rank (its first), scaled by
-//    D / its unknowns (the subdomains of a rank have similar sizes: boxes, METIS parts);
+//    D / its unknowns (the subdomains of a rank have similar sizes: boxes, METIS parts). With
+//    the implicit operator on a generated box with one material and no coefficient field,
+//    equal subdomains share one factor through the numeric cache
+//    (FetiOptions::numeric_cache_bytes): the factors in memory are then those of the distinct
+//    matrices, counted as 3^dim position classes (measured: 3 on the cube-obstacle), as many as
+//    the cache holds, twice (the first subdomain of a pattern keeps its own), plus one per
+//    subdomain of the classes it cannot hold;
 //  - vectors: kernels, loads and work vectors, (kernel dimension + 4) doubles per unknown
 //    (measured: 3.0 GB beyond the matrices at the end of the assembly of the 82.6 M-unknown
 //    Table 2 row, against 3.4 GB estimated);
@@ -41,6 +47,9 @@ struct MemoryEstimate {
   double matrices_mb = 0, factors_mb = 0, vectors_mb = 0, explicit_mb = 0;
   /// The factors held at the peak: factors_mb, or the working set when they are released.
   double factors_held_mb = 0;
+  /// Factors counted as shared by equal subdomains (a generated box, the numeric cache on):
+  /// the number of factors counted in factors_mb; 0 when every subdomain has its own.
+  double shared_factors = 0;
   bool sampled = false;  ///< false: the lower bound only (no subdomain was assembled)
   /// The dual operator the estimate counted, and whether the explicit one was possible (the
   /// sample has at least kExplicitMinNodes nodes).

@@ -67,6 +67,19 @@ Eigen::MatrixXd element_matrix(const SubdomainMesh& mesh, const Physics& ph, int
     const int k = mesh.cells[static_cast<size_t>(e) * nc + a];
     for (int d = 0; d < 3; ++d) x[3 * a + d] = mesh.coords[3 * static_cast<size_t>(k) + d];
   }
+  const bool laplace2d = ph.kind == PhysicsKind::laplace && mesh.dim == 2;
+  if (mesh.uniform_period > 0 && !laplace2d) {
+    // A generated grid: the cell's offsets from its first node as whole multiples of the
+    // spacing, the same at every position of the box (the coordinates g h are rounded
+    // differently at each position, which made the matrices of equal subdomains differ in
+    // their last bits, so that they could not share a factor).
+    const double x0[3] = {x[0], x[1], x[2]};
+    for (int a = 0; a < nc; ++a)
+      for (int d = 0; d < 3; ++d) {
+        const double h = mesh.uniform_spacing[d];
+        x[3 * a + d] = h > 0 ? std::nearbyint((x[3 * a + d] - x0[d]) / h) * h : 0.0;
+      }
+  }
   if (ph.kind == PhysicsKind::laplace) {
     // In 2D the Laplace element matrix does not depend on the cell's scale: compute it on the
     // cell scaled by its first edge (a grid square becomes the unit square exactly).
@@ -300,6 +313,18 @@ AssembledSubdomain assemble_subdomain(const SubdomainMesh& mesh, const Physics& 
   }
   out.parts = parts;
   const int kd = ph.kernel_dimension();
+  // The geometry the kernel and the fixed dofs are computed on: on a generated grid the nodes'
+  // offsets from node 0 in whole grid spacings (as the element matrices), so that equal
+  // subdomains get the same kernel and fixed dofs, not ones that depend on how their
+  // coordinates round (ties between equally distant nodes); else the coordinates.
+  std::vector<double> geo(mesh.coords.begin(), mesh.coords.end());
+  if (mesh.uniform_period > 0 && nn > 0)
+    for (int k = 0; k < nn; ++k)
+      for (int d = 0; d < 3; ++d) {
+        const double h = mesh.uniform_spacing[d];
+        const size_t i = 3 * static_cast<size_t>(k) + d;
+        geo[i] = h > 0 ? std::nearbyint((mesh.coords[i] - mesh.coords[d]) / h) * h : 0.0;
+      }
   out.R = Eigen::MatrixXd::Zero(static_cast<Eigen::Index>(nn) * dpn, static_cast<Eigen::Index>(parts) * kd);
   for (int p = 0; p < parts; ++p) {
     std::vector<int> nodes;
@@ -310,7 +335,7 @@ AssembledSubdomain assemble_subdomain(const SubdomainMesh& mesh, const Physics& 
     double c[3] = {0, 0, 0};
     for (int i = 0; i < pn; ++i)
       for (int d = 0; d < 3; ++d) {
-        xyz[3 * i + d] = mesh.coords[3 * static_cast<size_t>(nodes[i]) + d];
+        xyz[3 * i + d] = geo[3 * static_cast<size_t>(nodes[i]) + d];
         c[d] += xyz[3 * i + d] / pn;
       }
     Eigen::MatrixXd Rp;
@@ -335,7 +360,7 @@ AssembledSubdomain assemble_subdomain(const SubdomainMesh& mesh, const Physics& 
     auto dist2 = [&](int k, const double* q) {
       double s = 0;
       for (int d = 0; d < 3; ++d) {
-        const double t = mesh.coords[3 * static_cast<size_t>(k) + d] - q[d];
+        const double t = geo[3 * static_cast<size_t>(k) + d] - q[d];
         s += t * t;
       }
       return s;
@@ -352,7 +377,7 @@ AssembledSubdomain assemble_subdomain(const SubdomainMesh& mesh, const Physics& 
     }
     std::vector<int> cand{centre};
     std::vector<double> mind(pn, 0.0);
-    for (int i = 0; i < pn; ++i) mind[i] = dist2(nodes[i], &mesh.coords[3 * static_cast<size_t>(centre)]);
+    for (int i = 0; i < pn; ++i) mind[i] = dist2(nodes[i], &geo[3 * static_cast<size_t>(centre)]);
     const int ncand = std::min(pn, mesh.dim == 2 ? 3 : 4);
     while (static_cast<int>(cand.size()) < ncand) {
       int far = 0;
@@ -361,7 +386,7 @@ AssembledSubdomain assemble_subdomain(const SubdomainMesh& mesh, const Physics& 
       if (mind[far] == 0) break;
       cand.push_back(nodes[far]);
       for (int i = 0; i < pn; ++i)
-        mind[i] = std::min(mind[i], dist2(nodes[i], &mesh.coords[3 * static_cast<size_t>(nodes[far])]));
+        mind[i] = std::min(mind[i], dist2(nodes[i], &geo[3 * static_cast<size_t>(nodes[far])]));
     }
     Eigen::MatrixXd Rc(static_cast<Eigen::Index>(cand.size()) * dpn, kd);
     std::vector<int> dofs;

@@ -375,15 +375,19 @@ DualProblem::DualProblem(const FetiLayout& layout,
       }
       // Factored: energy() and refactoring rebuild K_i. Freed per cluster, so that the peak is
       // the factors plus the matrices of the clusters not yet factored, not both in full.
-      double bytes = 0, tsym = 0, tnum = 0;
+      double bytes = 0, own = 0, tsym = 0, tnum = 0;
       for (int i = 0; i < members(c); ++i) {
         subs_[sub_of(c, i)]->release_matrix();
         bytes += static_cast<double>(subs_[sub_of(c, i)]->factor_bytes());
+        if (!subs_[sub_of(c, i)]->factor_shared())
+          own += static_cast<double>(subs_[sub_of(c, i)]->factor_bytes());
         tsym += subs_[sub_of(c, i)]->symbolic_seconds();
         tnum += subs_[sub_of(c, i)]->numeric_seconds();
       }
 #pragma omp atomic
       setup_.factor_mb += bytes / 1048576.0;
+#pragma omp atomic
+      setup_.distinct_factor_mb += own / 1048576.0;
 #pragma omp atomic
       setup_.factor_symbolic += tsym;
 #pragma omp atomic
@@ -414,6 +418,7 @@ DualProblem::DualProblem(const FetiLayout& layout,
     }
   }
   comm_.agree(error, input_error);
+  if (symbolic_) setup_.distinct_factor_mb += symbolic_->kept_factor_bytes() / 1048576.0;
   if (explicit_) {  // every thread frees its F_i work arrays (they are kept between subdomains)
 #pragma omp parallel
     Subdomain::release_dual_block_work();

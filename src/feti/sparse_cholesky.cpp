@@ -72,6 +72,7 @@ struct SymbolicCache::Entry {
   std::uint64_t value_hash = 0;  // numeric entries: the values and their hash
   std::vector<double> x;
   double bytes = 0;
+  long factor_bytes = 0;  // numeric entries: the factor's part of `bytes`
   std::shared_ptr<SharedFactor> slot;  // numeric entries with a set ordered last: S^{-1}, once
   cholmod_common common;
   cholmod_factor* L = nullptr;  // symbolic entries: the analysis (copied by its users)
@@ -102,6 +103,12 @@ long SymbolicCache::solve_reuses() const {
 int SymbolicCache::matrices() const {
   std::lock_guard<std::mutex> lock(mutex_);
   return static_cast<int>(numeric_.size());
+}
+double SymbolicCache::kept_factor_bytes() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  double bytes = 0;
+  for (const auto& e : numeric_) bytes += static_cast<double>(e->factor_bytes);
+  return bytes;
 }
 SymbolicCache::~SymbolicCache() = default;
 long SymbolicCache::analyses() const {
@@ -391,6 +398,7 @@ void SparseCholesky::factorize_impl(const Eigen::SparseMatrix<double>& A,
       e->value_hash = value_hash;
       e->x.assign(upper.valuePtr(), upper.valuePtr() + nnz);
       e->bytes = bytes;
+      e->factor_bytes = factor_bytes();
       if (last) e->slot = impl_->slot = std::make_shared<SharedFactor>();
       cache->numeric_held_ += bytes;
       cache->numeric_.push_back(std::move(e));
@@ -558,6 +566,8 @@ long SparseCholesky::symbolic_factor_bytes(const Eigen::SparseMatrix<double>& A,
   if (!chol.impl_->factor) throw std::runtime_error("CHOLMOD analysis failed");
   return chol.factor_bytes();
 }
+
+bool SparseCholesky::factor_shared() const { return impl_->shared != nullptr; }
 
 long SparseCholesky::factor_bytes() const {
   const cholmod_factor* L = impl_->factor;

@@ -152,6 +152,7 @@ SubdomainMesh BoxGrid::mesh(int sub) const {
   m.copy_list.reserve(nn);
   const double h[3] = {o_.size[0] / o_.elements[0], o_.size[1] / o_.elements[1],
                        dim == 3 ? o_.size[2] / o_.elements[2] : 0.0};
+  for (int d = 0; d < 3; ++d) m.uniform_spacing[d] = h[d];
   const int Hs[3] = {Hx, Hy, Hz};
   static const char* face[3][2] = {{"x0", "x1"}, {"y0", "y1"}, {"z0", "z1"}};
   for (int c = 0; c < nz; ++c)

@@ -107,6 +107,8 @@ struct SetupTimings {
   long solve_reuses = 0;  ///< cluster solves K_i^+ C_i^T taken from an equal subdomain's
   /// Peak resident memory of the rank (MiB) at the end of each setup phase.
   double factor_mb = 0;  ///< the rank's subdomain factors as built (before any release)
+  /// The same with a factor shared by equal subdomains (numeric cache) counted once.
+  double distinct_factor_mb = 0;
   double peak_mb_assembly = 0, peak_mb_constraints = 0, peak_mb_factorization = 0,
          peak_mb_coarse = 0;
 };

@@ -46,6 +46,7 @@ class SymbolicCache {
   /// Multi-column solves (SparseCholesky::solve_many) answered from an earlier equal one.
   long solve_reuses() const;
   int matrices() const;         ///< numeric factors held
+  double kept_factor_bytes() const;  ///< their bytes (factor_bytes() of each, once)
 
  private:
   friend class SparseCholesky;
@@ -109,6 +110,8 @@ class SparseCholesky {
   long factor_nonzeros() const;
   /// Bytes held by the factor: values, row indices and the supernode/permutation arrays.
   long factor_bytes() const;
+  /// Whether the factor is shared with a numeric cache entry (and so with equal matrices).
+  bool factor_shared() const;
   /// The bytes factor_bytes() would report after factorize(A), from the symbolic analysis
   /// alone (ordering and supernodes; no numeric work).
   static long symbolic_factor_bytes(const Eigen::SparseMatrix<double>& A, Ordering ordering);

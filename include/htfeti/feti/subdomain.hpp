@@ -86,6 +86,7 @@ class Subdomain {
   }
   /// Bytes of the current factorization (0 after release_factor()).
   long factor_bytes() const { return chol_.factor_bytes(); }
+  bool factor_shared() const { return chol_.factor_shared(); }
   /// Frees the factorization (apply_pinv needs factorize() again).
   void release_factor();
 

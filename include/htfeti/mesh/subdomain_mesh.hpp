@@ -27,6 +27,11 @@ struct SubdomainMesh {
   /// Generated grids: cell e is a translate of cell e % uniform_period (element matrices are
   /// computed for the first uniform_period cells only); 0 for a general mesh.
   int uniform_period = 0;
+  /// Generated grids: the grid spacing per direction (0 for a general mesh). Element matrices
+  /// are computed on the cell's offsets from its first node in whole multiples of it, so every
+  /// subdomain of a box gets the same element matrices bit for bit (its coordinates, rounded
+  /// differently at each position, are left for loads and output).
+  double uniform_spacing[3] = {0, 0, 0};
   /// Copies of local node k: copy_list[copy_offset[k] .. copy_offset[k+1]), subdomain ids in the
   /// partition's canonical order (the same list in every subdomain that holds the node).
   std::vector<int> copy_offset, copy_list;

@@ -3,13 +3,14 @@
 clusters of 4 x 4 x 4 subdomains at H_s/h = 10, for k x k x k clusters, TFETI against H-TFETI-DP
 (face averages of the six rigid body motions), SMALBE-M + MPRGP at eps = 1e-4.
 
-k = 1, 2, 3: 64, 512, 1,728 subdomains; 0.2, 1.6, 5.3 M unknowns (k = 3 peaks at 18 GB for TFETI
-and 23 GB for H-TFETI-DP: run it alone on a 24 GB machine). The paper's row 1 (4 x 4 x 4
-clusters, 4,096 subdomains, 12.5 M unknowns) needs ~37 GB of factors alone: not on this machine.
+k = 1, 2, 3, 4: 64, 512, 1,728, 4,096 subdomains; 0.2, 1.6, 5.3, 12.5 M unknowns. k = 4 is the
+paper's row 1; its subdomains share one factor (docs/performance.md, "Equal subdomains of a
+box"), and its peak is the assembled matrices: run it alone on a 24 GB machine.
 
 Usage: bench/table4.py [--ks 1 2] [--threads 2] [--ranks 1] [--hh 10]
-                       [--methods TFETI H-TFETI-DP] [--merge]
-Writes bench/results/table4.json and prints the table next to the paper's numbers."""
+                       [--methods TFETI H-TFETI-DP] [--merge] [--out table4.json]
+Writes bench/results/<out> (default table4.json) and prints the table next to the paper's
+numbers. --merge keeps the other rows of that file."""
 import argparse
 
 from common import save, solve
@@ -29,16 +30,27 @@ p.add_argument("--extra", default="", help="further htfeti solve arguments, quot
 p.add_argument("--methods", nargs="+", default=["TFETI", "H-TFETI-DP"],
                choices=["TFETI", "H-TFETI-DP"])
 p.add_argument("--merge", action="store_true",
-               help="keep the other rows of bench/results/table4.json (replace equal k and method)")
+               help="keep the other rows of bench/results/<out> (replace equal k and method)")
+p.add_argument("--out", default="table4.json", help="file name under bench/results")
 a = p.parse_args()
+
+
+def slim(r):
+    """The report's per-node contact arrays (millions of numbers at k = 4) become counts."""
+    c = r.get("contact")
+    if isinstance(c, dict) and "x" in c:
+        r["contact"] = {"nodes": len(c["x"]), "positive_multipliers": sum(m > 0 for m in c["multiplier"])}
+
 
 runs = []
 if a.merge:
     import json, os
-    old = os.path.join(os.path.dirname(os.path.abspath(__file__)), "results", "table4.json")
+    old = os.path.join(os.path.dirname(os.path.abspath(__file__)), "results", a.out)
     if os.path.exists(old):
         runs = [r for r in json.load(open(old))["runs"]
                 if not (r["k"] in a.ks and r["method"] in a.methods)]
+    for r in runs:
+        slim(r)
 print(f"cube-obstacle, clusters of {a.m}^3 subdomains, H_s/h = {a.hh}, {a.ranks} ranks x "
       f"{a.threads} threads")
 print("| clusters | subdomains | unknowns | method | coarse | outer | matvecs | F applications | "
@@ -54,8 +66,9 @@ for k in a.ks:
                    "--cluster-size", m, "--preconditioner", a.preconditioner, *a.extra.split()], ranks=a.ranks, threads=a.threads)
         r["method"] = method
         r["k"] = k
+        slim(r)
         runs.append(r)
-        save("table4.json", {"command": "(partial)", "paper": PAPER, "runs": runs})
+        save(a.out, {"command": "(partial)", "paper": PAPER, "runs": runs})
         t = r["timings"]
         print(f"| {k}x{k}x{k} | {r['subdomains']} | {r['primal_dimension']} | {method} | "
               f"{r['coarse_dimension']} | {r['outer_iterations']} | {r['matvecs']} | "
@@ -66,5 +79,5 @@ for k in a.ks:
 runs.sort(key=lambda r: (r["k"], r["method"] != "TFETI"))
 cmd = f"bench/table4.py --ks {' '.join(map(str, a.ks))} --hh {a.hh} --ranks {a.ranks} --threads {a.threads}"
 if a.merge:
-    cmd = "bench/table4.py --ks 1 2 3 (rows merged from separate runs, see docs/results.md)"
-print("\n" + save("table4.json", {"command": cmd, "paper": PAPER, "runs": runs}))
+    cmd = "bench/table4.py (rows merged from separate runs, see docs/results.md)"
+print("\n" + save(a.out, {"command": cmd, "paper": PAPER, "runs": runs}))

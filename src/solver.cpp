@@ -336,6 +336,7 @@ SolveOutput solve(std::shared_ptr<const Model> model_ptr, const SolveOptions& op
   rep["memory"] = {{"peak_mb_by_phase", peak_by_phase},
                    {"factor_mb", comm.sum(st.factor_mb)},
                    {"distinct_factor_mb", comm.sum(st.distinct_factor_mb)},
+                   {"shared_matrices", comm.sum(static_cast<long long>(st.shared_matrices))},
                    // The estimate made before setup (0 with check_memory off); sums over ranks.
                    {"estimate_mb",
                     {{"peak", comm.sum(estimate.peak_mb())},

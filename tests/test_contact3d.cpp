@@ -9,6 +9,7 @@
 // - the subdomain matrices of a generated box are equal bit for bit, and the memory estimate
 //   counts the factors they share once.
 #include <gtest/gtest.h>
+#include <omp.h>
 
 #include <Eigen/SparseLU>
 #include <algorithm>
@@ -237,6 +238,27 @@ TEST(Box, SubdomainMatricesAreEqualBitForBit) {
           << "subdomain " << s << " of " << to_string(cell);
     }
   }
+}
+
+// End to end: the solve holds the box's equal matrices once and shares their factor.
+TEST(Box, EqualSubdomainsShareMatrixAndFactor) {
+  Comm comm;
+  std::shared_ptr<const Model> model = make_model(cube_obstacle_spec({12, 12, 12}, {3, 3, 3}, 1));
+  SolveOptions opt;
+  opt.feti.dual_operator = DualOperator::implicit;
+  const auto out = solve(model, opt, comm);
+  ASSERT_TRUE(out.converged);
+  const int n = model->num_subdomains();
+  // Per rank, every K_i but the rank's first is a shared one.
+  EXPECT_GE(out.report["memory"]["shared_matrices"].get<long>(), n - comm.size());
+  // The numeric cache keeps a factor from a pattern's second factorization on; each thread of
+  // each rank may factor the first two itself.
+  EXPECT_GE(out.report["factorization"]["numeric_reuses"].get<long>(),
+            n - 2 * comm.size() * omp_get_max_threads());
+  // In memory: those factored before a factor was kept, and the kept one (equal sizes).
+  const double all = out.report["memory"]["factor_mb"], each = all / n;
+  EXPECT_LE(out.report["memory"]["distinct_factor_mb"].get<double>(),
+            (1e-9 + comm.size() * (2 * omp_get_max_threads() + 1)) * each);
 }
 
 TEST(MemoryEstimate, EqualSubdomainsOfABoxShareTheirFactors) {

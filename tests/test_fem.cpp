@@ -3,6 +3,8 @@
 #include <gtest/gtest.h>
 
 #include <Eigen/Dense>
+#include <cmath>
+#include <cstring>
 #include <numeric>
 
 #include "helpers.hpp"
@@ -229,6 +231,51 @@ TEST(SymbolicCache, SharesAnalysesOnlyBetweenEqualPatterns) {
 // holders (the cache itself included), refactoring one holder leaves the others as they were,
 // and holders in different threads solve with it at the same time (each with its own work
 // arrays), all giving the plain factor's solution bit for bit.
+// Equal assembled matrices are held once: the pool hands back the held matrix for an equal one
+// (pattern and values compared), a matrix differing in one bit of one value is held on its own,
+// and a matrix is freed with its last holder (the pool remembers it by weak_ptr only).
+TEST(MatrixPool, EqualMatricesAreHeldOnce) {
+  auto make = [](double last) {
+    Eigen::SparseMatrix<double> K(3, 3);
+    std::vector<Eigen::Triplet<double>> t{{0, 0, 2.0}, {1, 0, -1.0}, {1, 1, 2.0}, {2, 1, -1.0},
+                                          {2, 2, last}};
+    K.setFromTriplets(t.begin(), t.end());
+    return K;
+  };
+  MatrixPool pool;
+  Eigen::SparseMatrix<double> a = make(2.0), b = make(2.0), c = make(std::nextafter(2.0, 3.0));
+  auto A = pool.intern(a);
+  EXPECT_EQ(a.nonZeros(), 0);  // the storage moved into the pool's matrix
+  ASSERT_EQ(A->nonZeros(), 5);
+  auto B = pool.intern(b);
+  EXPECT_EQ(B.get(), A.get());
+  EXPECT_EQ(b.nonZeros(), 0);
+  const auto C = pool.intern(c);
+  EXPECT_NE(C.get(), A.get());
+  EXPECT_EQ(pool.reuses(), 1);
+  std::weak_ptr<const Eigen::SparseMatrix<double>> w = A;
+  const Eigen::SparseMatrix<double> copy = *A;
+  // Subdomains holding the pool's matrix read it through K(); releasing drops their hold.
+  SubdomainSystem sys;
+  sys.K = make(2.0);
+  sys.f = Eigen::VectorXd::Zero(3);
+  sys.R = Eigen::MatrixXd::Zero(3, 0);
+  Subdomain sub(std::move(sys));
+  sub.intern_matrix(pool);
+  EXPECT_EQ(&sub.K(), A.get());
+  EXPECT_EQ(pool.reuses(), 2);
+  sub.release_matrix();
+  EXPECT_EQ(sub.K().nonZeros(), 0);
+  EXPECT_FALSE(w.expired());
+  A.reset();
+  B.reset();
+  EXPECT_TRUE(w.expired()) << "the pool must not keep a matrix alive";
+  Eigen::SparseMatrix<double> d = make(2.0);
+  const auto D = pool.intern(d);
+  EXPECT_EQ(pool.reuses(), 2);  // the freed one is not found again
+  EXPECT_EQ(std::memcmp(D->valuePtr(), copy.valuePtr(), 5 * sizeof(double)), 0);
+}
+
 TEST(SymbolicCache, SharedNumericFactorOutlivesItsOtherHolders) {
   const int n = 14;
   std::vector<Eigen::Triplet<double>> t;

@@ -55,6 +55,7 @@ DualProblem::DualProblem(const FetiLayout& layout,
   }
   if (exact_node_scaling_) node_copies_.resize(nsub);
   std::vector<std::vector<std::vector<ConstraintEntry>>> primal(ncl);
+  MatrixPool matrices;  // equal K_i held once (a box's subdomains); freed with their holders
   outer_parallel_ = omp_get_max_threads() > 1 && ncl >= omp_get_max_threads();
   std::string error;
   bool input_error = false;
@@ -94,8 +95,10 @@ DualProblem::DualProblem(const FetiLayout& layout,
       std::vector<const SubdomainInput*> ptrs;
       for (auto& x : in) ptrs.push_back(&x);
       primal[c] = cluster_primal_constraints(layout_, c0_ + c, ptrs);
-      for (int i = 0; i < ms; ++i)
+      for (int i = 0; i < ms; ++i) {
         subs_[sub_of(c, i)] = std::make_unique<Subdomain>(std::move(in[i].system));
+        subs_[sub_of(c, i)]->intern_matrix(matrices);  // equal K_i held once
+      }
     } catch (const std::invalid_argument& e) {
 #pragma omp critical
       error = e.what(), input_error = true;
@@ -108,6 +111,7 @@ DualProblem::DualProblem(const FetiLayout& layout,
     }
   }
   comm_.agree(error, input_error);
+  setup_.shared_matrices = matrices.reuses();
   setup_.assembly = now() - t;
   setup_.peak_mb_assembly = peak_rss_mb();
 

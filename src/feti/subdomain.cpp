@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cstring>
 #include <stdexcept>
 #include <string>
 
@@ -33,11 +34,57 @@ Subdomain::Subdomain(SubdomainSystem system) : sys_(take(system)) {
     if (reduced_[d] == 0) reduced_[d] = r++;
 }
 
+std::shared_ptr<const MatrixPool::Matrix> MatrixPool::intern(Matrix& K) {
+  K.makeCompressed();
+  const long nnz = K.nonZeros();
+  std::uint64_t h = 1469598103934665603ULL;  // FNV-1a over the sizes and the values' bits
+  auto mix = [&](std::uint64_t v) { h = (h ^ v) * 1099511628211ULL; };
+  mix(static_cast<std::uint64_t>(K.rows())), mix(static_cast<std::uint64_t>(nnz));
+  for (long k = 0; k < nnz; ++k) {
+    std::uint64_t bits;
+    std::memcpy(&bits, K.valuePtr() + k, sizeof bits);
+    mix(bits);
+  }
+  auto equal = [&](const Matrix& A) {
+    return A.rows() == K.rows() && A.cols() == K.cols() && A.nonZeros() == nnz &&
+           std::equal(A.outerIndexPtr(), A.outerIndexPtr() + A.outerSize() + 1,
+                      K.outerIndexPtr()) &&
+           std::equal(A.innerIndexPtr(), A.innerIndexPtr() + nnz, K.innerIndexPtr()) &&
+           std::memcmp(A.valuePtr(), K.valuePtr(), sizeof(double) * nnz) == 0;
+  };
+  std::vector<std::shared_ptr<const Matrix>> candidates;  // compared outside the lock
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    const auto [first, last] = held_.equal_range(h);
+    for (auto it = first; it != last; ++it)
+      if (auto A = it->second.lock()) candidates.push_back(std::move(A));
+  }
+  for (auto& A : candidates)
+    if (equal(*A)) {
+      Matrix().swap(K);
+      std::lock_guard<std::mutex> lock(mutex_);
+      ++reuses_;
+      return std::move(A);
+    }
+  // (An equal matrix interned meanwhile by another thread is simply held twice.)
+  auto A = std::make_shared<Matrix>();
+  A->swap(K);
+  std::lock_guard<std::mutex> lock(mutex_);
+  held_.emplace(h, A);
+  return A;
+}
+
+long MatrixPool::reuses() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return reuses_;
+}
+
 double Subdomain::energy(const Eigen::VectorXd& u) const {
-  if (sys_.K.rows() == size()) return 0.5 * u.dot(sys_.K.selfadjointView<Eigen::Lower>() * u) - sys_.f.dot(u);
+  const Eigen::SparseMatrix<double>& K = this->K();
+  if (K.rows() == size()) return 0.5 * u.dot(K.selfadjointView<Eigen::Lower>() * u) - sys_.f.dot(u);
   if (sys_.quadratic_form) return 0.5 * sys_.quadratic_form(u) - sys_.f.dot(u);
-  const Eigen::SparseMatrix<double> K = sys_.assemble();
-  return 0.5 * u.dot(K * u) - sys_.f.dot(u);
+  const Eigen::SparseMatrix<double> A = sys_.assemble();
+  return 0.5 * u.dot(A * u) - sys_.f.dot(u);
 }
 
 void Subdomain::release_factor() {
@@ -115,7 +162,11 @@ PackedSymmetric Subdomain::dual_block(const std::vector<BEntry>& b, int nmult,
 
 Eigen::SparseMatrix<double> Subdomain::reduced_matrix() {
   const int nn = size();
-  if (sys_.K.rows() != nn) sys_.assemble().swap(sys_.K);  // released earlier
+  if (K().rows() != nn) {  // released earlier
+    shared_K_.reset();
+    sys_.assemble().swap(sys_.K);
+  }
+  const Eigen::SparseMatrix<double>& K = this->K();
   const int nr = nn - static_cast<int>(sys_.fixed_dofs.size());
   // The upper triangle of K without the fixed rows and columns, written straight into compressed
   // storage: reduced_ is increasing, so the columns come in order and each keeps K's sorted rows
@@ -123,7 +174,7 @@ Eigen::SparseMatrix<double> Subdomain::reduced_matrix() {
   long nnz = 0;
   for (int col = 0; col < nn; ++col) {
     if (reduced_[col] < 0) continue;
-    for (Eigen::SparseMatrix<double>::InnerIterator it(sys_.K, col); it; ++it)
+    for (Eigen::SparseMatrix<double>::InnerIterator it(K, col); it; ++it)
       if (it.row() <= col && reduced_[it.row()] >= 0) ++nnz;
   }
   Eigen::SparseMatrix<double> Krr(nr, nr);
@@ -137,7 +188,7 @@ Eigen::SparseMatrix<double> Subdomain::reduced_matrix() {
   for (int col = 0; col < nn; ++col) {
     const int rc = reduced_[col];
     if (rc < 0) continue;
-    for (Eigen::SparseMatrix<double>::InnerIterator it(sys_.K, col); it; ++it) {
+    for (Eigen::SparseMatrix<double>::InnerIterator it(K, col); it; ++it) {
       const int row = static_cast<int>(it.row());
       if (row > col || reduced_[row] < 0) continue;
       inner[k] = reduced_[row];

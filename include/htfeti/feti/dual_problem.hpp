@@ -109,6 +109,8 @@ struct SetupTimings {
   double factor_mb = 0;  ///< the rank's subdomain factors as built (before any release)
   /// The same with a factor shared by equal subdomains (numeric cache) counted once.
   double distinct_factor_mb = 0;
+  /// Subdomains whose assembled K_i equals an earlier one's and shares its storage.
+  long shared_matrices = 0;
   double peak_mb_assembly = 0, peak_mb_constraints = 0, peak_mb_factorization = 0,
          peak_mb_coarse = 0;
 };

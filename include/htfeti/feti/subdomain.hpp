@@ -11,6 +11,10 @@
 
 #include <Eigen/Dense>
 #include <Eigen/Sparse>
+#include <cstdint>
+#include <memory>
+#include <mutex>
+#include <unordered_map>
 #include <vector>
 
 #include "htfeti/feti/input.hpp"
@@ -18,6 +22,23 @@
 #include "htfeti/linalg/packed_symmetric.hpp"
 
 namespace htfeti {
+
+/// Equal assembled matrices held once: on a generated box with one material the subdomains'
+/// K_i are equal bit for bit, and all of them alive at the end of the assembly were most of the
+/// setup's peak. intern(K) empties K and returns a held matrix equal to it (pattern and values
+/// compared in full after a hash), or K's storage itself, now held by a shared_ptr. The pool
+/// remembers matrices by weak_ptr: a matrix is freed with its last holder. Thread-safe.
+class MatrixPool {
+ public:
+  using Matrix = Eigen::SparseMatrix<double>;
+  std::shared_ptr<const Matrix> intern(Matrix& K);
+  long reuses() const;  ///< matrices found equal to a held one
+
+ private:
+  mutable std::mutex mutex_;
+  std::unordered_multimap<std::uint64_t, std::weak_ptr<const Matrix>> held_;
+  long reuses_ = 0;
+};
 
 class Subdomain {
  public:
@@ -28,11 +49,18 @@ class Subdomain {
   int size() const { return static_cast<int>(sys_.f.size()); }
   int dofs_per_node() const { return sys_.dofs_per_node; }
   /// The assembled K_i; empty after release_matrix().
-  const Eigen::SparseMatrix<double>& K() const { return sys_.K; }
+  const Eigen::SparseMatrix<double>& K() const { return shared_K_ ? *shared_K_ : sys_.K; }
+  /// Hands K_i to the pool: from then on it is held once for all equal subdomains (read only).
+  void intern_matrix(MatrixPool& pool) {
+    if (sys_.K.rows() == size() && !shared_K_) shared_K_ = pool.intern(sys_.K);
+  }
   /// Frees K_i (the factor remains); energy() and factorize() rebuild it when needed.
   /// (Eigen 3.4's SparseMatrix has no move operations and keeps its storage on assignment from
   /// an empty matrix: swap is what frees it.)
-  void release_matrix() { Eigen::SparseMatrix<double>().swap(sys_.K); }
+  void release_matrix() {
+    Eigen::SparseMatrix<double>().swap(sys_.K);
+    shared_K_.reset();
+  }
   /// q_i(u) = 1/2 u'K_i u - f_i'u (rebuilds K_i temporarily if it was freed).
   double energy(const Eigen::VectorXd& u) const;
   const Eigen::VectorXd& f() const { return sys_.f; }
@@ -95,6 +123,7 @@ class Subdomain {
                       SymbolicCache* cache);
   Eigen::SparseMatrix<double> reduced_matrix();
   SubdomainSystem sys_;
+  std::shared_ptr<const Eigen::SparseMatrix<double>> shared_K_;  // K_i when interned (sys_.K empty)
   std::vector<int> reduced_;  // dof -> index in K_rr, -1 for fixed dofs
   long factor_nonzeros_ = 0;
   double symbolic_seconds_ = 0;

@@ -68,7 +68,7 @@ Eigen::MatrixXd element_matrix(const SubdomainMesh& mesh, const Physics& ph, int
     for (int d = 0; d < 3; ++d) x[3 * a + d] = mesh.coords[3 * static_cast<size_t>(k) + d];
   }
   const bool laplace2d = ph.kind == PhysicsKind::laplace && mesh.dim == 2;
-  if (mesh.uniform_period > 0 && !laplace2d) {
+  if (mesh.uniform_period > 0 && mesh.uniform_spacing[0] > 0 && !laplace2d) {
     // A generated grid: the cell's offsets from its first node as whole multiples of the
     // spacing, the same at every position of the box (the coordinates g h are rounded
     // differently at each position, which made the matrices of equal subdomains differ in
@@ -318,7 +318,7 @@ AssembledSubdomain assemble_subdomain(const SubdomainMesh& mesh, const Physics& 
   // subdomains get the same kernel and fixed dofs, not ones that depend on how their
   // coordinates round (ties between equally distant nodes); else the coordinates.
   std::vector<double> geo(mesh.coords.begin(), mesh.coords.end());
-  if (mesh.uniform_period > 0 && nn > 0)
+  if (mesh.uniform_period > 0 && mesh.uniform_spacing[0] > 0 && nn > 0)
     for (int k = 0; k < nn; ++k)
       for (int d = 0; d < 3; ++d) {
         const double h = mesh.uniform_spacing[d];

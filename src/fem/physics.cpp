@@ -59,6 +59,21 @@ Eigen::MatrixXd physics_kernel(const Physics& ph, const double* xyz, int n) {
 
 namespace {
 
+// On a generated grid (the spacing set): replaces the n points xyz (3 each) by their offsets
+// from `origin` in whole multiples of the spacing, the same at every position of the box (the
+// coordinates g h round differently at each position, which made equal subdomains differ in
+// their last bits and in their fixed dofs, so that they could not share a factor). Returns
+// false, leaving xyz alone, on a general mesh.
+bool grid_offsets(const SubdomainMesh& mesh, double* xyz, int n, const double origin[3]) {
+  if (mesh.uniform_period == 0 || !(mesh.uniform_spacing[0] > 0)) return false;
+  for (int a = 0; a < n; ++a)
+    for (int d = 0; d < 3; ++d) {
+      const double h = mesh.uniform_spacing[d];
+      xyz[3 * a + d] = h > 0 ? std::nearbyint((xyz[3 * a + d] - origin[d]) / h) * h : 0.0;
+    }
+  return true;
+}
+
 // Element matrix of cell e (coordinates gathered); for uniform meshes the first one is reused.
 Eigen::MatrixXd element_matrix(const SubdomainMesh& mesh, const Physics& ph, int e) {
   const int nc = cell_nodes(mesh.type);
@@ -68,17 +83,9 @@ Eigen::MatrixXd element_matrix(const SubdomainMesh& mesh, const Physics& ph, int
     for (int d = 0; d < 3; ++d) x[3 * a + d] = mesh.coords[3 * static_cast<size_t>(k) + d];
   }
   const bool laplace2d = ph.kind == PhysicsKind::laplace && mesh.dim == 2;
-  if (mesh.uniform_period > 0 && mesh.uniform_spacing[0] > 0 && !laplace2d) {
-    // A generated grid: the cell's offsets from its first node as whole multiples of the
-    // spacing, the same at every position of the box (the coordinates g h are rounded
-    // differently at each position, which made the matrices of equal subdomains differ in
-    // their last bits, so that they could not share a factor).
+  if (!laplace2d) {  // on a grid: the cell relative to its first node
     const double x0[3] = {x[0], x[1], x[2]};
-    for (int a = 0; a < nc; ++a)
-      for (int d = 0; d < 3; ++d) {
-        const double h = mesh.uniform_spacing[d];
-        x[3 * a + d] = h > 0 ? std::nearbyint((x[3 * a + d] - x0[d]) / h) * h : 0.0;
-      }
+    grid_offsets(mesh, x, nc, x0);
   }
   if (ph.kind == PhysicsKind::laplace) {
     // In 2D the Laplace element matrix does not depend on the cell's scale: compute it on the
@@ -318,13 +325,7 @@ AssembledSubdomain assemble_subdomain(const SubdomainMesh& mesh, const Physics& 
   // subdomains get the same kernel and fixed dofs, not ones that depend on how their
   // coordinates round (ties between equally distant nodes); else the coordinates.
   std::vector<double> geo(mesh.coords.begin(), mesh.coords.end());
-  if (mesh.uniform_period > 0 && mesh.uniform_spacing[0] > 0 && nn > 0)
-    for (int k = 0; k < nn; ++k)
-      for (int d = 0; d < 3; ++d) {
-        const double h = mesh.uniform_spacing[d];
-        const size_t i = 3 * static_cast<size_t>(k) + d;
-        geo[i] = h > 0 ? std::nearbyint((mesh.coords[i] - mesh.coords[d]) / h) * h : 0.0;
-      }
+  if (nn > 0) grid_offsets(mesh, geo.data(), nn, mesh.coords.data());
   out.R = Eigen::MatrixXd::Zero(static_cast<Eigen::Index>(nn) * dpn, static_cast<Eigen::Index>(parts) * kd);
   for (int p = 0; p < parts; ++p) {
     std::vector<int> nodes;

@@ -9,11 +9,15 @@
   4. F at scale: the full Table 3 case with m = 1 (2,048 subdomains, 1.3 GB of packed F_i), two
      threads, ms per F against the two-thread triad bound measured just before each run; with
      --before BINARY an older build runs interleaved with this one (before and after);
+     --precision single stores the F_i in single precision (--explicit-precision);
   5. strong scaling on a reduced Table 3 case: 1 and 2 threads, 1 and 2 ranks.
-Each timing is the median of --repeat runs.
+Each timing is the median of --repeat runs; with --kernel-before BINARY (an older
+build's htfeti_packed_product) section 3 runs both kernels interleaved, --repeat times each.
 
 Usage: bench/performance.py [--repeat 3] [--skip-scaling] [--skip-full] [--before BINARY]
-Writes bench/results/performance.json and prints markdown tables."""
+       [--kernel-before BINARY] [--kernel-mb 1200] [--precision double|single]
+       [--out performance.json]
+Writes bench/results/performance.json (or --out) and prints markdown tables."""
 import argparse
 import json
 import os
@@ -27,10 +31,21 @@ p.add_argument("--repeat", type=int, default=3)
 p.add_argument("--skip-scaling", action="store_true")
 p.add_argument("--skip-full", action="store_true", help="skip section 4 (about 50 s per run)")
 p.add_argument("--before", default=None, help="an older htfeti binary for section 4")
+p.add_argument("--kernel-before", default=None,
+               help="an older htfeti_packed_product for section 3, run interleaved")
+p.add_argument("--kernel-mb", type=int, default=1200,
+               help="MB of blocks in section 3 (a few MB: in cache, the kernel's compute speed)")
+p.add_argument("--precision", choices=["double", "single"], default="double",
+               help="storage of the F_i in section 4")
+p.add_argument("--out", default="performance.json", help="file name under bench/results")
 a = p.parse_args()
-out = {"command": "bench/performance.py --repeat %d%s%s%s" % (
+out = {"command": "bench/performance.py --repeat %d%s%s%s%s%s%s%s" % (
     a.repeat, " --skip-scaling" if a.skip_scaling else "", " --skip-full" if a.skip_full else "",
-    " --before BEFORE" if a.before else "")}
+    " --before BEFORE" if a.before else "",
+    " --kernel-before KERNEL_BEFORE" if a.kernel_before else "",
+    " --precision single" if a.precision == "single" else "",
+    f" --kernel-mb {a.kernel_mb}" if a.kernel_mb != 1200 else "",
+    f" --out {a.out}" if a.out != "performance.json" else "")}
 
 
 def triad(threads):
@@ -71,25 +86,37 @@ for op in ("implicit", "explicit"):
           f"{streamed / bw1 * 1e3:.4f} | {mem:.2f} | {r['matvecs']} |")
 out["dual_operator"] = ops
 
-# 3. the packed kernel alone, against the triad of the same thread count
-print("\n| threads | precision | packed product GB/s (median of 10) | triad GB/s | triad / product |")
-print("|---:|---|---:|---:|---:|")
+# 3. the packed kernel alone, against the triad of the same thread count measured just before
+kernels = [("before", a.kernel_before)] if a.kernel_before else []
+kernels.append(("after", os.path.join(ROOT, "build", "htfeti_packed_product")))
+print("\n| threads | precision | build | packed product GB/s (median) | triad GB/s (median) | "
+      "triad / product |")
+print("|---:|---|---|---:|---:|---:|")
 kernel = []
 for t in (1, 2):
-    tri = triad(t)["triad_gb_s_median"]
     for prec in ("double", "single"):
-        r = subprocess.run([os.path.join(ROOT, "build", "htfeti_packed_product"), "396", "1200",
-                            prec, "10"], env=env(t), check=True, capture_output=True, text=True)
-        k = json.loads(r.stdout)
-        k["triad_gb_s_median"] = tri
-        kernel.append(k)
-        print(f"| {t} | {prec} | {k['gb_s_median']:.2f} | {tri:.2f} | "
-              f"{tri / k['gb_s_median']:.2f} |")
+        runs = {label: [] for label, _ in kernels}
+        for _ in range(a.repeat if a.kernel_before else 1):
+            for label, binary in kernels:  # interleaved: the machine's drift hits both alike
+                tri = triad(t)["triad_gb_s_median"]
+                reps = "10" if a.kernel_mb >= 100 else "200"  # in cache: short, take more
+                r = subprocess.run([binary, "396", str(a.kernel_mb), prec, reps], env=env(t),
+                                   check=True, capture_output=True, text=True)
+                k = json.loads(r.stdout)
+                k["triad_gb_s_median"] = tri
+                runs[label].append(k)
+        for label, ks in runs.items():
+            gb = statistics.median(k["gb_s_median"] for k in ks)
+            tri = statistics.median(k["triad_gb_s_median"] for k in ks)
+            kernel.append({"threads": t, "precision": prec, "build": label, "gb_s_median": gb,
+                           "triad_gb_s_median": tri, "runs": ks})
+            print(f"| {t} | {prec} | {label} | {gb:.2f} | {tri:.2f} | {tri / gb:.2f} |")
 out["packed_kernel"] = kernel
 
 # 4. F at scale: Table 3 full, m = 1, two threads
 if not a.skip_full:
-    args = ["--problem", "membranes", "-n", 3168, "--subdomains", 32, "-m", 1]
+    args = ["--problem", "membranes", "-n", 3168, "--subdomains", 32, "-m", 1,
+            "--explicit-precision", a.precision]
     builds = [("before", a.before)] if a.before else []
     builds.append(("after", None))
     res = {label: [] for label, _ in builds}
@@ -132,11 +159,11 @@ if not a.skip_scaling:
         print(f"| {ranks} x {threads} | {tot:.2f} | {fac:.2f} | {sol:.2f} | {base / tot:.2f} |")
     out["scaling"] = scaling
 else:  # keep the scaling section of the last full run
-    old = os.path.join(ROOT, "bench", "results", "performance.json")
+    old = os.path.join(ROOT, "bench", "results", a.out)
     if os.path.exists(old):
         with open(old) as f:
             prev = json.load(f)
         if "scaling" in prev:
             out["scaling"] = prev["scaling"]
             out["scaling_command"] = prev.get("command", "")
-print("\n" + save("performance.json", out))
+print("\n" + save(a.out, out))

@@ -1,6 +1,9 @@
 #include "htfeti/linalg/packed_symmetric.hpp"
 
 #include <algorithm>
+#if defined(__x86_64__)
+#include <immintrin.h>
+#endif
 #include <stdexcept>
 #include <utility>
 
@@ -54,22 +57,16 @@ void pack(const Eigen::Ref<const Eigen::MatrixXd>& A, std::vector<T>& out) {
 // per four columns, and the dot products are kept per tile row (kTile independent sums per
 // column, added up after the panel), so neither an add latency nor the work per column bounds the
 // product, only the memory (bench/packed_product.cpp measures it; docs/performance.md).
-template <class T>
-inline __attribute__((always_inline)) void packed_symv_panels(const T* a, int n, const double* x,
-                                                              double* y) {
-  for (int i = 0; i < n; ++i) y[i] = 0.0;
-  const int panels_end = n / 4 * 4;
-  for (int J = 0; J < panels_end; J += 4) {
-    const T* p = a + column_start(J, n);
-    const double x0 = x[J], x1 = x[J + 1], x2 = x[J + 2], x3 = x[J + 3];
-    auto d = [&](int r, int c) { return static_cast<double>(p[kDiagStart[c] + r - c]); };
-    double s0 = d(0, 0) * x0 + d(1, 0) * x1 + d(2, 0) * x2 + d(3, 0) * x3;
-    double s1 = d(1, 0) * x0 + d(1, 1) * x1 + d(2, 1) * x2 + d(3, 1) * x3;
-    double s2 = d(2, 0) * x0 + d(2, 1) * x1 + d(2, 2) * x2 + d(3, 2) * x3;
-    double s3 = d(3, 0) * x0 + d(3, 1) * x1 + d(3, 2) * x2 + d(3, 3) * x3;
-    double a0[kTile] = {}, a1[kTile] = {}, a2[kTile] = {}, a3[kTile] = {};
-    const T* t = p + 10;
-    int k = J + 4;
+// Tiles::run(t, k, n, x, y, x0..x3, a0..a3) takes the panel's whole tiles from row k on, adds to
+// y and to the dot products a0..a3 (kTile sums each), and returns the first row it did not take
+// (t advanced past the tiles it took).
+#define HTFETI_INLINE inline __attribute__((always_inline))
+
+struct GenericTiles {
+  template <class T>
+  HTFETI_INLINE static int run(const T*& t, int k, int n, const double* x, double* y, double x0,
+                               double x1, double x2, double x3, double* a0, double* a1,
+                               double* a2, double* a3) {
     for (; k + kTile <= n; k += kTile, t += 4 * kTile) {
       double* yk = y + k;
       const double* xk = x + k;
@@ -85,50 +82,102 @@ inline __attribute__((always_inline)) void packed_symv_panels(const T* a, int n,
         a3[i] += v3 * xk[i];
       }
     }
-    const int rows = n - k;  // the last, partial tile
-    for (int i = 0; i < rows; ++i) {
-      const double v0 = static_cast<double>(t[i]), v1 = static_cast<double>(t[rows + i]),
-                   v2 = static_cast<double>(t[2 * rows + i]),
-                   v3 = static_cast<double>(t[3 * rows + i]);
-      y[k + i] += v0 * x0 + v1 * x1 + v2 * x2 + v3 * x3;
-      a0[i] += v0 * x[k + i];
-      a1[i] += v1 * x[k + i];
-      a2[i] += v2 * x[k + i];
-      a3[i] += v3 * x[k + i];
-    }
-    for (int i = 0; i < kTile; ++i) s0 += a0[i], s1 += a1[i], s2 += a2[i], s3 += a3[i];
-    y[J] += s0;
-    y[J + 1] += s1;
-    y[J + 2] += s2;
-    y[J + 3] += s3;
+    return k;
   }
-  for (int j = panels_end; j < n; ++j) {  // the last n mod 4 columns, packed one by one
-    const T* c = a + column_start(j, n);
-    const double xj = x[j];
-    double s = static_cast<double>(c[0]) * xj;
-    for (int k = 1; k < n - j; ++k) {
-      const double v = static_cast<double>(c[k]);
-      y[j + k] += v * xj;
-      s += v * x[j + k];
-    }
-    y[j] += s;
-  }
-}
+};
 
-// One instance per instruction set: the loader picks AVX2 with FMA where the CPU has it (four
-// doubles per instruction) and the baseline x86-64 code elsewhere. Results differ between the two
-// only by the rounding of fused multiply-adds; on one machine every rank and thread runs the same.
+#include "packed_symv_panels.inc"  // packed_symv_panels<Tiles>(a, n, x, y)
+
+// One instance per instruction set: the loader picks AVX-512 or AVX2 with FMA where the CPU has
+// them and the baseline x86-64 code elsewhere. Results differ between them only by the rounding
+// of fused multiply-adds; on one machine every rank and thread runs the same.
 #if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__)
 #define HTFETI_ISA_CLONES __attribute__((target_clones("arch=x86-64-v4", "arch=x86-64-v3", "default")))
+#define HTFETI_AVX2_SINGLE 1
 #else
 #define HTFETI_ISA_CLONES
+#define HTFETI_AVX2_SINGLE 0
 #endif
 
 HTFETI_ISA_CLONES void packed_symv(const double* a, int n, const double* x, double* y) {
-  packed_symv_panels(a, n, x, y);
+  packed_symv_panels<GenericTiles>(a, n, x, y);
 }
-HTFETI_ISA_CLONES void packed_symv(const float* a, int n, const double* x, double* y) {
-  packed_symv_panels(a, n, x, y);
+HTFETI_ISA_CLONES void packed_symv_generic(const float* a, int n, const double* x, double* y) {
+  packed_symv_panels<GenericTiles>(a, n, x, y);
+}
+
+#if HTFETI_AVX2_SINGLE
+#pragma GCC push_options
+#pragma GCC target("avx2,fma")
+namespace avx2 {
+#include "packed_symv_panels.inc"
+
+// Single precision on AVX2 (16 vector registers) with the tiles in intrinsics. GCC's AVX2 code
+// of GenericTiles for float keeps the eight accumulators, the four broadcasts and the converted
+// values in more than 16 registers; the accumulators it spills put a store-to-load forward on
+// each tile's critical path (about 19 cycles per tile of 32 values, in cache). Here they stay in
+// registers: per half tile one conversion per column, and the same operations in
+// the same order as the generic AVX2 code (bit-identical results: y += ((v0 x0 + v1 x1) + v2 x2)
+// + v3 x3 as fma(v3, x3, fma(v2, x2, fma(v0, x0, v1 x1))), one fused multiply-add per
+// accumulator; tests/test_fem.cpp compares the two).
+struct Avx2SingleTiles {
+  // Half a tile: four rows of the four columns.
+  HTFETI_INLINE static void half(
+      const float* tt, double* yk, const double* xk, __m256d b0, __m256d b1, __m256d b2,
+      __m256d b3, __m256d& c0, __m256d& c1, __m256d& c2, __m256d& c3) {
+    const __m256d xv = _mm256_loadu_pd(xk);
+    const __m256d v0 = _mm256_cvtps_pd(_mm_loadu_ps(tt));
+    const __m256d v1 = _mm256_cvtps_pd(_mm_loadu_ps(tt + kTile));
+    const __m256d v2 = _mm256_cvtps_pd(_mm_loadu_ps(tt + 2 * kTile));
+    const __m256d v3 = _mm256_cvtps_pd(_mm_loadu_ps(tt + 3 * kTile));
+    __m256d s = _mm256_mul_pd(v1, b1);
+    s = _mm256_fmadd_pd(v0, b0, s);
+    s = _mm256_fmadd_pd(v2, b2, s);
+    s = _mm256_fmadd_pd(v3, b3, s);
+    _mm256_storeu_pd(yk, _mm256_add_pd(_mm256_loadu_pd(yk), s));
+    c0 = _mm256_fmadd_pd(v0, xv, c0);
+    c1 = _mm256_fmadd_pd(v1, xv, c1);
+    c2 = _mm256_fmadd_pd(v2, xv, c2);
+    c3 = _mm256_fmadd_pd(v3, xv, c3);
+  }
+  HTFETI_INLINE static int run(
+      const float*& t, int k, int n, const double* x, double* y, double x0, double x1, double x2,
+      double x3, double* a0, double* a1, double* a2, double* a3) {
+    const __m256d b0 = _mm256_set1_pd(x0), b1 = _mm256_set1_pd(x1), b2 = _mm256_set1_pd(x2),
+                  b3 = _mm256_set1_pd(x3);
+    __m256d c0l = _mm256_setzero_pd(), c0h = c0l, c1l = c0l, c1h = c0l, c2l = c0l, c2h = c0l,
+            c3l = c0l, c3h = c0l;
+    for (; k + kTile <= n; k += kTile, t += 4 * kTile) {
+      half(t, y + k, x + k, b0, b1, b2, b3, c0l, c1l, c2l, c3l);
+      half(t + 4, y + k + 4, x + k + 4, b0, b1, b2, b3, c0h, c1h, c2h, c3h);
+    }
+    static_assert(kTile == 8);
+    _mm256_storeu_pd(a0, c0l), _mm256_storeu_pd(a0 + 4, c0h);
+    _mm256_storeu_pd(a1, c1l), _mm256_storeu_pd(a1 + 4, c1h);
+    _mm256_storeu_pd(a2, c2l), _mm256_storeu_pd(a2 + 4, c2h);
+    _mm256_storeu_pd(a3, c3l), _mm256_storeu_pd(a3 + 4, c3h);
+    return k;
+  }
+};
+
+void packed_symv(const float* a, int n, const double* x, double* y) {
+  packed_symv_panels<Avx2SingleTiles>(a, n, x, y);
+}
+}  // namespace avx2
+#pragma GCC pop_options
+
+// AVX2 without AVX-512 (where GenericTiles' code has 32 registers and is taken instead).
+const bool kAvx2Single = [] {
+  __builtin_cpu_init();
+  return __builtin_cpu_supports("x86-64-v3") && !__builtin_cpu_supports("x86-64-v4");
+}();
+#endif
+
+void packed_symv(const float* a, int n, const double* x, double* y) {
+#if HTFETI_AVX2_SINGLE
+  if (kAvx2Single) return avx2::packed_symv(a, n, x, y);
+#endif
+  packed_symv_generic(a, n, x, y);
 }
 
 }  // namespace
@@ -145,6 +194,13 @@ PackedSymmetric::PackedSymmetric(const Eigen::Ref<const Eigen::MatrixXd>& A, Pre
 void PackedSymmetric::multiply(const double* x, double* y) const {
   if (single_)
     packed_symv(s_.data(), n_, x, y);
+  else
+    packed_symv(d_.data(), n_, x, y);
+}
+
+void PackedSymmetric::multiply_portable(const double* x, double* y) const {
+  if (single_)
+    packed_symv_generic(s_.data(), n_, x, y);
   else
     packed_symv(d_.data(), n_, x, y);
 }

@@ -34,6 +34,9 @@ class PackedSymmetric {
   }
   /// y = A x (length size(); x and y must not alias). Allocates nothing.
   void multiply(const double* x, double* y) const;
+  /// The same product by the code that every instruction set compiles (multiply() may take a
+  /// hand-vectorized kernel instead, with the same operations in the same order): for tests.
+  void multiply_portable(const double* x, double* y) const;
   /// Entry (i, j) (either triangle), for tests.
   double operator()(int i, int j) const;
 

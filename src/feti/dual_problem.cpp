@@ -64,6 +64,9 @@ DualProblem::DualProblem(const FetiLayout& layout,
     try {
       const int ms = members(c);
       std::vector<SubdomainInput> in(ms);
+      // Each K_i goes to the pool as soon as it is assembled: a cluster's members are all made
+      // before its primal constraints, and held unpooled they would all be in memory at once.
+      std::vector<std::shared_ptr<const MatrixPool::Matrix>> pooled(ms);
       std::string inner_error;
       bool inner_input = false;
 #pragma omp parallel for schedule(dynamic) if (!omp_in_parallel() && ms > 1)
@@ -74,6 +77,8 @@ DualProblem::DualProblem(const FetiLayout& layout,
           K.swap(made.system.K);
           in[i] = std::move(made);
           in[i].system.K.swap(K);
+          if (in[i].system.K.rows() == in[i].system.f.size())
+            pooled[i] = matrices.intern(in[i].system.K);  // leaves system.K empty
           subdomain_rows(layout_, in[i], local_rows[sub_of(c, i)]);
           if (!node_copies_.empty()) {
             auto& nc = node_copies_[sub_of(c, i)];
@@ -96,8 +101,8 @@ DualProblem::DualProblem(const FetiLayout& layout,
       for (auto& x : in) ptrs.push_back(&x);
       primal[c] = cluster_primal_constraints(layout_, c0_ + c, ptrs);
       for (int i = 0; i < ms; ++i) {
-        subs_[sub_of(c, i)] = std::make_unique<Subdomain>(std::move(in[i].system));
-        subs_[sub_of(c, i)]->intern_matrix(matrices);  // equal K_i held once
+        subs_[sub_of(c, i)] =
+            std::make_unique<Subdomain>(std::move(in[i].system), std::move(pooled[i]));
       }
     } catch (const std::invalid_argument& e) {
 #pragma omp critical

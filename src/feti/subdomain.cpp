@@ -20,9 +20,13 @@ SubdomainSystem take(SubdomainSystem& s) {
 }
 }  // namespace
 
-Subdomain::Subdomain(SubdomainSystem system) : sys_(take(system)) {
+Subdomain::Subdomain(SubdomainSystem system,
+                     std::shared_ptr<const Eigen::SparseMatrix<double>> pooled)
+    : sys_(take(system)), shared_K_(std::move(pooled)) {
   const int n = size();
-  if (sys_.K.rows() != n && !sys_.assemble)
+  if (shared_K_ && (shared_K_->rows() != n || sys_.K.size() != 0))
+    throw std::logic_error("Subdomain: the pooled K and f sizes differ, or K was given twice");
+  if (K().rows() != n && !sys_.assemble)
     throw std::logic_error("Subdomain: K and f sizes differ");
   if (sys_.R.rows() != n) throw std::logic_error("Subdomain: R and f sizes differ");
   if (static_cast<int>(sys_.fixed_dofs.size()) != sys_.R.cols())

@@ -42,8 +42,10 @@ class MatrixPool {
 
 class Subdomain {
  public:
-  /// Takes the assembled system; the factorization is separate (factorize()).
-  explicit Subdomain(SubdomainSystem system);
+  /// Takes the assembled system; the factorization is separate (factorize()). With `pooled`
+  /// (K_i as MatrixPool::intern returned it), system.K is empty and K_i is the pooled one.
+  explicit Subdomain(SubdomainSystem system,
+                     std::shared_ptr<const Eigen::SparseMatrix<double>> pooled = nullptr);
 
   int id() const { return sys_.id; }
   int size() const { return static_cast<int>(sys_.f.size()); }

@@ -55,6 +55,8 @@ SubdomainInput Model::input(int s) const {
   in.sharing.copy_offset = std::move(m.copy_offset);
   in.sharing.copy_list = std::move(m.copy_list);
   in.sharing.on_boundary = std::move(m.on_boundary);
+  if (m.uniform_period > 0)
+    for (int d = 0; d < 3; ++d) in.sharing.grid_spacing[d] = m.uniform_spacing[d];
   return in;
 }
 

@@ -261,6 +261,33 @@ TEST(Box, EqualSubdomainsShareMatrixAndFactor) {
             (1e-9 + comm.size() * (2 * omp_get_max_threads() + 1)) * each);
 }
 
+// H-TFETI-DP on a box: subdomains at the same place in their clusters have equal K_i and equal
+// face-average constraints C_i (the rigid motions of a face taken on its grid offsets), so their
+// K_i^+ C_i^T is computed once and held once; the solution is the one computed per subdomain,
+// bit for bit.
+TEST(Box, EqualSubdomainsShareTheirClusterSolves) {
+  Comm comm;
+  std::shared_ptr<const Model> model = make_model(cube_obstacle_spec({12, 12, 12}, {4, 4, 4}, 2));
+  SolveOptions opt;
+  opt.feti.dual_operator = DualOperator::implicit;
+  const auto shared = solve(model, opt, comm);
+  opt.feti.numeric_cache_bytes = 0;  // a factor per subdomain: nothing shared
+  const auto own = solve(model, opt, comm);
+  ASSERT_TRUE(shared.converged && own.converged);
+  EXPECT_EQ(shared.report["objective"], own.report["objective"]);
+  EXPECT_EQ(shared.report["matvecs"], own.report["matvecs"]);
+  ASSERT_EQ(shared.u.size(), own.u.size());
+  for (size_t i = 0; i < own.u.size(); ++i) EXPECT_TRUE(shared.u[i] == own.u[i]) << i;
+  EXPECT_EQ(own.report["factorization"]["solve_reuses"], 0);
+  // 8 places in a cluster of 2 x 2 x 2; each rank holds whole clusters, and each place is
+  // solved at most twice per rank (a factor is kept from a pattern's second factorization on).
+  const long places = 8, clusters = model->num_clusters();
+  EXPECT_GE(shared.report["factorization"]["solve_reuses"].get<long>(),
+            (clusters - 2 * comm.size()) * places);
+  EXPECT_LT(shared.report["memory"]["cluster_dense_mb"].get<double>(),
+            own.report["memory"]["cluster_dense_mb"].get<double>());
+}
+
 TEST(MemoryEstimate, EqualSubdomainsOfABoxShareTheirFactors) {
   Comm comm;
   ProblemSpec spec = cube_obstacle_spec({16, 16, 16}, {8, 8, 8}, 1);

@@ -153,20 +153,21 @@ Cluster::Cluster(int id, std::vector<Subdomain*> subs, std::vector<std::vector<C
 #pragma omp parallel for schedule(dynamic) if (!omp_in_parallel() && s > 1)
   for (int i = 0; i < s; ++i) {
     const auto& cols = cols_of_sub_[i];
-    W_[i] = Eigen::MatrixXd::Zero(subs_[i]->size(), static_cast<int>(cols.size()));
+    Eigen::MatrixXd Ct = Eigen::MatrixXd::Zero(subs_[i]->size(), static_cast<int>(cols.size()));
     for (const auto& e : c_of_sub_[i]) {
       const int col =
           static_cast<int>(std::lower_bound(cols.begin(), cols.end(), e.constraint) - cols.begin());
-      W_[i](e.dof, col) += e.value;
+      Ct(e.dof, col) += e.value;
     }
-    subs_[i]->apply_pinv_many(W_[i]);  // all columns in one pass over the factor
+    // All columns in one pass over the factor; equal subdomains with equal C_i (a box) share it.
+    W_[i] = subs_[i]->pinv_many_shared(Ct);
   }
   for (int i = 0; i < s; ++i) {
     const auto& cols = cols_of_sub_[i];
     // (C K^+ C^T)_{j, cols[col]} += C_i[j] . W_i[:, col]
     for (const auto& e : c_of_sub_[i])
-      for (int col = 0; col < W_[i].cols(); ++col)
-        S(e.constraint, cols[col]) += e.value * W_[i](e.dof, col);
+      for (int col = 0; col < W_[i]->cols(); ++col)
+        S(e.constraint, cols[col]) += e.value * (*W_[i])(e.dof, col);
   }
   for (int g = 0; g < nk; ++g) {
     if (beta_index_[g] < 0) continue;
@@ -185,8 +186,8 @@ Cluster::Cluster(int id, std::vector<Subdomain*> subs, std::vector<std::vector<C
   const Eigen::MatrixXd Ss = dscale_.asDiagonal() * S * dscale_.asDiagonal();
   if (explicit_) {  // U_i = B_i W_i
     for (int i = 0; i < s; ++i) {
-      U_.push_back(Eigen::MatrixXd::Zero(nmult[i], W_[i].cols()));
-      for (const auto& e : b_[i]) U_[i].row(e.mult) += e.value * W_[i].row(e.dof);
+      U_.push_back(Eigen::MatrixXd::Zero(nmult[i], W_[i]->cols()));
+      for (const auto& e : b_[i]) U_[i].row(e.mult) += e.value * W_[i]->row(e.dof);
     }
   }
   lu_.compute(Ss);
@@ -303,9 +304,10 @@ void Cluster::apply_dual(const std::vector<Eigen::VectorXd>& lam,
   }
 }
 
-long Cluster::dense_doubles() const {
+long Cluster::dense_doubles(std::unordered_set<const void*>* seen) const {
   long n = 0;
-  for (const auto& w : W_) n += w.size();
+  for (const auto& w : W_)
+    if (w && (!seen || seen->insert(w.get()).second)) n += w->size();
   return rhs_.size() > 0 ? n + lu_.matrixLU().size() : n;
 }
 
@@ -331,7 +333,7 @@ void Cluster::solve(std::vector<Eigen::VectorXd>& x) {
   for (int i = 0; i < s; ++i) {
     const auto& cols = cols_of_sub_[i];
     for (int col = 0; col < static_cast<int>(cols.size()); ++col)
-      x[i].noalias() -= sol_[cols[col]] * W_[i].col(col);
+      x[i].noalias() -= sol_[cols[col]] * W_[i]->col(col);
     for (int q = 0; q < subs_[i]->kernel_dimension(); ++q) {
       const int bi = beta_index_[beta_offset_[i] + q];
       if (bi >= 0) x[i].noalias() += sol_[bi] * subs_[i]->kernel().col(q);

@@ -79,14 +79,25 @@ std::map<std::pair<int, int>, std::vector<int>> averaged_objects(const DofSharin
   return obj;
 }
 
-// Orthonormal kernel W of the physics on the object's dofs.
+// Orthonormal kernel W of the physics on the object's dofs; xyz gets the nodes' coordinates.
+// On a generated grid the kernel is taken on the offsets from the object's first node in whole
+// grid spacings (the same span: rigid motions about another point), so that equal objects at
+// different places give the same W bit for bit, and equal subdomains the same C_i (their
+// K_i^+ C_i^T are then computed and held once, SparseCholesky::solve_shared).
 Eigen::MatrixXd object_kernel(const FetiLayout& L, const DofSharing& sh,
                               const std::vector<int>& nodes, std::vector<double>& xyz) {
   const int p = static_cast<int>(nodes.size());
   xyz.resize(3 * static_cast<size_t>(p));
   for (int t = 0; t < p; ++t)
     for (int d = 0; d < 3; ++d) xyz[3 * t + d] = sh.coords[3 * static_cast<size_t>(nodes[t]) + d];
-  return orthonormal_columns(L.kernel(xyz.data(), p));  // rank-revealing
+  if (!(sh.grid_spacing[0] > 0) || p == 0) return orthonormal_columns(L.kernel(xyz.data(), p));
+  std::vector<double> rel(xyz.size());
+  for (int t = 0; t < p; ++t)
+    for (int d = 0; d < 3; ++d) {
+      const double h = sh.grid_spacing[d];
+      rel[3 * t + d] = h > 0 ? std::nearbyint((xyz[3 * t + d] - xyz[d]) / h) * h : 0.0;
+    }
+  return orthonormal_columns(L.kernel(rel.data(), p));  // rank-revealing
 }
 
 // Recursive step of hierarchical_complement: the group `idx` (node indices) is split by

@@ -15,6 +15,7 @@
 #include <numeric>
 #include <string>
 #include <tuple>
+#include <unordered_set>
 
 #include "htfeti/parallel/key_numbering.hpp"
 
@@ -1267,7 +1268,8 @@ long DualProblem::explicit_bytes() const {
 
 long DualProblem::cluster_dense_doubles() const {
   long n = 0;
-  for (const auto& c : clusters_) n += c->dense_doubles();
+  std::unordered_set<const void*> seen;  // blocks shared by equal subdomains counted once
+  for (const auto& c : clusters_) n += c->dense_doubles(&seen);
   return n;
 }
 

@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <condition_variable>
 #include <cstdint>
 #include <cstring>
 #include <stdexcept>
@@ -61,6 +62,20 @@ struct SharedFactor {
   static constexpr int kMaxSolves = 16;
   std::vector<std::shared_ptr<const Solve>> solves;
   long solve_reuses = 0;
+  // shared_result's results, held once for all holders: the key (its nonzeros and tag) and the
+  // result, null while the first holder that asked computes it (the others wait on `ready`).
+  struct Result {
+    std::uint64_t hash = 0;
+    Eigen::Index rows = 0, cols = 0;
+    std::vector<long> at;
+    std::vector<double> value;
+    std::vector<int> tag;
+    std::shared_ptr<const Eigen::MatrixXd> out;
+  };
+  static constexpr int kMaxResults = 64;
+  std::vector<std::shared_ptr<Result>> results;
+  std::condition_variable ready;
+  long result_reuses = 0;
 };
 
 // One cached symbolic analysis: the pattern it belongs to (compared in full) and the symbolic
@@ -73,7 +88,7 @@ struct SymbolicCache::Entry {
   std::vector<double> x;
   double bytes = 0;
   long factor_bytes = 0;  // numeric entries: the factor's part of `bytes`
-  std::shared_ptr<SharedFactor> slot;  // numeric entries with a set ordered last: S^{-1}, once
+  std::shared_ptr<SharedFactor> slot;  // numeric entries: what their holders share
   cholmod_common common;
   cholmod_factor* L = nullptr;  // symbolic entries: the analysis (copied by its users)
   std::shared_ptr<cholmod_factor> numeric;  // numeric entries: the factor, shared by its users
@@ -96,7 +111,7 @@ long SymbolicCache::solve_reuses() const {
   for (const auto& e : numeric_)
     if (e->slot) {
       std::lock_guard<std::mutex> slot_lock(e->slot->mutex);
-      n += e->slot->solve_reuses;
+      n += e->slot->solve_reuses + e->slot->result_reuses;
     }
   return n;
 }
@@ -156,6 +171,7 @@ struct SparseCholesky::Impl {
   int method = 0;  // 0 AMD, 1 METIS (the constructor's ordering)
   double symbolic_seconds = 0, numeric_seconds = 0;
   std::shared_ptr<SharedFactor> slot;  // shared with a numeric cache entry, if any
+  bool memo_solves = false;  // solve() through solve_many's memo (interface-last factors)
   std::shared_ptr<cholmod_factor> shared;  // set when `factor` is a numeric cache entry's
 
   explicit Impl(Ordering ordering) : method(ordering == Ordering::amd ? 0 : 1) {
@@ -209,6 +225,7 @@ void SparseCholesky::factorize_impl(const Eigen::SparseMatrix<double>& A,
   cholmod_sparse view = upper_view(upper);
   impl_->drop_factor();
   impl_->slot.reset();
+  impl_->memo_solves = last != nullptr;
   impl_->nlast = last ? static_cast<int>(last->size()) : 0;
 
   // The pattern's key for the cache: method, the sorted set ordered last, the upper triangle.
@@ -399,7 +416,7 @@ void SparseCholesky::factorize_impl(const Eigen::SparseMatrix<double>& A,
       e->x.assign(upper.valuePtr(), upper.valuePtr() + nnz);
       e->bytes = bytes;
       e->factor_bytes = factor_bytes();
-      if (last) e->slot = impl_->slot = std::make_shared<SharedFactor>();
+      e->slot = impl_->slot = std::make_shared<SharedFactor>();
       cache->numeric_held_ += bytes;
       cache->numeric_.push_back(std::move(e));
     }
@@ -409,7 +426,7 @@ void SparseCholesky::factorize_impl(const Eigen::SparseMatrix<double>& A,
 }
 
 void SparseCholesky::solve(const double* b, double* out) {
-  if (impl_->slot) {  // shared through the numeric cache: through solve_many's memo
+  if (impl_->slot && impl_->memo_solves) {  // a shared interface-last factor: the memo
     if (out != b) std::memmove(out, b, sizeof(double) * impl_->n);
     solve_many(out, 1);
     return;
@@ -485,6 +502,57 @@ void SparseCholesky::solve_many(double* X, int ncols) {
       slot->solves.push_back(std::move(mine));
     }
   }
+}
+
+std::shared_ptr<const Eigen::MatrixXd> SparseCholesky::shared_result(
+    const Eigen::MatrixXd& key, const std::vector<int>& tag,
+    const std::function<Eigen::MatrixXd()>& compute) {
+  SharedFactor* slot = impl_->slot.get();
+  if (!slot) return std::make_shared<const Eigen::MatrixXd>(compute());
+  auto mine = std::make_shared<SharedFactor::Result>();
+  mine->rows = key.rows(), mine->cols = key.cols(), mine->tag = tag;
+  std::uint64_t hash = 1469598103934665603ULL;  // FNV-1a over positions and values, and the tag
+  for (long k = 0; k < static_cast<long>(key.size()); ++k)
+    if (key.data()[k] != 0.0) {
+      std::uint64_t w;
+      std::memcpy(&w, key.data() + k, sizeof w);
+      hash = ((hash ^ static_cast<std::uint64_t>(k)) * 1099511628211ULL ^ w) * 1099511628211ULL;
+      mine->at.push_back(k);
+      mine->value.push_back(key.data()[k]);
+    }
+  for (int t : tag) hash = (hash ^ static_cast<std::uint64_t>(t)) * 1099511628211ULL;
+  mine->hash = hash;
+  {
+    std::unique_lock<std::mutex> lock(slot->mutex);
+    for (const auto& held : slot->results)
+      if (held->hash == hash && held->rows == mine->rows && held->cols == mine->cols &&
+          held->at == mine->at && held->value == mine->value && held->tag == mine->tag) {
+        const std::shared_ptr<SharedFactor::Result> e = held;  // the vector may grow meanwhile
+        slot->ready.wait(lock, [&] { return e->out != nullptr; });
+        ++slot->result_reuses;
+        return e->out;
+      }
+    if (static_cast<int>(slot->results.size()) >= SharedFactor::kMaxResults) {
+      lock.unlock();
+      return std::make_shared<const Eigen::MatrixXd>(compute());
+    }
+    slot->results.push_back(mine);  // out still null: equal keys wait for it
+  }
+  std::shared_ptr<const Eigen::MatrixXd> out;
+  try {
+    out = std::make_shared<const Eigen::MatrixXd>(compute());
+  } catch (...) {  // withdraw the key, so that no one waits for it
+    std::lock_guard<std::mutex> lock(slot->mutex);
+    slot->results.erase(std::find(slot->results.begin(), slot->results.end(), mine));
+    slot->ready.notify_all();
+    throw;
+  }
+  {
+    std::lock_guard<std::mutex> lock(slot->mutex);
+    mine->out = out;
+  }
+  slot->ready.notify_all();
+  return out;
 }
 
 int SparseCholesky::rows() const { return impl_->n; }

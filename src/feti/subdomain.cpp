@@ -247,4 +247,12 @@ void Subdomain::apply_pinv_many(Eigen::MatrixXd& X) {
       X.row(k).setZero();
 }
 
+std::shared_ptr<const Eigen::MatrixXd> Subdomain::pinv_many_shared(const Eigen::MatrixXd& X) {
+  return chol_.shared_result(X, sys_.fixed_dofs, [&] {
+    Eigen::MatrixXd Y = X;
+    apply_pinv_many(Y);
+    return Y;
+  });
+}
+
 }  // namespace htfeti

@@ -30,6 +30,7 @@
 
 #include <Eigen/Dense>
 #include <string>
+#include <unordered_set>
 #include <vector>
 
 #include "htfeti/feti/constraints.hpp"
@@ -73,8 +74,10 @@ class Cluster {
   void kernel_add(int i, const double* gamma, Eigen::VectorXd& u) const;
   /// Value of R~_j at dof `dof` of subdomain i.
   double kernel_entry(int i, int dof, int j) const;
-  /// Doubles held by the cluster's dense data (K^+ C^T blocks and the LU).
-  long dense_doubles() const;
+  /// Doubles held by the cluster's dense data (K^+ C^T blocks and the LU). With `seen`, a
+  /// K^+ C^T block shared with equal subdomains (SparseCholesky::shared_result) is counted only
+  /// if it is not in the set yet, and added to it.
+  long dense_doubles(std::unordered_set<const void*>* seen = nullptr) const;
 
   /// x[i] -> K~^+ x[i] in place (physical vectors of the cluster's subdomains). Allocates nothing.
   void solve(std::vector<Eigen::VectorXd>& x);
@@ -115,7 +118,8 @@ class Cluster {
   Eigen::MatrixXd N_;                            // cluster kernel in coefficient space
   std::vector<std::vector<LocalRow>> c_of_sub_;  // C_i entries, per subdomain
   std::vector<std::vector<int>> cols_of_sub_;    // constraints touching subdomain i
-  std::vector<Eigen::MatrixXd> W_;               // K_i^+ C_i^T (columns: cols_of_sub_[i])
+  // K_i^+ C_i^T (columns: cols_of_sub_[i]), read only: shared by equal subdomains of a box
+  std::vector<std::shared_ptr<const Eigen::MatrixXd>> W_;
   Eigen::PartialPivLU<Eigen::MatrixXd> lu_;
   Eigen::VectorXd rhs_, sol_, dscale_;
   std::vector<std::vector<Subdomain::BEntry>> b_;  // rows of B~ per subdomain (local numbering)

@@ -3,6 +3,7 @@
 #pragma once
 
 #include <Eigen/Sparse>
+#include <functional>
 #include <memory>
 #include <mutex>
 #include <string>
@@ -105,6 +106,14 @@ class SparseCholesky {
   /// solves with all its holders: an equal X (its nonzeros compared in full) takes the stored
   /// result, which is what the solve gives for it, without solving.
   void solve_many(double* X, int ncols);
+  /// What compute() returns for `key` and `tag`, held once for all holders of a factor shared
+  /// through the numeric cache: the first holder that asks for an equal key (nonzeros and tag
+  /// compared in full) computes it, later ones (waiting if it is under way) get the same
+  /// matrix; up to 64 keys per factor. Without a shared factor, compute()'s result.
+  /// Thread-safe. (Subdomain::pinv_many_shared: K_i^+ C_i^T of equal subdomains held once.)
+  std::shared_ptr<const Eigen::MatrixXd> shared_result(
+      const Eigen::MatrixXd& key, const std::vector<int>& tag,
+      const std::function<Eigen::MatrixXd()>& compute);
   int rows() const;
   /// Nonzeros of the factor L (memory is about 8 bytes per nonzero plus the pattern).
   long factor_nonzeros() const;

@@ -108,6 +108,10 @@ class Subdomain {
   /// X = K^+ X for every column of X (size() rows), in place: one multi-column solve, each
   /// column the same as apply_pinv() gives up to round-off. Setup work (allocates).
   void apply_pinv_many(Eigen::MatrixXd& X);
+  /// K_i^+ X as apply_pinv_many gives it, held once for all subdomains that share this factor
+  /// (numeric cache) and ask with an equal X and equal fixed dofs (SparseCholesky::shared_result):
+  /// the cluster's K_i^+ C_i^T for the equal subdomains of a box. Thread-safe across subdomains.
+  std::shared_ptr<const Eigen::MatrixXd> pinv_many_shared(const Eigen::MatrixXd& X);
   /// Nonzeros of the last factorization (also after release_factor()).
   long factor_nonzeros() const { return factor_nonzeros_; }
   /// Bytes factorize(ordering) would hold, from CHOLMOD's symbolic analysis alone.

@@ -347,20 +347,29 @@ TEST(PackedSymmetric, ProductAndStorage) {
   }
 }
 
-// The single-precision product on AVX2 runs a hand-vectorized tile kernel; it must give the
-// portable code's result bit for bit (same operations, same order), so that results do not depend
-// on which kernel a machine takes. Whole tiles, partial tiles and the last n mod 4 columns.
-TEST(PackedSymmetric, VectorizedSingleProductEqualsThePortableOneBitForBit) {
+// The single-precision product on AVX2 runs a hand-vectorized tile kernel with the portable
+// code's operations in the order in which the Release build (-O3) compiles them: there the two
+// must agree bit for bit, so that the kernel a machine takes does not change its results. Other
+// flags (the sanitizer job's -O1) contract the portable code's sums into fused multiply-adds
+// differently; there they agree to rounding. Whole tiles, partial tiles, the last n mod 4 columns.
+TEST(PackedSymmetric, VectorizedSingleProductEqualsThePortableOne) {
   for (int n : {4, 5, 12, 13, 19, 20, 37, 396}) {
     Eigen::MatrixXd A = Eigen::MatrixXd::Random(n, n);
     A = (A + A.transpose()).eval();
     const Eigen::VectorXd x = Eigen::VectorXd::Random(n);
+    const Eigen::VectorXd scale = A.cwiseAbs() * x.cwiseAbs();
     for (Precision p : {Precision::double_, Precision::single}) {
       const PackedSymmetric P(A, p);
       Eigen::VectorXd y(n), z(n);
       P.multiply(x.data(), y.data());
       P.multiply_portable(x.data(), z.data());
-      for (int i = 0; i < n; ++i) EXPECT_EQ(y[i], z[i]) << "n " << n << " row " << i;
+      for (int i = 0; i < n; ++i) {
+#ifdef NDEBUG
+        EXPECT_EQ(y[i], z[i]) << "n " << n << " row " << i;
+#else
+        EXPECT_NEAR(y[i], z[i], 1e-14 * scale[i]) << "n " << n << " row " << i;
+#endif
+      }
     }
   }
 }

@@ -194,7 +194,7 @@ DualProblem::DualProblem(const FetiLayout& layout,
       const RowClass cls = r->kind != MultiplierKind::gluing ? RowClass::other
                            : r->key[0] == 0                  ? RowClass::node
                                                              : RowClass::object;
-      for (const auto& [dof, v] : r->entries) rows_[s].push_back({k, -1, dof, v, r->side, cls});
+      for (const auto& [dof, v] : r->entries) rows_[s].push_back({k, -1, dof, static_cast<std::int8_t>(r->side), cls, v});
     }
     lr = {};
   }

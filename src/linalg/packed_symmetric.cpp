@@ -116,10 +116,10 @@ namespace avx2 {
 // of GenericTiles for float keeps the eight accumulators, the four broadcasts and the converted
 // values in more than 16 registers; the accumulators it spills put a store-to-load forward on
 // each tile's critical path (about 19 cycles per tile of 32 values, in cache). Here they stay in
-// registers: per half tile one conversion per column, and the same operations in
-// the same order as the generic AVX2 code (bit-identical results: y += ((v0 x0 + v1 x1) + v2 x2)
-// + v3 x3 as fma(v3, x3, fma(v2, x2, fma(v0, x0, v1 x1))), one fused multiply-add per
-// accumulator; tests/test_fem.cpp compares the two).
+// registers: per half tile one conversion per column, and the same operations in the same order
+// as the Release build (-O3) compiles GenericTiles for AVX2 (bit-identical results there:
+// y += ((v0 x0 + v1 x1) + v2 x2) + v3 x3 as fma(v3, x3, fma(v2, x2, fma(v0, x0, v1 x1))), one
+// fused multiply-add per accumulator; tests/test_fem.cpp compares the two).
 struct Avx2SingleTiles {
   // Half a tile: four rows of the four columns.
   HTFETI_INLINE static void half(

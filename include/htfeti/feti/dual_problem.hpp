@@ -22,6 +22,7 @@
 
 #include <Eigen/Dense>
 #include <array>
+#include <cstdint>
 #include <functional>
 #include <memory>
 #include <vector>
@@ -243,14 +244,16 @@ class DualProblem {
  private:
   // Per-node gluing row, averaged-object row, or a Dirichlet / contact row (for the scaling).
   enum class RowClass : std::uint8_t { node, object, other };
+  // 24 bytes (a face average's rows have O(p log p) entries: H-TFETI-DP's constraint phase).
   struct Row {
     int k;  // extended dual index
     int j;  // index among the subdomain's multipliers (mult_[s][j] == k)
     int dof;
-    double value;
-    int side;  // contact rows: +1 on node a, -1 on node b; 0 otherwise
+    std::int8_t side;  // contact rows: +1 on node a, -1 on node b; 0 otherwise
     RowClass cls;
+    double value;
   };
+  static_assert(sizeof(Row) == 24);
   void gather_to_ext(const Vec& owned);                        // ext_in_ = [owned, ghosts]
   void cluster_rhs_from_ext(int c, bool add_f, double sign);   // x_i = (f_i) + sign B_i^T ext_in_
   void b_of_x(int c);                                          // contrib_ = B_i x_i, per row entry

@@ -257,11 +257,10 @@ TEST(MatrixPool, EqualMatricesAreHeldOnce) {
   const Eigen::SparseMatrix<double> copy = *A;
   // Subdomains holding the pool's matrix read it through K(); releasing drops their hold.
   SubdomainSystem sys;
-  sys.K = make(2.0);
+  Eigen::SparseMatrix<double> k = make(2.0);
   sys.f = Eigen::VectorXd::Zero(3);
   sys.R = Eigen::MatrixXd::Zero(3, 0);
-  Subdomain sub(std::move(sys));
-  sub.intern_matrix(pool);
+  Subdomain sub(std::move(sys), pool.intern(k));  // as the setup hands over an assembled K_i
   EXPECT_EQ(&sub.K(), A.get());
   EXPECT_EQ(pool.reuses(), 2);
   sub.release_matrix();

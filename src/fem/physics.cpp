@@ -4,6 +4,7 @@
 #include <string>
 
 #include "htfeti/expression.hpp"
+#include "htfeti/linalg/grid_offsets.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -66,11 +67,7 @@ namespace {
 // false, leaving xyz alone, on a general mesh.
 bool grid_offsets(const SubdomainMesh& mesh, double* xyz, int n, const double origin[3]) {
   if (mesh.uniform_period == 0 || !(mesh.uniform_spacing[0] > 0)) return false;
-  for (int a = 0; a < n; ++a)
-    for (int d = 0; d < 3; ++d) {
-      const double h = mesh.uniform_spacing[d];
-      xyz[3 * a + d] = h > 0 ? std::nearbyint((xyz[3 * a + d] - origin[d]) / h) * h : 0.0;
-    }
+  htfeti::grid_offsets(mesh.uniform_spacing, xyz, xyz, n, origin);
   return true;
 }
 

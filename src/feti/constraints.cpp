@@ -1,5 +1,6 @@
 #include "htfeti/feti/constraints.hpp"
 
+#include "htfeti/linalg/grid_offsets.hpp"
 #include "htfeti/linalg/orthonormal.hpp"
 
 #include <Eigen/Dense>
@@ -83,7 +84,7 @@ std::map<std::pair<int, int>, std::vector<int>> averaged_objects(const DofSharin
 // On a generated grid the kernel is taken on the offsets from the object's first node in whole
 // grid spacings (the same span: rigid motions about another point), so that equal objects at
 // different places give the same W bit for bit, and equal subdomains the same C_i (their
-// K_i^+ C_i^T are then computed and held once, SparseCholesky::solve_shared).
+// K_i^+ C_i^T are then computed and held once, SparseCholesky::shared_result).
 Eigen::MatrixXd object_kernel(const FetiLayout& L, const DofSharing& sh,
                               const std::vector<int>& nodes, std::vector<double>& xyz) {
   const int p = static_cast<int>(nodes.size());
@@ -92,11 +93,7 @@ Eigen::MatrixXd object_kernel(const FetiLayout& L, const DofSharing& sh,
     for (int d = 0; d < 3; ++d) xyz[3 * t + d] = sh.coords[3 * static_cast<size_t>(nodes[t]) + d];
   if (!(sh.grid_spacing[0] > 0) || p == 0) return orthonormal_columns(L.kernel(xyz.data(), p));
   std::vector<double> rel(xyz.size());
-  for (int t = 0; t < p; ++t)
-    for (int d = 0; d < 3; ++d) {
-      const double h = sh.grid_spacing[d];
-      rel[3 * t + d] = h > 0 ? std::nearbyint((xyz[3 * t + d] - xyz[d]) / h) * h : 0.0;
-    }
+  grid_offsets(sh.grid_spacing, xyz.data(), rel.data(), p, xyz.data());
   return orthonormal_columns(L.kernel(rel.data(), p));  // rank-revealing
 }
 

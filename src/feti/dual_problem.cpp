@@ -194,7 +194,8 @@ DualProblem::DualProblem(const FetiLayout& layout,
       const RowClass cls = r->kind != MultiplierKind::gluing ? RowClass::other
                            : r->key[0] == 0                  ? RowClass::node
                                                              : RowClass::object;
-      for (const auto& [dof, v] : r->entries) rows_[s].push_back({k, -1, dof, static_cast<std::int8_t>(r->side), cls, v});
+      const auto side = static_cast<std::int8_t>(r->side);
+      for (const auto& [dof, v] : r->entries) rows_[s].push_back({k, -1, dof, side, cls, v});
     }
     lr = {};
   }

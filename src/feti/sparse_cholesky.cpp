@@ -42,6 +42,22 @@ cholmod_sparse upper_view(Eigen::SparseMatrix<double>& upper) {
   view.packed = 1;
   return view;
 }
+
+// The key of a right-hand side for the memos below: its nonzeros (position, value) and their
+// FNV-1a hash. Keys are compared in full (positions and values), not only by the hash.
+std::uint64_t nonzero_key(const double* x, long n, std::vector<long>& at,
+                          std::vector<double>& value) {
+  std::uint64_t hash = 1469598103934665603ULL;
+  for (long k = 0; k < n; ++k)
+    if (x[k] != 0.0) {
+      std::uint64_t w;
+      std::memcpy(&w, x + k, sizeof w);
+      hash = ((hash ^ static_cast<std::uint64_t>(k)) * 1099511628211ULL ^ w) * 1099511628211ULL;
+      at.push_back(k);
+      value.push_back(x[k]);
+    }
+  return hash;
+}
 }  // namespace
 
 // What the holders of one cached numeric factor (the entry and the factorizations of equal
@@ -454,21 +470,12 @@ void SparseCholesky::solve_many(double* X, int ncols) {
   if (slot) {
     mine = std::make_shared<SharedFactor::Solve>();
     mine->ncols = ncols;
-    std::uint64_t hash = 1469598103934665603ULL;  // FNV-1a over positions and values
-    for (long k = 0; k < total; ++k)
-      if (X[k] != 0.0) {
-        std::uint64_t w;
-        std::memcpy(&w, X + k, sizeof w);
-        hash = ((hash ^ static_cast<std::uint64_t>(k)) * 1099511628211ULL ^ w) * 1099511628211ULL;
-        mine->at.push_back(k);
-        mine->value.push_back(X[k]);
-      }
-    mine->hash = hash;
+    mine->hash = nonzero_key(X, total, mine->at, mine->value);
     std::shared_ptr<const SharedFactor::Solve> found;
     {
       std::lock_guard<std::mutex> lock(slot->mutex);
       for (const auto& e : slot->solves)
-        if (e->hash == hash && e->ncols == ncols && e->at == mine->at && e->value == mine->value) {
+        if (e->hash == mine->hash && e->ncols == ncols && e->at == mine->at && e->value == mine->value) {
           found = e;
           ++slot->solve_reuses;
           break;
@@ -511,15 +518,7 @@ std::shared_ptr<const Eigen::MatrixXd> SparseCholesky::shared_result(
   if (!slot) return std::make_shared<const Eigen::MatrixXd>(compute());
   auto mine = std::make_shared<SharedFactor::Result>();
   mine->rows = key.rows(), mine->cols = key.cols(), mine->tag = tag;
-  std::uint64_t hash = 1469598103934665603ULL;  // FNV-1a over positions and values, and the tag
-  for (long k = 0; k < static_cast<long>(key.size()); ++k)
-    if (key.data()[k] != 0.0) {
-      std::uint64_t w;
-      std::memcpy(&w, key.data() + k, sizeof w);
-      hash = ((hash ^ static_cast<std::uint64_t>(k)) * 1099511628211ULL ^ w) * 1099511628211ULL;
-      mine->at.push_back(k);
-      mine->value.push_back(key.data()[k]);
-    }
+  std::uint64_t hash = nonzero_key(key.data(), key.size(), mine->at, mine->value);
   for (int t : tag) hash = (hash ^ static_cast<std::uint64_t>(t)) * 1099511628211ULL;
   mine->hash = hash;
   {

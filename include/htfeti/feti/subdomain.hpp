@@ -52,10 +52,6 @@ class Subdomain {
   int dofs_per_node() const { return sys_.dofs_per_node; }
   /// The assembled K_i; empty after release_matrix().
   const Eigen::SparseMatrix<double>& K() const { return shared_K_ ? *shared_K_ : sys_.K; }
-  /// Hands K_i to the pool: from then on it is held once for all equal subdomains (read only).
-  void intern_matrix(MatrixPool& pool) {
-    if (sys_.K.rows() == size() && !shared_K_) shared_K_ = pool.intern(sys_.K);
-  }
   /// Frees K_i (the factor remains); energy() and factorize() rebuild it when needed.
   /// (Eigen 3.4's SparseMatrix has no move operations and keeps its storage on assignment from
   /// an empty matrix: swap is what frees it.)

@@ -6,15 +6,19 @@
 
 #include <algorithm>
 #include <cerrno>
+#include <condition_variable>
 #include <cstdint>
+#include <cstdio>
 #include <cstdlib>
 #include <cstring>
-#include <cstdio>
+#include <deque>
 #include <filesystem>
 #include <fstream>
 #include <memory>
+#include <mutex>
 #include <sstream>
 #include <stdexcept>
+#include <thread>
 
 #include "htfeti/fem/element.hpp"
 
@@ -134,43 +138,152 @@ bool write_all(int fd, const char* data, size_t n, std::uint64_t at) {
   return true;
 }
 
+// Background writes of whole staged blocks by direct I/O: one thread that takes the filled
+// stages of every stream in the order they were handed over and writes them with positioned
+// writes, so that the threads that fill the stages (meshes, values) do not wait for the disk
+// while it has work. A stage is handed over with a flag that the writer clears when the stage
+// is on the disk (or failed); its owner waits for that flag before it fills the stage again.
+class WriteBehind {
+ public:
+  WriteBehind(int fd, int dfd) : fd_(fd), dfd_(dfd), thread_([this] { run(); }) {}
+  ~WriteBehind() {
+    {
+      std::lock_guard<std::mutex> l(m_);
+      stop_ = true;
+    }
+    cv_.notify_all();
+    thread_.join();
+  }
+  WriteBehind(const WriteBehind&) = delete;
+  WriteBehind& operator=(const WriteBehind&) = delete;
+
+  void submit(const char* data, size_t n, std::uint64_t at, bool* in_flight) {
+    {
+      std::lock_guard<std::mutex> l(m_);
+      *in_flight = true;
+      jobs_.push_back({data, n, at, in_flight});
+    }
+    cv_.notify_all();
+  }
+  void wait(const bool* in_flight) {
+    std::unique_lock<std::mutex> l(m_);
+    cv_.wait(l, [&] { return !*in_flight; });
+  }
+  std::string error() {
+    std::lock_guard<std::mutex> l(m_);
+    return error_;
+  }
+
+ private:
+  struct Job {
+    const char* data;
+    size_t n;
+    std::uint64_t at;
+    bool* in_flight;
+  };
+  void run() {
+    std::unique_lock<std::mutex> l(m_);
+    for (;;) {
+      cv_.wait(l, [&] { return stop_ || !jobs_.empty(); });
+      if (jobs_.empty()) return;  // stop_ and nothing left
+      const Job j = jobs_.front();
+      jobs_.pop_front();
+      const bool skip = !error_.empty();  // after an error the rest is not written
+      l.unlock();
+      const bool ok = skip || write(j);
+      l.lock();
+      if (!ok && error_.empty()) error_ = "error while writing the VTU (disk full?)";
+      *j.in_flight = false;
+      cv_.notify_all();
+    }
+  }
+  bool write(const Job& j) const {
+    size_t done = 0;
+    while (done < j.n) {
+      const ssize_t w = ::pwrite(dfd_, j.data + done, j.n - done, static_cast<off_t>(j.at + done));
+      if (w < 0 && errno == EINVAL)  // direct I/O refused here: the page cache
+        return write_all(fd_, j.data + done, j.n - done, j.at + done);
+      if (w <= 0) return false;
+      done += static_cast<size_t>(w);
+    }
+    return true;
+  }
+  int fd_, dfd_;
+  std::mutex m_;
+  std::condition_variable cv_;
+  std::deque<Job> jobs_;
+  std::string error_;
+  bool stop_ = false;
+  std::thread thread_;  // last: started after the members it uses
+};
+
 // One thread's values of one array: the contiguous byte range [begin, end) of the file, appended
-// in order. The 4 KiB blocks wholly inside the range go to the file by direct I/O from an
-// aligned staging buffer, a MiB at a time; the bytes before the range's first block boundary and
-// after its last lie in blocks shared with the neighbouring ranges and are written through the
-// page cache (`fd`), as is everything when the direct write is refused (EINVAL).
+// in order. The 4 KiB blocks wholly inside the range go to the file by direct I/O from two
+// aligned staging buffers of a MiB: one is filled while the other is written (WriteBehind). The
+// bytes before the range's first block boundary and after its last lie in blocks shared with
+// the neighbouring ranges and are written through the page cache (`fd`), as is everything when
+// the direct write is refused (EINVAL).
 class DirectStream {
  public:
   static constexpr std::uint64_t kBlock = 4096, kStage = std::uint64_t{1} << 20;
-  DirectStream(int fd, int dfd, std::uint64_t begin, std::uint64_t end)
-      : fd_(fd), dfd_(dfd), pos_(begin), end_(end) {
+  DirectStream(int fd, WriteBehind& writer, std::uint64_t begin, std::uint64_t end)
+      : fd_(fd), writer_(&writer), pos_(begin), end_(end) {
     lo_ = (begin + kBlock - 1) / kBlock * kBlock;
     hi_ = end / kBlock * kBlock;
     if (hi_ <= lo_) lo_ = hi_ = end;  // no whole block: all through the page cache
     stage_at_ = lo_;
+  }
+  DirectStream(DirectStream&& o) noexcept
+      : fd_(o.fd_),
+        writer_(o.writer_),
+        pos_(o.pos_),
+        end_(o.end_),
+        lo_(o.lo_),
+        hi_(o.hi_),
+        stage_at_(o.stage_at_),
+        fill_(o.fill_),
+        cur_(o.cur_) {
+    for (int s = 0; s < 2; ++s) {  // moved before any write (vector growth): nothing in flight
+      stage_[s] = std::move(o.stage_[s]);
+      in_flight_[s] = false;
+    }
+    o.writer_ = nullptr;
+  }
+  DirectStream(const DirectStream&) = delete;
+  DirectStream& operator=(const DirectStream&) = delete;
+  DirectStream& operator=(DirectStream&&) = delete;
+  ~DirectStream() {  // the stages must stay until the writer is done with them
+    if (writer_)
+      for (int s = 0; s < 2; ++s) writer_->wait(&in_flight_[s]);
   }
 
   void append(const char* data, size_t n) {
     if (pos_ + n > end_) throw std::logic_error("VTU: a piece's values overrun their range");
     while (n > 0) {
       if (pos_ < lo_ || pos_ >= hi_) {  // a partial block at either end
-        const size_t k = static_cast<size_t>(std::min<std::uint64_t>(n, (pos_ < lo_ ? lo_ : end_) - pos_));
+        const size_t k =
+            static_cast<size_t>(std::min<std::uint64_t>(n, (pos_ < lo_ ? lo_ : end_) - pos_));
         buffered(data, k, pos_);
         data += k, n -= k, pos_ += k;
         continue;
       }
-      if (!stage_) {
-        stage_.reset(static_cast<char*>(std::aligned_alloc(kBlock, kStage)));
-        if (!stage_) throw std::bad_alloc();
+      if (!stage_[cur_]) {
+        stage_[cur_].reset(static_cast<char*>(std::aligned_alloc(kBlock, kStage)));
+        if (!stage_[cur_]) throw std::bad_alloc();
       }
-      const size_t k = static_cast<size_t>(std::min<std::uint64_t>({n, kStage - fill_, hi_ - pos_}));
-      std::memcpy(stage_.get() + fill_, data, k);
+      const size_t k =
+          static_cast<size_t>(std::min<std::uint64_t>({n, kStage - fill_, hi_ - pos_}));
+      std::memcpy(stage_[cur_].get() + fill_, data, k);
       fill_ += k, data += k, n -= k, pos_ += k;
-      if (fill_ == kStage || pos_ == hi_) flush();
+      if (fill_ == kStage || pos_ == hi_) hand_over();
     }
   }
+  /// Waits until this stream's values are on the disk; throws on a write error.
   void finish() {
     if (pos_ != end_) throw std::logic_error("VTU: a piece's values fall short of their range");
+    for (int s = 0; s < 2; ++s) writer_->wait(&in_flight_[s]);
+    const std::string e = writer_->error();
+    if (!e.empty()) throw std::runtime_error(e);
   }
 
  private:
@@ -178,28 +291,23 @@ class DirectStream {
     if (!write_all(fd_, data, n, at))
       throw std::runtime_error("error while writing the VTU (disk full?)");
   }
-  void flush() {  // fill_ is a whole number of blocks here
-    size_t done = 0;
-    while (done < fill_) {
-      const ssize_t w = ::pwrite(dfd_, stage_.get() + done, fill_ - done,
-                                 static_cast<off_t>(stage_at_ + done));
-      if (w < 0 && errno == EINVAL) {  // direct I/O refused here: the page cache
-        buffered(stage_.get() + done, fill_ - done, stage_at_ + done);
-        break;
-      }
-      if (w <= 0) throw std::runtime_error("error while writing the VTU (disk full?)");
-      done += static_cast<size_t>(w);
-    }
+  void hand_over() {  // fill_ is a whole number of blocks here
+    writer_->submit(stage_[cur_].get(), fill_, stage_at_, &in_flight_[cur_]);
     stage_at_ += fill_;
     fill_ = 0;
+    cur_ ^= 1;
+    writer_->wait(&in_flight_[cur_]);  // the other stage: free once its write is done
   }
-  int fd_, dfd_;
+  int fd_;
+  WriteBehind* writer_;
   std::uint64_t pos_, end_, lo_ = 0, hi_ = 0, stage_at_ = 0;
   size_t fill_ = 0;
+  int cur_ = 0;  // the stage being filled
   struct Free {
     void operator()(char* p) const { std::free(p); }
   };
-  std::unique_ptr<char[], Free> stage_;  // aligned_alloc'd, kStage bytes, made on first use
+  std::unique_ptr<char[], Free> stage_[2];  // aligned_alloc'd, kStage bytes, made on first use
+  bool in_flight_[2] = {false, false};      // guarded by the writer's mutex
 };
 
 }  // namespace
@@ -286,12 +394,12 @@ VtuWritten write_vtu(const std::string& path, const Model& model, DualProblem& d
       pa.push_back({"contact_force", "Float64", 3, {}});
       pa.push_back({"contact_gap", "Float64", 1, {}});
     }
-    std::vector<Array> ca{{"subdomain", "Int32", 1, {}}, {"cluster", "Int32", 1, {}},
-                          {"rank", "Int32", 1, {}}};
+    std::vector<Array> ca{
+        {"subdomain", "Int32", 1, {}}, {"cluster", "Int32", 1, {}}, {"rank", "Int32", 1, {}}};
     if (elastic) ca.push_back({"von_mises", "Float64", 1, {}});
     Array coords{"Points", "Float64", 3, {}};
-    std::vector<Array> cs{{"connectivity", "Int64", 1, {}}, {"offsets", "Int64", 1, {}},
-                          {"types", "UInt8", 1, {}}};
+    std::vector<Array> cs{
+        {"connectivity", "Int64", 1, {}}, {"offsets", "Int64", 1, {}}, {"types", "UInt8", 1, {}}};
     // Point ids and offsets as Int32 where the piece's points and cell corners allow (a fifth
     // less to write for quadrilaterals; VTK reads either).
     auto use_int32 = [&](std::int64_t points, std::int64_t corners) {
@@ -339,9 +447,10 @@ VtuWritten write_vtu(const std::string& path, const Model& model, DualProblem& d
                         coords, cs, ca);
     } else {
       // Binary, streamed: the mesh sizes (Model::mesh_counts, arithmetic on generated boxes) give
-      // every array's size and every subdomain's place in each array, so the header (with the offsets of the appended data)
-      // is written first; then threads take subdomains and write their values to their places
-      // in the file by positioned writes. Memory: one subdomain's buffers per thread.
+      // every array's size and every subdomain's place in each array, so the header (with the
+      // offsets of the appended data) is written first; then threads take subdomains and write
+      // their values to their places in the file by positioned writes. Memory: one subdomain's
+      // buffers per thread.
       const int ns = static_cast<int>(subs.size());
       std::vector<std::int64_t> nodes(ns + 1, 0), cells(ns + 1, 0), corners(ns + 1, 0);
       std::string merr;
@@ -396,10 +505,10 @@ VtuWritten write_vtu(const std::string& path, const Model& model, DualProblem& d
       const std::string tail = "\n</AppendedData>\n</VTKFile>\n";
       put(tail.data(), tail.size(), at);
       // Direct I/O: the same file opened a second time with O_DIRECT (refused by some file
-      // systems, tmpfs for one: then everything goes through `fd`).
+      // systems, tmpfs on older kernels for one: then everything goes through `fd`).
       const bool want_direct =
-          options.io == VtuIo::direct ||
-          (options.io == VtuIo::automatic && static_cast<double>(at) >= VtuOptions::kDirectMinBytes);
+          options.io == VtuIo::direct || (options.io == VtuIo::automatic &&
+                                          static_cast<double>(at) >= VtuOptions::kDirectMinBytes);
       const int dfd = want_direct ? ::open(piece_tmp.c_str(), O_WRONLY | O_DIRECT) : -1;
       if (dfd >= 0) written.io = "direct";
       // One subdomain's values, checked against the counted sizes.
@@ -435,36 +544,40 @@ VtuWritten write_vtu(const std::string& path, const Model& model, DualProblem& d
         }
       } else {
         // Each thread takes a contiguous run of subdomains (split by points), so that its values
-        // of each array are one contiguous range of the file, appended in subdomain order.
-#pragma omp parallel
+        // of each array are one contiguous range of the file, appended in subdomain order; one
+        // background thread writes the filled stages.
         {
-          const int nt = omp_get_num_threads(), t = omp_get_thread_num();
-          auto split = [&](int part) {  // the first subdomain of thread `part`
-            return static_cast<int>(std::lower_bound(nodes.begin(), nodes.end() - 1,
-                                                     P * part / nt) - nodes.begin());
-          };
-          const int lo = split(t), hi = t + 1 == nt ? ns : split(t + 1);
-          try {
-            std::vector<DirectStream> streams;
-            streams.reserve(arrays.size());
-            for (size_t k = 0; k < arrays.size(); ++k)
-              streams.emplace_back(fd, dfd,
-                                   start[k] + item[k] * static_cast<std::uint64_t>((*index[k])[lo]),
-                                   start[k] + item[k] * static_cast<std::uint64_t>((*index[k])[hi]));
-            Buffers b;
-            for (int i = lo; i < hi; ++i) {
-              fill_checked(i, b);
-              for (size_t k = 0; k < arrays.size(); ++k) {
-                const auto [data, n] = bytes_of(*arrays[k], b);
-                streams[k].append(data, n);
+          WriteBehind writer(fd, dfd);
+#pragma omp parallel
+          {
+            const int nt = omp_get_num_threads(), t = omp_get_thread_num();
+            auto split = [&](int part) {  // the first subdomain of thread `part`
+              return static_cast<int>(
+                  std::lower_bound(nodes.begin(), nodes.end() - 1, P * part / nt) - nodes.begin());
+            };
+            const int lo = split(t), hi = t + 1 == nt ? ns : split(t + 1);
+            try {
+              std::vector<DirectStream> streams;
+              streams.reserve(arrays.size());
+              for (size_t k = 0; k < arrays.size(); ++k)
+                streams.emplace_back(
+                    fd, writer, start[k] + item[k] * static_cast<std::uint64_t>((*index[k])[lo]),
+                    start[k] + item[k] * static_cast<std::uint64_t>((*index[k])[hi]));
+              Buffers b;
+              for (int i = lo; i < hi; ++i) {
+                fill_checked(i, b);
+                for (size_t k = 0; k < arrays.size(); ++k) {
+                  const auto [data, n] = bytes_of(*arrays[k], b);
+                  streams[k].append(data, n);
+                }
               }
-            }
-            for (auto& s : streams) s.finish();
-          } catch (const std::exception& e) {
+              for (auto& s : streams) s.finish();
+            } catch (const std::exception& e) {
 #pragma omp critical
-            werr = e.what();
+              werr = e.what();
+            }
           }
-        }
+        }  // the writer's thread has ended: every stage is on the disk
         ::close(dfd);
       }
       if (::close(fd) != 0 && werr.empty()) werr = "error while closing " + piece;

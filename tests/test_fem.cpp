@@ -3,9 +3,12 @@
 #include <gtest/gtest.h>
 
 #include <Eigen/Dense>
+#include <atomic>
+#include <chrono>
 #include <cmath>
 #include <cstring>
 #include <numeric>
+#include <thread>
 
 #include "helpers.hpp"
 #include "htfeti/feti/cluster.hpp"
@@ -318,6 +321,61 @@ TEST(SymbolicCache, SharedNumericFactorOutlivesItsOtherHolders) {
     }
     EXPECT_EQ((x[h] - x_plain).cwiseAbs().maxCoeff(), 0.0) << "holder " << h;
   }
+}
+
+// shared_result: holders of one shared factor get one result per key (key and tag compared in
+// full); a key whose first holder's computation throws is computed by each waiting holder.
+TEST(SymbolicCache, SharedResultOncePerKeyAndAfterAFailure) {
+  const int n = 10;
+  std::vector<Eigen::Triplet<double>> t;
+  for (int i = 0; i < n; ++i) {
+    t.emplace_back(i, i, 3.0);
+    if (i + 1 < n) t.emplace_back(i, i + 1, -1.0), t.emplace_back(i + 1, i, -1.0);
+  }
+  Eigen::SparseMatrix<double> A(n, n);
+  A.setFromTriplets(t.begin(), t.end());
+  SymbolicCache cache(64, 1e9);
+  std::vector<SparseCholesky> f(3);
+  for (auto& c : f) c.factorize(A, &cache);  // f[1] keeps the factor, f[2] copies it
+  const Eigen::MatrixXd key = Eigen::MatrixXd::Identity(n, 2);
+  int computed = 0;
+  const auto compute = [&] {
+    ++computed;
+    return Eigen::MatrixXd(key * 2.0);
+  };
+  const auto r1 = f[1].shared_result(key, {7}, compute);
+  const auto r2 = f[2].shared_result(key, {7}, compute);
+  const auto r3 = f[2].shared_result(key, {8}, compute);  // another tag: another result
+  EXPECT_EQ(r1.get(), r2.get());
+  EXPECT_NE(r1.get(), r3.get());
+  EXPECT_EQ(computed, 2);
+  EXPECT_EQ(*r1, key * 2.0);
+  // The first holder throws after the second has begun to wait for the same key.
+  std::atomic<bool> first_in{false};
+  std::atomic<int> waiter_computed{0};
+  const Eigen::MatrixXd key2 = Eigen::MatrixXd::Constant(n, 1, 0.5);
+  std::shared_ptr<const Eigen::MatrixXd> got;
+  bool threw = false;
+  std::thread first([&] {
+    try {
+      f[1].shared_result(key2, {}, [&]() -> Eigen::MatrixXd {
+        first_in = true;
+        std::this_thread::sleep_for(std::chrono::milliseconds(200));
+        throw std::runtime_error("no memory");
+      });
+    } catch (const std::runtime_error&) {
+      threw = true;
+    }
+  });
+  while (!first_in) std::this_thread::yield();
+  got = f[2].shared_result(key2, {}, [&] {
+    ++waiter_computed;
+    return Eigen::MatrixXd(key2 * 3.0);
+  });
+  first.join();
+  EXPECT_TRUE(threw);
+  EXPECT_EQ(waiter_computed, 1);
+  EXPECT_EQ(*got, key2 * 3.0);
 }
 
 // The packed lower triangle: the product equals the dense symmetric product (double: to

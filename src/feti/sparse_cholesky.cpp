@@ -87,6 +87,7 @@ struct SharedFactor {
     std::vector<double> value;
     std::vector<int> tag;
     std::shared_ptr<const Eigen::MatrixXd> out;
+    bool failed = false;  // its compute() threw: those who waited compute their own
   };
   static constexpr int kMaxResults = 64;
   std::vector<std::shared_ptr<Result>> results;
@@ -523,15 +524,22 @@ std::shared_ptr<const Eigen::MatrixXd> SparseCholesky::shared_result(
   mine->hash = hash;
   {
     std::unique_lock<std::mutex> lock(slot->mutex);
+    std::shared_ptr<SharedFactor::Result> e;
     for (const auto& held : slot->results)
       if (held->hash == hash && held->rows == mine->rows && held->cols == mine->cols &&
           held->at == mine->at && held->value == mine->value && held->tag == mine->tag) {
-        const std::shared_ptr<SharedFactor::Result> e = held;  // the vector may grow meanwhile
-        slot->ready.wait(lock, [&] { return e->out != nullptr; });
+        e = held;  // held by pointer: the vector may grow meanwhile
+        break;
+      }
+    if (e) {
+      slot->ready.wait(lock, [&] { return e->out != nullptr || e->failed; });
+      if (!e->failed) {
         ++slot->result_reuses;
         return e->out;
       }
-    if (static_cast<int>(slot->results.size()) >= SharedFactor::kMaxResults) {
+    }
+    if (e || static_cast<int>(slot->results.size()) >= SharedFactor::kMaxResults) {
+      // Its first holder's compute() threw, or no room for another key: computed unshared.
       lock.unlock();
       return std::make_shared<const Eigen::MatrixXd>(compute());
     }
@@ -540,9 +548,12 @@ std::shared_ptr<const Eigen::MatrixXd> SparseCholesky::shared_result(
   std::shared_ptr<const Eigen::MatrixXd> out;
   try {
     out = std::make_shared<const Eigen::MatrixXd>(compute());
-  } catch (...) {  // withdraw the key, so that no one waits for it
-    std::lock_guard<std::mutex> lock(slot->mutex);
-    slot->results.erase(std::find(slot->results.begin(), slot->results.end(), mine));
+  } catch (...) {  // withdraw the key; those waiting for it compute their own
+    {
+      std::lock_guard<std::mutex> lock(slot->mutex);
+      mine->failed = true;
+      slot->results.erase(std::find(slot->results.begin(), slot->results.end(), mine));
+    }
     slot->ready.notify_all();
     throw;
   }

@@ -335,6 +335,15 @@ int run(int argc, char** argv, const Comm& comm) {
                        "sums in double)")
           ->check(CLI::IsMember({"double", "single"}))
           ->capture_default_str();
+  int coarse_steps = 2;
+  auto* o_coarse_steps =
+      solve_cmd
+          ->add_option("--coarse-steps-per-product", coarse_steps,
+                       "coarse steps per SMALBE-M Hessian product: 2 (P, F, P) | 1 (F, then one "
+                       "reduction with E = F G~^T formed in setup; memory and setup time, for "
+                       "many ranks)")
+          ->check(CLI::IsMember({1, 2}))
+          ->capture_default_str();
   std::string norm_text = "power";
   auto* o_norm = solve_cmd
                      ->add_option("--norm-estimate", norm_text,
@@ -474,6 +483,7 @@ int run(int argc, char** argv, const Comm& comm) {
       opt.feti.factor_budget_bytes = 0;
     }
     if (o_norm->count()) opt.norm_estimate = qp::parse_norm_estimate(norm_text);
+    if (o_coarse_steps->count()) opt.coarse_steps_per_product = coarse_steps;
     if (o_precision->count()) opt.feti.explicit_precision = parse_precision(precision_text);
     if (no_report) out_opt.write_report = false;
     if (no_vtu) out_opt.write_vtu = false;

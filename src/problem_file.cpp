@@ -380,8 +380,14 @@ ProblemSpec read_problem_file(const std::string& path, SolveOptions& solver, Out
   }
   if (const toml::table* s = table_of(root, "solver", false)) {
     check_keys(*s, "solver", {"rtol", "max_iterations", "ordering", "dual_operator", "keep_factors", "release_factors",
-                              "preconditioner", "scaling", "dirichlet_storage", "explicit_precision", "explicit_budget_gb", "memory_limit_gb", "norm_estimate", "rho_factor", "M0_factor", "eta_factor", "beta", "gamma", "progress"});
+                              "preconditioner", "scaling", "dirichlet_storage", "explicit_precision", "explicit_budget_gb", "memory_limit_gb", "norm_estimate", "coarse_steps_per_product", "rho_factor", "M0_factor", "eta_factor", "beta", "gamma", "progress"});
     solver.rtol = get_double(*s, "solver", "rtol", solver.rtol);
+    {
+      const long long cs =
+          get_int(*s, "solver", "coarse_steps_per_product", solver.coarse_steps_per_product);
+      if (cs != 1 && cs != 2) bad("solver.coarse_steps_per_product", "must be 1 or 2");
+      solver.coarse_steps_per_product = static_cast<int>(cs);
+    }
     const long long mi = get_int(*s, "solver", "max_iterations", solver.max_iterations);
     if (mi < 0 || mi > 100000000) bad("solver.max_iterations", "must be a non-negative integer");
     solver.max_iterations = static_cast<int>(mi);

@@ -62,6 +62,7 @@ TEST_F(Cli, BadArgumentsExitWithCode2AndWriteNothing) {
                        "--scaling rho",
                        "--memory-limit 0",
                        "--explicit-budget -1",
+                       "--coarse-steps-per-product 3",
                        // cannot fit in memory: refused by the estimate before any work
                        "-n 20000 --subdomains 100",
                        "-n 100000 --subdomains 10"};
@@ -141,6 +142,7 @@ TEST_F(Cli, ReportsDoNotDependOnTheNumberOfThreads) {
   // run over the subdomains inside it. Both with the explicit and the implicit operator.
   for (const char* config :
        {"-m 3", "-m 6", "-m 3 --dual-operator implicit", "-m 6 --dual-operator implicit",
+        "-m 3 --coarse-steps-per-product 1", "-m 6 --coarse-steps-per-product 1",
         "-m 3 --preconditioner dirichlet --scaling stiffness", "-m 6 --preconditioner lumped"}) {
     nlohmann::json reports[2];
     for (int t = 1; t <= 2; ++t) {
@@ -260,6 +262,8 @@ TEST_F(Cli, BadProblemFilesExitWithCode2NamingTheKeyAndWriteNothing) {
       {with("type = \"laplace\"", "type = \"laplace\"\ncoefficient = \"x - 0.5\""),
        "physics.coefficient must be positive"},
       {with("[solver]", "[output]\nvtu_io = \"fast\"\n[solver]"), "output.vtu_io"},
+      {with("[solver]", "[solver]\ncoarse_steps_per_product = 0"),
+       "solver.coarse_steps_per_product"},
   };
   int i = 0;
   for (const auto& [text, needle] : cases) {
@@ -295,7 +299,10 @@ TEST_F(Cli, ContactResultsAreIdenticalOnOneToFourRanks) {
   const char* problems[] = {"--problem cube-obstacle",
                             "--problem membranes -n 64 --subdomains 8 -m 2 --glue corners+averages",
                             "--problem membranes -n 64 --subdomains 8 -m 2 --preconditioner "
-                            "dirichlet --scaling stiffness"};
+                            "dirichlet --scaling stiffness",
+                            "--problem cube-obstacle --coarse-steps-per-product 1",
+                            "--problem membranes -n 64 --subdomains 8 -m 2 --glue corners+averages "
+                            "--coarse-steps-per-product 1"};
   for (const char* p : problems) {
     nlohmann::json reports[4];
     for (int r = 1; r <= 4; ++r) {

@@ -130,9 +130,13 @@ TEST_P(CubeObstacle, MatchesTheActiveSetSolution) {
   // Q lambda bounds the attainable rtol near 1e-8 for E = 2.1e7.
   opt.rtol = 1e-8;
   opt.max_iterations = 2000;
+  const QpReference ref = solve_contact_directly(spec);
+  for (int steps : {2, 1}) {  // both forms of the Hessian product through the same checks
+  SCOPED_TRACE("coarse steps per product: " + std::to_string(steps));
+  opt.coarse_steps_per_product = steps;
   const auto out = solve(model, opt, comm);
   ASSERT_TRUE(out.converged) << out.report["stop_reason"];
-  const QpReference ref = solve_contact_directly(spec);
+  EXPECT_EQ(out.report["coarse_steps_per_product"].get<int>(), steps);
   ASSERT_GT(ref.active, 0);
   if (c.partial) {
     ASSERT_GT(ref.inactive, 0) << "the case should have partial contact";
@@ -147,6 +151,7 @@ TEST_P(CubeObstacle, MatchesTheActiveSetSolution) {
   EXPECT_LT(kkt["max_violation"].get<double>(), 1e-6 * umax);
   EXPECT_GE(kkt["min_multiplier"].get<double>(), -1e-8 * std::abs(energy) / umax);
   EXPECT_EQ(out.report["coarse_dimension"].get<int>(), 6 * model->num_clusters());
+  }
 }
 
 INSTANTIATE_TEST_SUITE_P(

@@ -125,6 +125,43 @@ TEST_P(DualOperators, ExplicitEqualsImplicit) {
   EXPECT_LT((a.d() - b.d()).norm(), 1e-11 * (1 + a.d().norm()));
 }
 
+// The coarse image: E = F G~^T column by column (each from its own G~^T and F application,
+// against the colour-at-a-time construction), and the Hessian product with one coarse step
+// against P F P v + rho Q v with two projections.
+TEST_P(DualOperators, CoarseImageGivesTheHessianWithOneCoarseStep) {
+  dual->build_coarse_image();
+  const auto& st = dual->coarse_image_stats();
+  EXPECT_GT(st.colours, 0);
+  EXPECT_LE(st.F_applications, st.colours * 3);
+  const int nc = dual->coarse_dimension();
+  Eigen::VectorXd e, w, fw, ew;
+  double scale = 0, err = 0;
+  for (int a = 0; a < nc; ++a) {
+    e = Eigen::VectorXd::Zero(nc);
+    e[a] = 1;
+    dual->apply_Gt(e, w);
+    dual->apply_F(w, fw);
+    dual->apply_coarse_image(e, ew);
+    scale = std::max(scale, std::sqrt(dot(fw, fw)));
+    err = std::max(err, std::sqrt(dot(fw - ew, fw - ew)));
+  }
+  EXPECT_LE(err, 1e-13 * scale);
+  for (double seed : {1.0, 4.0}) {
+    const Eigen::VectorXd v = test::pseudo_random(*dual, seed);
+    const double rho = 1.7;
+    Eigen::VectorXd pv, y, fv, y1, q1;
+    dual->project(v, pv);
+    dual->apply_F(pv, y);
+    dual->project(y, y);
+    y += rho * (v - pv);
+    dual->apply_F(v, fv);
+    dual->hessian_from_Fv(v, fv, rho, y1, q1);
+    EXPECT_LE(std::sqrt(dot(y1 - y, y1 - y)), 1e-12 * std::sqrt(dot(y, y)));
+    const Eigen::VectorXd q = v - pv;
+    EXPECT_LE(std::sqrt(dot(q1 - q, q1 - q)), 1e-12 * std::sqrt(dot(v, v)));
+  }
+}
+
 INSTANTIATE_TEST_SUITE_P(SmallCases, DualOperators,
                          ::testing::Values(Case{ProblemKind::poisson2d, 8, 4, 1, Glue::averages},
                                            Case{ProblemKind::membranes, 12, 3, 1, Glue::averages},

@@ -32,6 +32,13 @@ struct SolveOptions {
   /// tables (docs/results.md) were measured with it; Lanczos needs fewer products in total
   /// (docs/performance.md) and moves SMALBE-M's counts through rho = 1.1 ||PFP||.
   qp::NormEstimate norm_estimate = qp::NormEstimate::power;
+  /// Coarse steps per SMALBE-M Hessian product: 2 (P v, F, P: two global reductions, each
+  /// waiting for the last) or 1 (F v, then [G~ v, G~ F v] in one reduction, with E = F G~^T and
+  /// C = G~ F G~^T formed once in setup: DualProblem::build_coarse_image). 1 costs memory (about
+  /// 12 entries of E per multiplier in 2D Laplace, 216 in 3D elasticity) and setup time, and on
+  /// one machine no time per product (docs/performance.md); its gain is one synchronization per
+  /// product over many ranks. Projected CG (no contact) always takes 2.
+  int coarse_steps_per_product = 2;
   bool progress = false;     ///< print one line per (outer) iteration on rank 0 (stderr)
   /// Estimate the memory before setup and refuse (std::invalid_argument) what cannot fit
   /// (memory_estimate.hpp).

@@ -903,41 +903,29 @@ void DualProblem::project(const Vec& x, Vec& y) {
   y = x - ext_out_.head(layout_dual_.n_owned());
 }
 
-void DualProblem::assemble_coarse(const std::vector<double>& weight, CoarseFactor& factor) {
-  // (G~ W G~^T)_{ab} = sum_k w_k g_ak g_bk. Every cluster sends (k, coarse row, g_ak) to the
-  // owner of k; owners form the products and sum equal entries; the summed triplets are shared
-  // (every rank factors the coarse matrix). Counts are in items (MPI datatypes), not bytes.
-  struct Item {
-    long long k;
-    int row;
-    double g;
-  };
-  struct Triplet {
-    long long k;
-    int a, b;
-    double v;
-  };
-  MPI_Datatype item_type, trip_type;
-  {
-    int bl[3] = {1, 1, 1};
-    MPI_Aint disp[3] = {offsetof(Item, k), offsetof(Item, row), offsetof(Item, g)};
-    MPI_Datatype types[3] = {MPI_LONG_LONG, MPI_INT, MPI_DOUBLE};
-    MPI_Datatype tmp;
-    MPI_Type_create_struct(3, bl, disp, types, &tmp);
-    MPI_Type_create_resized(tmp, 0, sizeof(Item), &item_type);
-    MPI_Type_free(&tmp);
-    MPI_Type_commit(&item_type);
-    int bl2[4] = {1, 1, 1, 1};
-    MPI_Aint disp2[4] = {offsetof(Triplet, k), offsetof(Triplet, a), offsetof(Triplet, b),
-                         offsetof(Triplet, v)};
-    MPI_Datatype types2[4] = {MPI_LONG_LONG, MPI_INT, MPI_INT, MPI_DOUBLE};
-    MPI_Type_create_struct(4, bl2, disp2, types2, &tmp);
-    MPI_Type_create_resized(tmp, 0, sizeof(Triplet), &trip_type);
-    MPI_Type_free(&tmp);
-    MPI_Type_commit(&trip_type);
-  }
+namespace {
+// MPI datatypes for arrays of a struct of (long long, int..., double) fields.
+template <class T, size_t N>
+MPI_Datatype struct_type(const std::array<MPI_Aint, N>& disp, const std::array<MPI_Datatype, N>& types) {
+  int bl[N];
+  for (size_t i = 0; i < N; ++i) bl[i] = 1;
+  MPI_Datatype tmp, out;
+  MPI_Type_create_struct(static_cast<int>(N), bl, disp.data(), types.data(), &tmp);
+  MPI_Type_create_resized(tmp, 0, sizeof(T), &out);
+  MPI_Type_free(&tmp);
+  MPI_Type_commit(&out);
+  return out;
+}
+}  // namespace
+
+std::vector<DualProblem::GItem> DualProblem::g_columns_at_owners() const {
+  // Every cluster sends (k, coarse row, g) for its nonzeros of G~ to the owner of k. Counts are
+  // in items (MPI datatypes), not bytes.
+  MPI_Datatype item_type = struct_type<GItem, 3>(
+      {offsetof(GItem, k), offsetof(GItem, row), offsetof(GItem, g)},
+      {MPI_LONG_LONG, MPI_INT, MPI_DOUBLE});
   const int P = comm_.size();
-  std::vector<std::vector<Item>> out(P);
+  std::vector<std::vector<GItem>> out(P);
   for (size_t c = 0; c < clusters_.size(); ++c) {
     const int base = coarse_first_[clusters_[c]->id()];
     for (size_t j = 0; j < g_rows_[c].size(); ++j)
@@ -949,16 +937,46 @@ void DualProblem::assemble_coarse(const std::vector<double>& weight, CoarseFacto
   MPI_Alltoall(scount.data(), 1, MPI_INT, rcount.data(), 1, MPI_INT, comm_.raw());
   for (int r = 0; r < P; ++r)
     sdisp[r + 1] = sdisp[r] + scount[r], rdisp[r + 1] = rdisp[r] + rcount[r];
-  std::vector<Item> sbuf(sdisp[P]), rbuf(rdisp[P]);
+  std::vector<GItem> sbuf(sdisp[P]), rbuf(rdisp[P]);
   for (int r = 0, pos = 0; r < P; ++r)
     for (const auto& it : out[r]) sbuf[pos++] = it;
+  out = {};
   MPI_Alltoallv(sbuf.data(), scount.data(), sdisp.data(), item_type, rbuf.data(), rcount.data(),
                 rdisp.data(), item_type, comm_.raw());
-  out = {};
-  sbuf = {};
-  std::stable_sort(rbuf.begin(), rbuf.end(), [](const Item& x, const Item& y) {
+  MPI_Type_free(&item_type);
+  std::stable_sort(rbuf.begin(), rbuf.end(), [](const GItem& x, const GItem& y) {
     return x.k != y.k ? x.k < y.k : x.row < y.row;
   });
+  return rbuf;
+}
+
+std::vector<DualProblem::CoarseTriplet> DualProblem::allgather_sorted(
+    const std::vector<CoarseTriplet>& mine) const {
+  MPI_Datatype trip_type = struct_type<CoarseTriplet, 4>(
+      {offsetof(CoarseTriplet, k), offsetof(CoarseTriplet, a), offsetof(CoarseTriplet, b),
+       offsetof(CoarseTriplet, v)},
+      {MPI_LONG_LONG, MPI_INT, MPI_INT, MPI_DOUBLE});
+  const int P = comm_.size();
+  int nmine = static_cast<int>(mine.size());
+  std::vector<int> counts(P), disp(P + 1, 0);
+  MPI_Allgather(&nmine, 1, MPI_INT, counts.data(), 1, MPI_INT, comm_.raw());
+  for (int r = 0; r < P; ++r) disp[r + 1] = disp[r] + counts[r];
+  std::vector<CoarseTriplet> all(disp[P]);
+  MPI_Allgatherv(mine.data(), nmine, trip_type, all.data(), counts.data(), disp.data(), trip_type,
+                 comm_.raw());
+  MPI_Type_free(&trip_type);
+  // Each entry's partial sums in key order, whatever rank formed them.
+  std::sort(all.begin(), all.end(), [](const CoarseTriplet& x, const CoarseTriplet& y) {
+    return x.a != y.a ? x.a < y.a : x.b != y.b ? x.b < y.b : x.k < y.k;
+  });
+  return all;
+}
+
+void DualProblem::assemble_coarse(const std::vector<double>& weight, CoarseFactor& factor) {
+  // (G~ W G~^T)_{ab} = sum_k w_k g_ak g_bk. The owners of the multipliers form the products and
+  // sum equal entries; the summed triplets are shared (every rank factors the coarse matrix).
+  using Triplet = CoarseTriplet;
+  std::vector<GItem> rbuf = g_columns_at_owners();
   // Products summed per owner cluster of the multiplier (all of a cluster's multipliers live on
   // one rank whatever the rank count), in multiplier order; the partial sums are then added in
   // cluster order below. Rank-count independent, and O(entries of G~G~^T touched per cluster)
@@ -1004,20 +1022,9 @@ void DualProblem::assemble_coarse(const std::vector<double>& weight, CoarseFacto
   }
   rbuf = {};
   products = {};
-  int nmine = static_cast<int>(mine.size());
-  std::vector<int> counts(P), disp(P + 1, 0);
-  MPI_Allgather(&nmine, 1, MPI_INT, counts.data(), 1, MPI_INT, comm_.raw());
-  for (int r = 0; r < P; ++r) disp[r + 1] = disp[r] + counts[r];
-  std::vector<Triplet> all(disp[P]);
-  MPI_Allgatherv(mine.data(), nmine, trip_type, all.data(), counts.data(), disp.data(), trip_type,
-                 comm_.raw());
-  MPI_Type_free(&item_type);
-  MPI_Type_free(&trip_type);
   // Sum each entry's partial sums in cluster order whatever rank formed them (k: the cluster).
+  const std::vector<Triplet> all = allgather_sorted(mine);
   mine = {};
-  std::sort(all.begin(), all.end(), [](const Triplet& x, const Triplet& y) {
-    return x.a != y.a ? x.a < y.a : x.b != y.b ? x.b < y.b : x.k < y.k;
-  });
   std::vector<Eigen::Triplet<double>> trip;
   trip.reserve(all.size());
   for (const auto& t : all) trip.emplace_back(t.a, t.b, t.v);

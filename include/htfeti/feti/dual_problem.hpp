@@ -176,6 +176,31 @@ class DualProblem {
   /// y = P x (x and y may alias).
   void project(const Vec& x, Vec& y);
 
+  /// The coarse image of F, for one coarse step per Hessian product (docs/method.md, "One
+  /// coarse step per Hessian product"): E = F G~^T, stored by owned rows, and the coarse matrix
+  /// C = G~ F G~^T (on every rank). Columns of E are formed together for clusters of one colour
+  /// of a distance-3 colouring of the cluster graph (clusters are adjacent when a row of B~
+  /// touches both), whose columns of F G~^T then have disjoint supports: one G~^T and one F
+  /// application per (colour, kernel vector). Collective.
+  void build_coarse_image();
+  bool has_coarse_image() const { return image_.built; }
+  struct CoarseImageStats {
+    int colours = 0;             ///< of the distance-3 colouring
+    int F_applications = 0;      ///< spent forming E
+    long long E_nonzeros = 0;    ///< summed over ranks
+    long long C_nonzeros = 0;
+    double seconds = 0;          ///< wall clock on this rank
+  };
+  const CoarseImageStats& coarse_image_stats() const { return image_.stats; }
+  /// y = E z (the owned rows of F G~^T z); requires build_coarse_image().
+  void apply_coarse_image(const Vec& z, Vec& y) const;
+  /// The second half of H_rho v = P F P v + rho Q v with one global reduction, given fv = F v
+  /// (requires build_coarse_image()): [a, b] = [G~ v, G~ fv] summed in one allreduce,
+  /// z1 = (G~ G~^T)^{-1} a, z2 = (G~ G~^T)^{-1} (b - C z1) (no communication between the two),
+  /// qv = G~^T z1 = Q v and y = fv - E z1 - G~^T z2 + rho qv. Cost: one pass of G~ over two
+  /// vectors, two of G~^T, one of E, two sparse coarse solves and one product with C.
+  void hessian_from_Fv(const Vec& v, const Vec& fv, double rho, Vec& y, Vec& qv);
+
   /// d = B~ K~^+ f - c.
   const Vec& d() const { return d_; }
   /// e~ = R~^T f (all clusters).
@@ -318,6 +343,29 @@ class DualProblem {
   // G~ rows of each local cluster: per kernel vector, (extended index, value)
   std::vector<std::vector<std::vector<std::pair<int, double>>>> g_rows_;
   CoarseFactor coarse_factor_;
+  // build_coarse_image(): E by owned rows (CSR, columns sorted), C = G~ F G~^T (CSR, all ranks).
+  struct CoarseImage {
+    bool built = false;
+    std::vector<int> e_ptr, e_col, c_ptr, c_col;
+    std::vector<double> e_val, c_val;
+    Vec ab, z1, z2;  // work: [G~ v; G~ F v], the two coarse solutions
+    CoarseImageStats stats;
+  } image_;
+  // G~'s columns at the owned multipliers: (global multiplier, coarse row, value) for every
+  // nonzero of G~, sent to the multiplier's owner and sorted by (multiplier, row). Collective.
+  struct GItem {
+    long long k;
+    int row;
+    double g;
+  };
+  std::vector<GItem> g_columns_at_owners() const;
+  // (key, a, b, value) partial sums of a coarse matrix, summed over ranks in (a, b, key) order.
+  struct CoarseTriplet {
+    long long k;
+    int a, b;
+    double v;
+  };
+  std::vector<CoarseTriplet> allgather_sorted(const std::vector<CoarseTriplet>& mine) const;
   int reconstruction_null_ = 0;
   Vec d_, e_, lambda_tilde_, lower_;
   // work arrays (allocated once)

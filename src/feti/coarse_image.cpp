@@ -1,0 +1,326 @@
+// One coarse step per Hessian product (paper, (12) and (15): H_rho = P F P + rho Q with
+// P = I - Q, Q = G~^T (G~ G~^T)^{-1} G~; docs/method.md, "One coarse step per Hessian product").
+//
+// With S = G~ G~^T, E = F G~^T and C = G~ E = G~ F G~^T:
+//     P F P v = (I - Q)(F v - E z1) = F v - E z1 - G~^T z2,
+//     z1 = S^{-1} G~ v,   z2 = S^{-1} (G~ F v - C z1),
+// so G~ v and G~ F v, both known once F v is, travel in one global reduction, and the two
+// coarse solves follow each other on every rank with no communication between them. The
+// separate form (P v, F, P) needs two reductions, each waiting for the one before.
+//
+// Forming E. Column (j, t) of E (cluster j, kernel vector t) is F applied to G~^T e_(j,t), whose
+// support lies in the multipliers of j; F = sum_c B_c K_c^+ B_c^T spreads it to the multipliers
+// of the clusters next to j (N[j]: j and the clusters sharing a row of B~ with it). For clusters
+// at distance 4 or more in that graph these supports are disjoint, and no cluster's solve sees
+// two of them, so a distance-3 colouring lets one F application form the columns of a whole
+// colour: at an owned multiplier k the column is the one cluster of that colour in the union of
+// N[c] over the clusters c touching k. An entry outside every candidate's neighbourhood must
+// come out exactly zero, which is checked. C = G~ E is summed at the owners of the multipliers,
+// from G~'s columns there and E's rows, per owner cluster in multiplier order and then in
+// cluster order, so it does not depend on the number of ranks.
+//
+// Cost: setup, (colours x largest kernel dimension) applications of G~^T and F (about 16 x 1
+// for a 2D Laplace box, 64 x 6 for 3D elasticity). Memory: E has one entry per (multiplier,
+// kernel vector of a cluster within distance 1 of the multiplier's clusters): 12 per multiplier
+// of a 2D Laplace box, about 216 in 3D elasticity. Per product: see hessian_from_Fv.
+#include <mpi.h>
+#include <omp.h>
+
+#include <algorithm>
+#include <chrono>
+#include <stdexcept>
+
+#include "htfeti/feti/dual_problem.hpp"
+
+namespace htfeti {
+
+namespace {
+double now() {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch())
+      .count();
+}
+
+// Greedy colouring in cluster order such that clusters at distance <= 3 differ (the same on
+// every rank: the graph is).
+std::vector<int> distance3_colouring(const std::vector<std::vector<int>>& adj) {
+  const int n = static_cast<int>(adj.size());
+  std::vector<int> colour(n, -1), seen(n, -1), used;
+  std::vector<int> frontier, next;
+  for (int j = 0; j < n; ++j) {
+    used.clear();
+    frontier.assign(1, j);
+    seen[j] = j;
+    for (int depth = 0; depth < 3; ++depth) {
+      next.clear();
+      for (int a : frontier)
+        for (int b : adj[a])
+          if (seen[b] != j) {
+            seen[b] = j;
+            next.push_back(b);
+            if (colour[b] >= 0) used.push_back(colour[b]);
+          }
+      frontier.swap(next);
+    }
+    std::sort(used.begin(), used.end());
+    int c = 0;
+    for (int u : used)
+      if (u == c)
+        ++c;
+      else if (u > c)
+        break;
+    colour[j] = c;
+  }
+  return colour;
+}
+}  // namespace
+
+void DualProblem::build_coarse_image() {
+  const double t0 = now();
+  const int P = comm_.size(), n_own = layout_dual_.n_owned(), ncl = layout_.num_clusters;
+  const MPI_Comm mc = comm_.raw();
+
+  // 1. The clusters touching each owned multiplier: (global multiplier, cluster) pairs of the
+  //    rank's clusters sent to the multipliers' owners.
+  std::vector<std::vector<long long>> out(P);
+  {
+    std::vector<int> ks;
+    for (size_t c = 0; c < clusters_.size(); ++c) {
+      ks.clear();
+      for (int i = 0; i < members(static_cast<int>(c)); ++i)
+        for (int k : mult_[sub_of(static_cast<int>(c), i)]) ks.push_back(k);
+      std::sort(ks.begin(), ks.end());
+      ks.erase(std::unique(ks.begin(), ks.end()), ks.end());
+      for (int k : ks) {
+        out[owner_[k]].push_back(layout_dual_.global(k));
+        out[owner_[k]].push_back(clusters_[c]->id());
+      }
+    }
+  }
+  std::vector<int> scount(P), rcount(P), sdisp(P + 1, 0), rdisp(P + 1, 0);
+  for (int r = 0; r < P; ++r) scount[r] = static_cast<int>(out[r].size());
+  MPI_Alltoall(scount.data(), 1, MPI_INT, rcount.data(), 1, MPI_INT, mc);
+  for (int r = 0; r < P; ++r)
+    sdisp[r + 1] = sdisp[r] + scount[r], rdisp[r + 1] = rdisp[r] + rcount[r];
+  std::vector<long long> sbuf(sdisp[P]), rbuf(rdisp[P]);
+  for (int r = 0; r < P; ++r) std::copy(out[r].begin(), out[r].end(), sbuf.begin() + sdisp[r]);
+  out = {};
+  MPI_Alltoallv(sbuf.data(), scount.data(), sdisp.data(), MPI_LONG_LONG, rbuf.data(),
+                rcount.data(), rdisp.data(), MPI_LONG_LONG, mc);
+  sbuf = {};
+  std::vector<std::vector<int>> touching(n_own);
+  for (size_t i = 0; i < rbuf.size(); i += 2) {
+    const int e = layout_dual_.ext_index(rbuf[i]);
+    if (e < 0 || e >= n_own) throw std::logic_error("coarse image: a pair for an unowned row");
+    touching[e].push_back(static_cast<int>(rbuf[i + 1]));
+  }
+  rbuf = {};
+  for (auto& t : touching) std::sort(t.begin(), t.end());
+
+  // 2. The cluster graph (every rank the whole of it) and its distance-3 colouring.
+  std::vector<long long> edges;
+  for (const auto& t : touching)
+    for (size_t a = 0; a < t.size(); ++a)
+      for (size_t b = a + 1; b < t.size(); ++b)
+        if (t[a] != t[b]) edges.push_back(static_cast<long long>(t[a]) * ncl + t[b]);
+  std::sort(edges.begin(), edges.end());
+  edges.erase(std::unique(edges.begin(), edges.end()), edges.end());
+  int nedges = static_cast<int>(edges.size());
+  std::vector<int> counts(P), disp(P + 1, 0);
+  MPI_Allgather(&nedges, 1, MPI_INT, counts.data(), 1, MPI_INT, mc);
+  for (int r = 0; r < P; ++r) disp[r + 1] = disp[r] + counts[r];
+  std::vector<long long> all_edges(disp[P]);
+  MPI_Allgatherv(edges.data(), nedges, MPI_LONG_LONG, all_edges.data(), counts.data(),
+                 disp.data(), MPI_LONG_LONG, mc);
+  edges = {};
+  std::vector<std::vector<int>> adj(ncl);
+  for (long long e : all_edges) {
+    const int a = static_cast<int>(e / ncl), b = static_cast<int>(e % ncl);
+    adj[a].push_back(b), adj[b].push_back(a);
+  }
+  all_edges = {};
+  for (auto& a : adj) {
+    std::sort(a.begin(), a.end());
+    a.erase(std::unique(a.begin(), a.end()), a.end());
+  }
+  const std::vector<int> colour = distance3_colouring(adj);
+  const int ncolours = ncl ? *std::max_element(colour.begin(), colour.end()) + 1 : 0;
+
+  // Candidate columns of each owned row: the clusters within distance 1 of a touching cluster.
+  std::vector<std::vector<int>> cand(n_own);
+  for (int e = 0; e < n_own; ++e) {
+    auto& c = cand[e];
+    for (int t : touching[e]) {
+      c.push_back(t);
+      c.insert(c.end(), adj[t].begin(), adj[t].end());
+    }
+    std::sort(c.begin(), c.end());
+    c.erase(std::unique(c.begin(), c.end()), c.end());
+  }
+  touching = {};
+
+  // 3. E, one (colour, kernel vector) at a time.
+  std::vector<int> dim(ncl);
+  int kmax = 0;
+  for (int j = 0; j < ncl; ++j) {
+    dim[j] = coarse_first_[j + 1] - coarse_first_[j];
+    kmax = std::max(kmax, dim[j]);
+  }
+  std::vector<std::vector<std::pair<int, double>>> rows(n_own);
+  Vec z(coarse_dimension()), w, y;
+  int applications = 0;
+  for (int g = 0; g < ncolours; ++g)
+    for (int t = 0; t < kmax; ++t) {
+      z.setZero();
+      bool any = false;
+      for (int j = 0; j < ncl; ++j)
+        if (colour[j] == g && dim[j] > t) z[coarse_first_[j] + t] = 1.0, any = true;
+      if (!any) continue;
+      apply_Gt(z, w);
+      apply_F(w, y);
+      ++applications;
+      for (int e = 0; e < n_own; ++e) {
+        int col = -1;
+        for (int j : cand[e])
+          if (colour[j] == g) {
+            col = j;
+            break;
+          }
+        if (col >= 0 && dim[col] > t)
+          rows[e].push_back({coarse_first_[col] + t, y[e]});
+        else if (y[e] != 0.0)
+          throw std::logic_error(
+              "coarse image: a column of F G~^T reached a multiplier outside its clusters' "
+              "neighbourhood");
+      }
+    }
+  cand = {};
+  auto& im = image_;
+  im.e_ptr.assign(n_own + 1, 0);
+  im.e_col.clear(), im.e_val.clear();
+  for (int e = 0; e < n_own; ++e) {
+    auto& r = rows[e];
+    std::sort(r.begin(), r.end());
+    for (const auto& [c, v] : r) im.e_col.push_back(c), im.e_val.push_back(v);
+    im.e_ptr[e + 1] = static_cast<int>(im.e_col.size());
+    r = {};
+  }
+  rows = {};
+
+  // 4. C = G~ E: at each owned multiplier, G~'s column times E's row; partial sums per owner
+  //    cluster in multiplier order, then in cluster order (as the coarse matrix G~ G~^T).
+  {
+    const std::vector<GItem> gcol = g_columns_at_owners();
+    std::vector<std::pair<int, size_t>> groups;  // (owner cluster, first item of the multiplier)
+    for (size_t i = 0; i < gcol.size(); ++i)
+      if (i == 0 || gcol[i].k != gcol[i - 1].k)
+        groups.push_back({block_[layout_dual_.ext_index(gcol[i].k)], i});
+    std::stable_sort(groups.begin(), groups.end(),
+                     [](const auto& x, const auto& y) { return x.first < y.first; });
+    std::vector<CoarseTriplet> mine, products;
+    for (size_t g0 = 0; g0 < groups.size();) {
+      size_t g1 = g0;
+      while (g1 < groups.size() && groups[g1].first == groups[g0].first) ++g1;
+      products.clear();
+      for (size_t gi = g0; gi < g1; ++gi) {
+        const size_t i = groups[gi].second;
+        const int e = layout_dual_.ext_index(gcol[i].k);
+        for (size_t a = i; a < gcol.size() && gcol[a].k == gcol[i].k; ++a)
+          for (int q = im.e_ptr[e]; q < im.e_ptr[e + 1]; ++q)
+            products.push_back({gcol[i].k, gcol[a].row, im.e_col[q], gcol[a].g * im.e_val[q]});
+      }
+      std::stable_sort(products.begin(), products.end(),
+                       [](const CoarseTriplet& x, const CoarseTriplet& y) {
+                         return x.a != y.a ? x.a < y.a : x.b < y.b;
+                       });
+      for (size_t p = 0; p < products.size();) {
+        size_t q = p;
+        double v = 0;
+        for (; q < products.size() && products[q].a == products[p].a &&
+               products[q].b == products[p].b;
+             ++q)
+          v += products[q].v;
+        mine.push_back({groups[g0].first, products[p].a, products[p].b, v});
+        p = q;
+      }
+      g0 = g1;
+    }
+    const std::vector<CoarseTriplet> all = allgather_sorted(mine);
+    const int nc = coarse_dimension();
+    im.c_ptr.assign(nc + 1, 0);
+    im.c_col.clear(), im.c_val.clear();
+    for (size_t p = 0; p < all.size();) {
+      size_t q = p;
+      double v = 0;
+      for (; q < all.size() && all[q].a == all[p].a && all[q].b == all[p].b; ++q) v += all[q].v;
+      im.c_col.push_back(all[p].b), im.c_val.push_back(v);
+      ++im.c_ptr[all[p].a + 1];
+      p = q;
+    }
+    for (int a = 0; a < nc; ++a) im.c_ptr[a + 1] += im.c_ptr[a];
+  }
+  im.ab = Vec::Zero(2 * coarse_dimension());
+  im.z1 = Vec::Zero(coarse_dimension());
+  im.z2 = Vec::Zero(coarse_dimension());
+  im.stats.colours = ncolours;
+  im.stats.F_applications = applications;
+  im.stats.E_nonzeros = comm_.sum(static_cast<long long>(im.e_col.size()));
+  im.stats.C_nonzeros = static_cast<long long>(im.c_col.size());
+  im.built = true;
+  im.stats.seconds = now() - t0;
+}
+
+void DualProblem::apply_coarse_image(const Vec& z, Vec& y) const {
+  if (!image_.built) throw std::logic_error("apply_coarse_image before build_coarse_image");
+  const auto& im = image_;
+  const int n = layout_dual_.n_owned();
+  y.resize(n);
+#pragma omp parallel for schedule(static) if (n > 50000 && !omp_in_parallel())
+  for (int e = 0; e < n; ++e) {
+    double s = 0;
+    for (int q = im.e_ptr[e]; q < im.e_ptr[e + 1]; ++q) s += im.e_val[q] * z[im.e_col[q]];
+    y[e] = s;
+  }
+}
+
+void DualProblem::hessian_from_Fv(const Vec& v, const Vec& fv, double rho, Vec& y, Vec& qv) {
+  if (!image_.built) throw std::logic_error("hessian_from_Fv before build_coarse_image");
+  auto& im = image_;
+  const int nc = coarse_dimension(), n = layout_dual_.n_owned();
+  // [G~ v; G~ F v]: the rank's rows, then one reduction of both.
+  const int ncl = static_cast<int>(clusters_.size());
+  for (int pass = 0; pass < 2; ++pass) {
+    gather_to_ext(pass == 0 ? v : fv);
+    double* out = im.ab.data() + pass * nc;
+    std::fill(out, out + nc, 0.0);
+#pragma omp parallel for schedule(dynamic, 16) if (outer_parallel_)
+    for (int c = 0; c < ncl; ++c) {
+      const int base = coarse_first_[clusters_[c]->id()];
+      for (size_t j = 0; j < g_rows_[c].size(); ++j) {
+        double s = 0;
+        for (const auto& [k, g] : g_rows_[c][j]) s += g * ext_in_[k];
+        out[base + static_cast<int>(j)] = s;
+      }
+    }
+  }
+  comm_.sum_in_place(im.ab.data(), 2 * nc);
+  im.z1 = im.ab.head(nc);
+  coarse_solve(im.z1);
+  for (int a = 0; a < nc; ++a) {  // b - C z1
+    double s = im.ab[nc + a];
+    for (int q = im.c_ptr[a]; q < im.c_ptr[a + 1]; ++q) s -= im.c_val[q] * im.z1[im.c_col[q]];
+    im.z2[a] = s;
+  }
+  coarse_solve(im.z2);
+  gt_into_ext(im.z1);
+  qv = ext_out_.head(n);
+  gt_into_ext(im.z2);
+  y.resize(n);
+#pragma omp parallel for schedule(static) if (n > 50000 && !omp_in_parallel())
+  for (int e = 0; e < n; ++e) {
+    double s = 0;  // (E z1)_e
+    for (int q = im.e_ptr[e]; q < im.e_ptr[e + 1]; ++q) s += im.e_val[q] * im.z1[im.e_col[q]];
+    y[e] = fv[e] - s - ext_out_[e] + rho * qv[e];
+  }
+}
+
+}  // namespace htfeti

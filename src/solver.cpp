@@ -139,7 +139,7 @@ SolveOutput solve(std::shared_ptr<const Model> model_ptr, const SolveOptions& op
   long merged_steps = 0;
   double merged_seconds = 0;
   if (merged) {  // part of the setup: E = F G~^T and C = G~ E
-    dual.build_coarse_image();
+    dual.build_coarse_image(options.feti.memory_limit_mb);
     if (verbose) {
       const auto& cs = dual.coarse_image_stats();
       std::fprintf(stderr,

@@ -72,6 +72,15 @@ TEST_F(Cli, BadArgumentsExitWithCode2AndWriteNothing) {
     EXPECT_FALSE(fs::exists("r.json")) << args;
     EXPECT_FALSE(fs::exists("u.vtu")) << args;
   }
+  // E = F G~^T of one coarse step per product beyond the memory limit (the setup fits it: the
+  // estimate before setup is 24 MB here, the process holds more than 100 MB after setup).
+  EXPECT_EQ(run(bin + " solve --problem cube-obstacle --coarse-steps-per-product 1 "
+                      "--memory-limit 0.05 --report r.json --vtu u.vtu"),
+            2);
+  EXPECT_NE(stderr_text().find("one coarse step per product needs E"), std::string::npos)
+      << stderr_text();
+  EXPECT_FALSE(fs::exists("r.json"));
+  EXPECT_FALSE(fs::exists("u.vtu"));
   EXPECT_EQ(run(bin + " spectrum -m 3 -n 64"), 2);
   EXPECT_EQ(run(bin + " spectrum -m 1 -n 4096"), 2);  // dense matrices of 2^24 rows
   EXPECT_NE(stderr_text().find("GB"), std::string::npos) << stderr_text();

@@ -28,9 +28,12 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
+#include <string>
 #include <stdexcept>
 
 #include "htfeti/feti/dual_problem.hpp"
+#include "htfeti/parallel/memory.hpp"
 
 namespace htfeti {
 
@@ -74,7 +77,7 @@ std::vector<int> distance3_colouring(const std::vector<std::vector<int>>& adj) {
 }
 }  // namespace
 
-void DualProblem::build_coarse_image() {
+void DualProblem::build_coarse_image(double memory_limit_mb) {
   const double t0 = now();
   const int P = comm_.size(), n_own = layout_dual_.n_owned(), ncl = layout_.num_clusters;
   const MPI_Comm mc = comm_.raw();
@@ -158,14 +161,36 @@ void DualProblem::build_coarse_image() {
   }
   touching = {};
 
-  // 3. E, one (colour, kernel vector) at a time.
+  // 3. E, one (colour, kernel vector) at a time, into rows sized beforehand (each candidate
+  //    contributes its kernel dimension), after a check that it fits.
   std::vector<int> dim(ncl);
   int kmax = 0;
   for (int j = 0; j < ncl; ++j) {
     dim[j] = coarse_first_[j + 1] - coarse_first_[j];
     kmax = std::max(kmax, dim[j]);
   }
-  std::vector<std::vector<std::pair<int, double>>> rows(n_own);
+  auto& im = image_;
+  im.e_ptr.assign(n_own + 1, 0);
+  for (int e = 0; e < n_own; ++e) {
+    long long row = 0;
+    for (int j : cand[e]) row += dim[j];
+    im.e_ptr[e + 1] = static_cast<int>(im.e_ptr[e] + row);
+  }
+  {
+    const double need_mb = 12.0 * im.e_ptr[n_own] / 1048576.0;
+    const int machine_ranks = memory_limit_mb > 0 ? ranks_on_this_machine(mc) : 1;
+    const double usable = usable_memory_mb(memory_limit_mb, machine_ranks);
+    std::string error;
+    if (available_memory_mb() > 0 && need_mb > usable)  // (0: /proc unreadable, unknown)
+      error = "one coarse step per product needs E = F G~^T, " + std::to_string(std::lround(need_mb)) +
+              " MB on rank " + std::to_string(comm_.rank()) + ", more than the " +
+              std::to_string(std::lround(std::max(0.0, usable))) +
+              " MB usable there; take two coarse steps per product (the default)";
+    comm_.agree(error, true);
+  }
+  im.e_col.assign(im.e_ptr[n_own], 0);
+  im.e_val.assign(im.e_ptr[n_own], 0.0);
+  std::vector<int> fill(im.e_ptr.begin(), im.e_ptr.end() - 1);
   Vec z(coarse_dimension()), w, y;
   int applications = 0;
   for (int g = 0; g < ncolours; ++g)
@@ -185,26 +210,26 @@ void DualProblem::build_coarse_image() {
             col = j;
             break;
           }
-        if (col >= 0 && dim[col] > t)
-          rows[e].push_back({coarse_first_[col] + t, y[e]});
-        else if (y[e] != 0.0)
+        if (col >= 0 && dim[col] > t) {
+          im.e_col[fill[e]] = coarse_first_[col] + t;
+          im.e_val[fill[e]++] = y[e];
+        } else if (y[e] != 0.0) {
           throw std::logic_error(
               "coarse image: a column of F G~^T reached a multiplier outside its clusters' "
               "neighbourhood");
+        }
       }
     }
   cand = {};
-  auto& im = image_;
-  im.e_ptr.assign(n_own + 1, 0);
-  im.e_col.clear(), im.e_val.clear();
-  for (int e = 0; e < n_own; ++e) {
-    auto& r = rows[e];
-    std::sort(r.begin(), r.end());
-    for (const auto& [c, v] : r) im.e_col.push_back(c), im.e_val.push_back(v);
-    im.e_ptr[e + 1] = static_cast<int>(im.e_col.size());
-    r = {};
+  std::vector<std::pair<int, double>> row;
+  for (int e = 0; e < n_own; ++e) {  // columns in increasing order within each row
+    if (fill[e] != im.e_ptr[e + 1]) throw std::logic_error("coarse image: a row of E incomplete");
+    row.clear();
+    for (int q = im.e_ptr[e]; q < im.e_ptr[e + 1]; ++q) row.push_back({im.e_col[q], im.e_val[q]});
+    std::sort(row.begin(), row.end());
+    for (size_t i = 0; i < row.size(); ++i)
+      im.e_col[im.e_ptr[e] + i] = row[i].first, im.e_val[im.e_ptr[e] + i] = row[i].second;
   }
-  rows = {};
 
   // 4. C = G~ E: at each owned multiplier, G~'s column times E's row; partial sums per owner
   //    cluster in multiplier order, then in cluster order (as the coarse matrix G~ G~^T).
@@ -261,6 +286,9 @@ void DualProblem::build_coarse_image() {
   im.ab = Vec::Zero(2 * coarse_dimension());
   im.z1 = Vec::Zero(coarse_dimension());
   im.z2 = Vec::Zero(coarse_dimension());
+  im.ext2 = Vec::Zero(layout_dual_.n_ext());
+  im.ext_out2 = Vec::Zero(layout_dual_.n_ext());
+  im.gflat2 = Vec::Zero(gflat_.size());
   im.stats.colours = ncolours;
   im.stats.F_applications = applications;
   im.stats.E_nonzeros = comm_.sum(static_cast<long long>(im.e_col.size()));
@@ -286,20 +314,21 @@ void DualProblem::hessian_from_Fv(const Vec& v, const Vec& fv, double rho, Vec& 
   if (!image_.built) throw std::logic_error("hessian_from_Fv before build_coarse_image");
   auto& im = image_;
   const int nc = coarse_dimension(), n = layout_dual_.n_owned();
-  // [G~ v; G~ F v]: the rank's rows, then one reduction of both.
+  // [G~ v; G~ F v]: the rank's rows in one pass over G~, then one reduction of both.
   const int ncl = static_cast<int>(clusters_.size());
-  for (int pass = 0; pass < 2; ++pass) {
-    gather_to_ext(pass == 0 ? v : fv);
-    double* out = im.ab.data() + pass * nc;
-    std::fill(out, out + nc, 0.0);
+  gather_to_ext(v);
+  im.ext2.head(n) = fv;
+  layout_dual_.forward(im.ext2.data());
+  im.ab.setZero();
+  double* a = im.ab.data();
+  double* b = a + nc;
 #pragma omp parallel for schedule(dynamic, 16) if (outer_parallel_)
-    for (int c = 0; c < ncl; ++c) {
-      const int base = coarse_first_[clusters_[c]->id()];
-      for (size_t j = 0; j < g_rows_[c].size(); ++j) {
-        double s = 0;
-        for (const auto& [k, g] : g_rows_[c][j]) s += g * ext_in_[k];
-        out[base + static_cast<int>(j)] = s;
-      }
+  for (int c = 0; c < ncl; ++c) {
+    const int base = coarse_first_[clusters_[c]->id()];
+    for (size_t j = 0; j < g_rows_[c].size(); ++j) {
+      double s = 0, t = 0;
+      for (const auto& [k, g] : g_rows_[c][j]) s += g * ext_in_[k], t += g * im.ext2[k];
+      a[base + static_cast<int>(j)] = s, b[base + static_cast<int>(j)] = t;
     }
   }
   comm_.sum_in_place(im.ab.data(), 2 * nc);
@@ -311,15 +340,25 @@ void DualProblem::hessian_from_Fv(const Vec& v, const Vec& fv, double rho, Vec& 
     im.z2[a] = s;
   }
   coarse_solve(im.z2);
-  gt_into_ext(im.z1);
+  // G~^T z1 (into ext_out_) and G~^T z2 (into ext_out2) in one pass over G~.
+#pragma omp parallel for schedule(dynamic, 16) if (outer_parallel_)
+  for (int c = 0; c < ncl; ++c) {
+    for (int p = g_first_[c]; p < g_first_[c + 1]; ++p) gflat_[p] = 0.0, im.gflat2[p] = 0.0;
+    const int base = coarse_first_[clusters_[c]->id()];
+    for (size_t j = 0; j < g_pairs_[c].size(); ++j) {
+      const double s = im.z1[base + static_cast<int>(j)], t = im.z2[base + static_cast<int>(j)];
+      for (const auto& [p, g] : g_pairs_[c][j]) gflat_[p] += g * s, im.gflat2[p] += g * t;
+    }
+  }
+  clu_sum_.combine(gflat_.data(), ext_out_.data());
+  clu_sum_.combine(im.gflat2.data(), im.ext_out2.data());
   qv = ext_out_.head(n);
-  gt_into_ext(im.z2);
   y.resize(n);
 #pragma omp parallel for schedule(static) if (n > 50000 && !omp_in_parallel())
   for (int e = 0; e < n; ++e) {
     double s = 0;  // (E z1)_e
     for (int q = im.e_ptr[e]; q < im.e_ptr[e + 1]; ++q) s += im.e_val[q] * im.z1[im.e_col[q]];
-    y[e] = fv[e] - s - ext_out_[e] + rho * qv[e];
+    y[e] = fv[e] - s - im.ext_out2[e] + rho * qv[e];
   }
 }
 

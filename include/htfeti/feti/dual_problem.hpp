@@ -181,8 +181,10 @@ class DualProblem {
   /// C = G~ F G~^T (on every rank). Columns of E are formed together for clusters of one colour
   /// of a distance-3 colouring of the cluster graph (clusters are adjacent when a row of B~
   /// touches both), whose columns of F G~^T then have disjoint supports: one G~^T and one F
-  /// application per (colour, kernel vector). Collective.
-  void build_coarse_image();
+  /// application per (colour, kernel vector). Collective. Throws std::invalid_argument on every
+  /// rank when E would not fit in the memory usable on some rank (usable_memory_mb with
+  /// memory_limit_mb, MiB per machine, 0: the machine's).
+  void build_coarse_image(double memory_limit_mb = 0);
   bool has_coarse_image() const { return image_.built; }
   struct CoarseImageStats {
     int colours = 0;             ///< of the distance-3 colouring
@@ -198,7 +200,8 @@ class DualProblem {
   /// (requires build_coarse_image()): [a, b] = [G~ v, G~ fv] summed in one allreduce,
   /// z1 = (G~ G~^T)^{-1} a, z2 = (G~ G~^T)^{-1} (b - C z1) (no communication between the two),
   /// qv = G~^T z1 = Q v and y = fv - E z1 - G~^T z2 + rho qv. Cost: one pass of G~ over two
-  /// vectors, two of G~^T, one of E, two sparse coarse solves and one product with C.
+  /// vectors and one of G~^T for two coarse vectors (each entry summed as by apply_G and
+  /// apply_Gt), one of E, two sparse coarse solves and one product with C.
   void hessian_from_Fv(const Vec& v, const Vec& fv, double rho, Vec& y, Vec& qv);
 
   /// d = B~ K~^+ f - c.
@@ -349,6 +352,7 @@ class DualProblem {
     std::vector<int> e_ptr, e_col, c_ptr, c_col;
     std::vector<double> e_val, c_val;
     Vec ab, z1, z2;  // work: [G~ v; G~ F v], the two coarse solutions
+    Vec ext2, gflat2, ext_out2;  // work: the second vector of the fused G~ and G~^T passes
     CoarseImageStats stats;
   } image_;
   // G~'s columns at the owned multipliers: (global multiplier, coarse row, value) for every

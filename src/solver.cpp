@@ -345,6 +345,8 @@ SolveOutput solve(std::shared_ptr<const Model> model_ptr, const SolveOptions& op
                     {"projector", tmax(P.seconds() + merged_seconds)},
                     {"preconditioner", tmax(M.seconds())},
                     {"preconditioner_setup", tmax(st.preconditioner)},
+                    // the part of "projector" spent in one-step products (after F v)
+                    {"merged_coarse_steps", tmax(merged_seconds)},
                     {"coarse_image", tmax(t_image)},
                     {"vector_work", tmax(t_solve - F.seconds() - P.seconds() - merged_seconds -
                                          M.seconds())},

@@ -235,40 +235,13 @@ void DualProblem::build_coarse_image(double memory_limit_mb) {
   //    cluster in multiplier order, then in cluster order (as the coarse matrix G~ G~^T).
   {
     const std::vector<GItem> gcol = g_columns_at_owners();
-    std::vector<std::pair<int, size_t>> groups;  // (owner cluster, first item of the multiplier)
-    for (size_t i = 0; i < gcol.size(); ++i)
-      if (i == 0 || gcol[i].k != gcol[i - 1].k)
-        groups.push_back({block_[layout_dual_.ext_index(gcol[i].k)], i});
-    std::stable_sort(groups.begin(), groups.end(),
-                     [](const auto& x, const auto& y) { return x.first < y.first; });
-    std::vector<CoarseTriplet> mine, products;
-    for (size_t g0 = 0; g0 < groups.size();) {
-      size_t g1 = g0;
-      while (g1 < groups.size() && groups[g1].first == groups[g0].first) ++g1;
-      products.clear();
-      for (size_t gi = g0; gi < g1; ++gi) {
-        const size_t i = groups[gi].second;
-        const int e = layout_dual_.ext_index(gcol[i].k);
-        for (size_t a = i; a < gcol.size() && gcol[a].k == gcol[i].k; ++a)
-          for (int q = im.e_ptr[e]; q < im.e_ptr[e + 1]; ++q)
-            products.push_back({gcol[i].k, gcol[a].row, im.e_col[q], gcol[a].g * im.e_val[q]});
-      }
-      std::stable_sort(products.begin(), products.end(),
-                       [](const CoarseTriplet& x, const CoarseTriplet& y) {
-                         return x.a != y.a ? x.a < y.a : x.b < y.b;
-                       });
-      for (size_t p = 0; p < products.size();) {
-        size_t q = p;
-        double v = 0;
-        for (; q < products.size() && products[q].a == products[p].a &&
-               products[q].b == products[p].b;
-             ++q)
-          v += products[q].v;
-        mine.push_back({groups[g0].first, products[p].a, products[p].b, v});
-        p = q;
-      }
-      g0 = g1;
-    }
+    const std::vector<CoarseTriplet> mine = owner_cluster_sums(
+        gcol, [&](size_t i, size_t j, std::vector<CoarseTriplet>& products) {
+          const int e = layout_dual_.ext_index(gcol[i].k);
+          for (size_t a = i; a < j; ++a)
+            for (int q = im.e_ptr[e]; q < im.e_ptr[e + 1]; ++q)
+              products.push_back({gcol[i].k, gcol[a].row, im.e_col[q], gcol[a].g * im.e_val[q]});
+        });
     const std::vector<CoarseTriplet> all = allgather_sorted(mine);
     const int nc = coarse_dimension();
     im.c_ptr.assign(nc + 1, 0);

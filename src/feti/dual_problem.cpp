@@ -972,22 +972,20 @@ std::vector<DualProblem::CoarseTriplet> DualProblem::allgather_sorted(
   return all;
 }
 
-void DualProblem::assemble_coarse(const std::vector<double>& weight, CoarseFactor& factor) {
-  // (G~ W G~^T)_{ab} = sum_k w_k g_ak g_bk. The owners of the multipliers form the products and
-  // sum equal entries; the summed triplets are shared (every rank factors the coarse matrix).
-  using Triplet = CoarseTriplet;
-  std::vector<GItem> rbuf = g_columns_at_owners();
+std::vector<DualProblem::CoarseTriplet> DualProblem::owner_cluster_sums(
+    const std::vector<GItem>& gcol, const ProductsOf& products_of) const {
   // Products summed per owner cluster of the multiplier (all of a cluster's multipliers live on
-  // one rank whatever the rank count), in multiplier order; the partial sums are then added in
-  // cluster order below. Rank-count independent, and O(entries of G~G~^T touched per cluster)
-  // memory instead of one triplet per product (78 per multiplier for 3D elasticity).
+  // one rank whatever the rank count), in multiplier order; the caller adds the partial sums in
+  // cluster order (allgather_sorted). Rank-count independent, and O(entries touched per
+  // cluster) memory instead of one triplet per product (78 per multiplier for G~ G~^T in 3D
+  // elasticity).
   std::vector<std::pair<int, size_t>> groups;  // (owner cluster, first item of the multiplier)
-  for (size_t i = 0; i < rbuf.size(); ++i)
-    if (i == 0 || rbuf[i].k != rbuf[i - 1].k)
-      groups.push_back({block_[layout_dual_.ext_index(rbuf[i].k)], i});
+  for (size_t i = 0; i < gcol.size(); ++i)
+    if (i == 0 || gcol[i].k != gcol[i - 1].k)
+      groups.push_back({block_[layout_dual_.ext_index(gcol[i].k)], i});
   std::stable_sort(groups.begin(), groups.end(),
                    [](const auto& x, const auto& y) { return x.first < y.first; });
-  std::vector<Triplet> mine, products;
+  std::vector<CoarseTriplet> mine, products;
   for (size_t g0 = 0; g0 < groups.size();) {
     size_t g1 = g0;
     while (g1 < groups.size() && groups[g1].first == groups[g0].first) ++g1;
@@ -995,19 +993,13 @@ void DualProblem::assemble_coarse(const std::vector<double>& weight, CoarseFacto
     for (size_t g = g0; g < g1; ++g) {
       const size_t i = groups[g].second;
       size_t j = i;
-      while (j < rbuf.size() && rbuf[j].k == rbuf[i].k) ++j;
-      const double w = weight[layout_dual_.ext_index(rbuf[i].k)];
-      if (w != 0.0)
-        for (size_t a = i; a < j; ++a)
-          for (size_t b = a; b < j; ++b) {
-            int ca = rbuf[a].row, cb = rbuf[b].row;
-            if (ca > cb) std::swap(ca, cb);
-            products.push_back({rbuf[i].k, ca, cb, w * rbuf[a].g * rbuf[b].g});
-          }
+      while (j < gcol.size() && gcol[j].k == gcol[i].k) ++j;
+      products_of(i, j, products);
     }
-    std::stable_sort(products.begin(), products.end(), [](const Triplet& x, const Triplet& y) {
-      return x.a != y.a ? x.a < y.a : x.b < y.b;  // stable: multiplier order within an entry
-    });
+    std::stable_sort(products.begin(), products.end(),
+                     [](const CoarseTriplet& x, const CoarseTriplet& y) {
+                       return x.a != y.a ? x.a < y.a : x.b < y.b;  // stable: multiplier order
+                     });
     for (size_t p = 0; p < products.size();) {
       size_t q = p;
       double v = 0;
@@ -1020,8 +1012,26 @@ void DualProblem::assemble_coarse(const std::vector<double>& weight, CoarseFacto
     }
     g0 = g1;
   }
+  return mine;
+}
+
+void DualProblem::assemble_coarse(const std::vector<double>& weight, CoarseFactor& factor) {
+  // (G~ W G~^T)_{ab} = sum_k w_k g_ak g_bk. The owners of the multipliers form the products and
+  // sum equal entries; the summed triplets are shared (every rank factors the coarse matrix).
+  using Triplet = CoarseTriplet;
+  std::vector<GItem> rbuf = g_columns_at_owners();
+  std::vector<Triplet> mine = owner_cluster_sums(
+      rbuf, [&](size_t i, size_t j, std::vector<Triplet>& products) {
+        const double w = weight[layout_dual_.ext_index(rbuf[i].k)];
+        if (w != 0.0)
+          for (size_t a = i; a < j; ++a)
+            for (size_t b = a; b < j; ++b) {
+              int ca = rbuf[a].row, cb = rbuf[b].row;
+              if (ca > cb) std::swap(ca, cb);
+              products.push_back({rbuf[i].k, ca, cb, w * rbuf[a].g * rbuf[b].g});
+            }
+      });
   rbuf = {};
-  products = {};
   // Sum each entry's partial sums in cluster order whatever rank formed them (k: the cluster).
   const std::vector<Triplet> all = allgather_sorted(mine);
   mine = {};

@@ -370,6 +370,12 @@ class DualProblem {
     double v;
   };
   std::vector<CoarseTriplet> allgather_sorted(const std::vector<CoarseTriplet>& mine) const;
+  // Partial sums of a coarse matrix sum_k (products at multiplier k): products_of(i, j, out)
+  // appends the products of gcol[i, j) (one multiplier's items), which are summed per (a, b)
+  // over each owner cluster's multipliers in multiplier order (key: the owner cluster).
+  using ProductsOf = std::function<void(size_t, size_t, std::vector<CoarseTriplet>&)>;
+  std::vector<CoarseTriplet> owner_cluster_sums(const std::vector<GItem>& gcol,
+                                                const ProductsOf& products_of) const;
   int reconstruction_null_ = 0;
   Vec d_, e_, lambda_tilde_, lower_;
   // work arrays (allocated once)

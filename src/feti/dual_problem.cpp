@@ -1044,10 +1044,19 @@ void DualProblem::assemble_coarse(const std::vector<double>& weight, CoarseFacto
   factor.use_dense = false;
   factor.null.resize(0, 0);
   bool singular = false;
-  try {
-    factor.sparse.factorize(GGt);
-  } catch (const std::exception&) {
-    singular = true;  // the same on every rank: every rank factors the same matrix
+  {
+    // BLAS on one thread: called outside a parallel region, OpenBLAS's OpenMP flavour would
+    // use every thread, and its threaded blocks round differently per thread count (the coarse
+    // factor of Table 3's 2,048 clusters moved by an ulp between 1 and 2 threads, and with it
+    // lambda~ and the energy by 1e-11). The coarse matrix is small; nothing is lost.
+    const int threads = omp_get_max_threads();
+    omp_set_num_threads(1);
+    try {
+      factor.sparse.factorize(GGt);
+    } catch (const std::exception&) {
+      singular = true;  // the same on every rank: every rank factors the same matrix
+    }
+    omp_set_num_threads(threads);
   }
   if (!singular) return;
   const int nc = coarse_dimension();

@@ -9,6 +9,7 @@
 #include <memory>
 #include <stdexcept>
 
+#include "htfeti/feti/dual_reducer.hpp"
 #include "htfeti/memory_estimate.hpp"
 #include "htfeti/parallel/memory.hpp"
 #include "htfeti/qp/pcg.hpp"
@@ -21,22 +22,6 @@ namespace {
 double now() {
   return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
 }
-
-// Reductions of dual vectors in a fixed order (per owner cluster, then in cluster order), so
-// that iterates do not depend on the number of ranks.
-class DualReducer final : public qp::Reducer {
- public:
-  DualReducer(const Comm& c, const DualProblem& d) : c_(c), d_(d) {}
-  double sum(double v) const override { return c_.sum(v); }
-  double max(double v) const override { return c_.max(v); }
-  double min(double v) const override { return c_.min(v); }
-  double dot(const qp::Vec& a, const qp::Vec& b) const override { return d_.dot(a, b); }
-  double sum_entries(const qp::Vec& v) const override { return d_.sum(v); }
-
- private:
-  const Comm& c_;
-  const DualProblem& d_;
-};
 
 }  // namespace
 

@@ -42,7 +42,7 @@ SmalbeResult smalbe(Operator& A, Operator& Q, const Vec& b, const Vec& l, Vec& x
   image.last = &qv;
   image.tx = Vec::Zero(n);  // set by MPRGP's first application of H to the start x
   mo.image = &image;
-  Vec nu = Vec::Zero(n), rhs(n), g(n);
+  Vec nu = Vec::Zero(n), rhs(n), g(n), lag(n);
   MprgpWorkspace work;  // shared by all inner solves: no allocation inside the outer loop
   double L_prev = 0;
   double qnorm = 0;
@@ -86,7 +86,8 @@ SmalbeResult smalbe(Operator& A, Operator& Q, const Vec& b, const Vec& l, Vec& x
       break;
     }
     // L(x^k, mu^k) = 1/2 x'(g - b + nu) with g = H x - b + nu.
-    const double L = 0.5 * red.dot(x, g - b + nu);
+    lag = g - b + nu;  // (into a vector of the solve: nothing is allocated per iteration)
+    const double L = 0.5 * red.dot(x, lag);
     nu += rho * qx;  // mu^{k+1} = mu^k + rho G x^k, kept as nu = G' mu
     g += rho * qx;   // the gradient of L moves with nu; x does not change
     if (k > 0 && L < L_prev + 0.5 * rho * qnorm * qnorm) M /= opt.beta;

@@ -13,6 +13,7 @@
 
 #include "helpers.hpp"
 #include "htfeti/feti/dual_reducer.hpp"
+#include "htfeti/qp/pcg.hpp"
 #include "htfeti/qp/smalbe.hpp"
 #include "htfeti/solver.hpp"
 
@@ -175,6 +176,29 @@ TEST(HotPath, SmalbeAllocatesNothingPerIteration) {
     }
     EXPECT_EQ(counts[1], counts[0]) << steps << " coarse steps per product";
   }
+}
+
+// Projected CG on the Poisson problem: 20 iterations allocate as much as 10.
+TEST(HotPath, ProjectedCgAllocatesNothingPerIteration) {
+  Comm comm;
+  const auto model =
+      make_builtin_model({ProblemKind::poisson2d, ElementKind::q1, 32, 4, 1, Glue::averages});
+  auto dual = test::make_dual(*model, comm);
+  const DualReducer red(comm, *dual);
+  qp::FunctionOperator F([&](const Eigen::VectorXd& u, Eigen::VectorXd& v) { dual->apply_F(u, v); });
+  qp::FunctionOperator P([&](const Eigen::VectorXd& u, Eigen::VectorXd& v) { dual->project(u, v); });
+  long counts[2];
+  for (int run = 0; run < 2; ++run) {
+    Eigen::VectorXd x = dual->lambda_tilde();
+    qp::PcgOptions po;
+    po.rtol = 1e-300;  // never met: the iteration cap ends both runs
+    po.max_iterations = run == 0 ? 10 : 20;
+    Counting counting;
+    const auto r = qp::projected_cg(F, P, dual->d(), x, red, po);
+    counts[run] = counting.allocations();
+    EXPECT_EQ(r.iterations, po.max_iterations);
+  }
+  EXPECT_EQ(counts[1], counts[0]);
 }
 
 }  // namespace

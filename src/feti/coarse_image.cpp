@@ -307,10 +307,10 @@ void DualProblem::hessian_from_Fv(const Vec& v, const Vec& fv, double rho, Vec& 
   comm_.sum_in_place(im.ab.data(), 2 * nc);
   im.z1 = im.ab.head(nc);
   coarse_solve(im.z1);
-  for (int a = 0; a < nc; ++a) {  // b - C z1
-    double s = im.ab[nc + a];
-    for (int q = im.c_ptr[a]; q < im.c_ptr[a + 1]; ++q) s -= im.c_val[q] * im.z1[im.c_col[q]];
-    im.z2[a] = s;
+  for (int row = 0; row < nc; ++row) {  // b - C z1
+    double s = b[row];
+    for (int q = im.c_ptr[row]; q < im.c_ptr[row + 1]; ++q) s -= im.c_val[q] * im.z1[im.c_col[q]];
+    im.z2[row] = s;
   }
   coarse_solve(im.z2);
   // G~^T z1 (into ext_out_) and G~^T z2 (into ext_out2) in one pass over G~.

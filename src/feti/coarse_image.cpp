@@ -272,15 +272,10 @@ void DualProblem::build_coarse_image(double memory_limit_mb) {
 
 void DualProblem::apply_coarse_image(const Vec& z, Vec& y) const {
   if (!image_.built) throw std::logic_error("apply_coarse_image before build_coarse_image");
-  const auto& im = image_;
   const int n = layout_dual_.n_owned();
   y.resize(n);
 #pragma omp parallel for schedule(static) if (n > 50000 && !omp_in_parallel())
-  for (int e = 0; e < n; ++e) {
-    double s = 0;
-    for (int q = im.e_ptr[e]; q < im.e_ptr[e + 1]; ++q) s += im.e_val[q] * z[im.e_col[q]];
-    y[e] = s;
-  }
+  for (int e = 0; e < n; ++e) y[e] = image_row(e, z);
 }
 
 void DualProblem::hessian_from_Fv(const Vec& v, const Vec& fv, double rho, Vec& y, Vec& qv) {
@@ -328,11 +323,7 @@ void DualProblem::hessian_from_Fv(const Vec& v, const Vec& fv, double rho, Vec& 
   qv = ext_out_.head(n);
   y.resize(n);
 #pragma omp parallel for schedule(static) if (n > 50000 && !omp_in_parallel())
-  for (int e = 0; e < n; ++e) {
-    double s = 0;  // (E z1)_e
-    for (int q = im.e_ptr[e]; q < im.e_ptr[e + 1]; ++q) s += im.e_val[q] * im.z1[im.e_col[q]];
-    y[e] = fv[e] - s - im.ext_out2[e] + rho * qv[e];
-  }
+  for (int e = 0; e < n; ++e) y[e] = fv[e] - image_row(e, im.z1) - im.ext_out2[e] + rho * qv[e];
 }
 
 }  // namespace htfeti

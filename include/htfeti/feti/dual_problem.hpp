@@ -355,6 +355,12 @@ class DualProblem {
     Vec ext2, gflat2, ext_out2;  // work: the second vector of the fused G~ and G~^T passes
     CoarseImageStats stats;
   } image_;
+  double image_row(int e, const Vec& z) const {  // (E z)_e, E's columns in increasing order
+    double s = 0;
+    for (int q = image_.e_ptr[e]; q < image_.e_ptr[e + 1]; ++q)
+      s += image_.e_val[q] * z[image_.e_col[q]];
+    return s;
+  }
   // G~'s columns at the owned multipliers: (global multiplier, coarse row, value) for every
   // nonzero of G~, sent to the multiplier's owner and sorted by (multiplier, row). Collective.
   struct GItem {

@@ -8,14 +8,17 @@
 #include <CLI/CLI.hpp>
 #include <algorithm>
 #include <cstdio>
-#include <chrono>
+
 #include <filesystem>
 #include <fstream>
 #include <iostream>
 
 #include <unistd.h>
 
+#include "htfeti/clock.hpp"
 #include "htfeti/io/vtu.hpp"
+#include "htfeti/memory_estimate.hpp"
+#include "htfeti/options.hpp"
 #include "htfeti/problem_file.hpp"
 #include "htfeti/parallel/threads.hpp"
 #include "htfeti/solver.hpp"
@@ -94,16 +97,31 @@ void print_summary(const nlohmann::json& r) {
       r["primal_dimension"].get<long long>(), r["dual_dimension"].get<long long>(),
       r["equalities"].get<long long>(), r["inequalities"].get<long long>(),
       r["coarse_dimension"].get<int>(), r["ranks"].get<int>(), r["threads"].get<int>());
+  std::printf("  %s operator (%s), preconditioner %s (%s)\n",
+              r["dual_operator"].get<std::string>().c_str(),
+              r["dual_operator_reason"].get<std::string>().c_str(),
+              r["preconditioner"].get<std::string>().c_str(),
+              r["preconditioner_reason"].get<std::string>().c_str());
   const int free_motions = std::max(r["unrestrained_rigid_motions"].get<int>(),
                                     r["unrestrained_at_solution"].get<int>());
   if (free_motions > 0)
     std::printf("  note: the solution is not unique: %d rigid motion(s) restrained by no Dirichlet "
                 "condition and no active contact; their components are chosen zero\n",
                 free_motions);
-  std::printf("  %s (%s): %d outer, %d inner iterations, %ld matvecs\n",
-              r["converged"].get<bool>() ? "converged" : "NOT converged",
-              r["stop_reason"].get<std::string>().c_str(), r["outer_iterations"].get<int>(),
-              r["inner_iterations"].get<int>(), r["matvecs"].get<long>());
+  // Name what ran: projected CG for equalities alone, SMALBE-M with MPRGP inside for contact.
+  const bool pcg = r["solver"]["algorithm"] == "pcg";
+  const std::string state = r["converged"].get<bool>()
+                                ? std::string("converged")
+                                : "NOT converged (" + r["stop_reason"].get<std::string>() + ")";
+  if (pcg)
+    std::printf("  PCG %s: %d iterations, %ld products with F\n", state.c_str(),
+                r["outer_iterations"].get<int>(), r["matvecs"].get<long>());
+  else
+    std::printf(
+        "  SMALBE-M %s: %d outer iterations, %d MPRGP iterations, %ld Hessian products "
+        "(+%ld for the norm estimate)\n",
+        state.c_str(), r["outer_iterations"].get<int>(), r["inner_iterations"].get<int>(),
+        r["matvecs"].get<long>(), r["solver"]["norm_estimate_matvecs"].get<long>());
   const auto& k = r["kkt"];
   std::printf(
       "  energy %.12e; ||B_E u - c_E|| %.2e, max violation %.2e, min multiplier %.2e, "
@@ -128,6 +146,262 @@ const CLI::Validator kStrictInt(
     },
     "INT");
 
+// What selects the problem (not options of the solve): a problem file or a built-in, and the
+// built-ins' sizes. Each has a problem-file key of its own in [mesh] or [decomposition].
+struct ProblemArgs {
+  std::string file, problem = "membranes", element = "q1", glue = "averages";
+  std::string elements = "128", subdomains = "8";
+  int cluster_size = 1;
+  double amplitude = 1.0;
+  CLI::Option *o_problem = nullptr, *o_elements = nullptr, *o_subdomains = nullptr,
+              *o_m = nullptr, *o_glue = nullptr, *o_element = nullptr, *o_amplitude = nullptr;
+};
+
+void add_problem_args(CLI::App* cmd, ProblemArgs& p) {
+  cmd->add_option("problem_file", p.file,
+                  "a problem file (TOML, docs/user-guide.md); options given on the command line "
+                  "override its keys");
+  p.o_problem =
+      cmd->add_option("--problem", p.problem,
+                      "built-in: poisson2d | membranes | membranes-coercive | cube-obstacle")
+          ->capture_default_str();
+  p.o_elements = cmd->add_option("--elements,-n", p.elements,
+                                 "built-ins: n, elements per side of each unit square (h = 1/n); "
+                                 "a generated box: NX,NY[,NZ] [mesh.elements]")
+                     ->capture_default_str();
+  p.o_subdomains =
+      cmd->add_option("--subdomains", p.subdomains,
+                      "built-ins: N_s, subdomains per side of each unit square (n divisible by "
+                      "N_s); problem files: N (METIS) or SX,SY[,SZ] (generated box) "
+                      "[decomposition.subdomains]")
+          ->capture_default_str();
+  p.o_m = cmd->add_option("--cluster-size,-m", p.cluster_size,
+                          "m: clusters of m x m (x m) subdomains (1 = TFETI; N_s divisible by m); "
+                          "METIS: subdomains per cluster [decomposition.cluster_size]")
+              ->capture_default_str()
+              ->check(kStrictInt)
+              ->check(CLI::PositiveNumber);
+  p.o_glue = cmd->add_option("--glue", p.glue,
+                             "primal gluing inside clusters: corners | averages | "
+                             "corners+averages [decomposition.glue]")
+                 ->capture_default_str();
+  p.o_element =
+      cmd->add_option("--element", p.element, "built-ins: q1 (bilinear) | p1 (linear triangles)")
+          ->capture_default_str();
+  p.o_amplitude = cmd->add_option("--obstacle-amplitude", p.amplitude,
+                                  "cube-obstacle: the obstacle is u_z >= -A sin(pi x / 50) (A = "
+                                  "1: every bottom node ends in contact; larger A: partial "
+                                  "contact)")
+                      ->capture_default_str();
+}
+
+// The options table on the command line: one flag (and a --no- flag where the table has one)
+// per row, its help followed by its problem-file key and default.
+struct TableArgs {
+  std::vector<std::string> text;
+  std::vector<CLI::Option*> option, negative;
+};
+
+void add_table_args(CLI::App* cmd, TableArgs& args) {
+  const auto& table = option_table();
+  const RunOptions defaults;
+  args.text.resize(table.size());
+  args.option.assign(table.size(), nullptr);
+  args.negative.assign(table.size(), nullptr);
+  for (size_t i = 0; i < table.size(); ++i) {
+    const OptionSpec& o = table[i];
+    const nlohmann::json d = o.get(defaults);
+    const std::string def = d.is_null() ? "none" : d.is_string() ? d.get<std::string>() : d.dump();
+    const std::string key = std::string(" [") + o.section + "." + o.key +
+                            (*o.unit ? std::string(", ") + o.unit : std::string()) +
+                            "; default " + def + "]";
+    if (*o.flag && o.type == OptionType::boolean)
+      args.option[i] = cmd->add_flag(std::string(o.flag))->description(o.help + key);
+    else if (*o.flag)
+      args.option[i] = cmd->add_option(o.flag, args.text[i], std::string(o.help) + key)
+                           ->type_name(o.type == OptionType::integer  ? "INT"
+                                       : o.type == OptionType::number ? (*o.unit ? o.unit : "NUM")
+                                       : o.type == OptionType::path   ? "FILE"
+                                                                      : "WORD");
+    if (*o.negative_flag)
+      args.negative[i] = cmd->add_flag(std::string(o.negative_flag))
+                             ->description(*o.flag ? "no " + std::string(o.key) : o.help + key);
+  }
+}
+
+// Command-line values over what the file (or the defaults) gave.
+void apply_table_args(const TableArgs& args, RunOptions& run) {
+  const auto& table = option_table();
+  for (size_t i = 0; i < table.size(); ++i) {
+    const OptionSpec& o = table[i];
+    if (args.option[i] && args.option[i]->count() > 0) {
+      OptionValue value = true;
+      try {
+        if (o.type != OptionType::boolean) value = parse_option_text(o, args.text[i]);
+      } catch (const std::invalid_argument& e) {
+        throw std::invalid_argument(std::string(o.flag) + ": " + e.what());
+      }
+      set_option(run, o, value, o.flag);
+    }
+    if (args.negative[i] && args.negative[i]->count() > 0)
+      set_option(run, o, false, o.negative_flag);
+  }
+  check_option_combinations(run);
+}
+
+// The model of a problem file with the command line's problem arguments over its keys.
+std::shared_ptr<const Model> file_model(const ProblemArgs& p, const TableArgs& args,
+                                        RunOptions& run) {
+  ProblemSpec spec = read_problem_file(p.file, run);
+  apply_table_args(args, run);
+  if (p.o_subdomains->count()) spec.subdomains = parse_int_list(p.subdomains, "--subdomains");
+  if (p.o_m->count()) spec.cluster_size = p.cluster_size;
+  if (p.o_glue->count()) spec.glue = parse_glue(p.glue);
+  if (!spec.builtin.empty() && p.o_elements->count()) {
+    const auto e = parse_int_list(p.elements, "--elements");
+    if (e.size() != 1) throw std::invalid_argument("--elements takes one number for a built-in");
+    spec.builtin_options.elements = e[0];
+  } else if (p.o_elements->count()) {
+    if (!spec.mesh_file.empty())
+      throw std::invalid_argument("--elements is for generated boxes, not mesh files");
+    const auto e = parse_int_list(p.elements, "--elements");
+    if (static_cast<int>(e.size()) != spec.box.dim)
+      throw std::invalid_argument("--elements needs " + std::to_string(spec.box.dim) +
+                                  " numbers for this box");
+    for (int d = 0; d < spec.box.dim; ++d) spec.box.elements[d] = e[d];
+  }
+  if (p.o_amplitude->count())
+    throw std::invalid_argument("--obstacle-amplitude is for --problem cube-obstacle");
+  if (p.o_element->count() && spec.builtin.empty())
+    throw std::invalid_argument("--element is for the built-in problems; set mesh.element");
+  if (p.o_element->count()) spec.builtin_options.element = parse_element(p.element);
+  validate_solver(run.solve);
+  return make_model(spec);
+}
+
+// The model of a built-in problem (--problem).
+std::shared_ptr<const Model> builtin_model(const ProblemArgs& p, const TableArgs& args,
+                                           RunOptions& run) {
+  apply_table_args(args, run);
+  validate_solver(run.solve);
+  if (p.problem == "cube-obstacle") {
+    const auto e = parse_int_list(p.o_elements->count() ? p.elements : "10,20,10", "--elements");
+    const auto sd =
+        parse_int_list(p.o_subdomains->count() ? p.subdomains : "2,4,2", "--subdomains");
+    if (p.o_element->count()) throw std::invalid_argument("cube-obstacle uses hex8 elements");
+    ProblemSpec spec = cube_obstacle_spec(e, sd, p.cluster_size, p.amplitude);
+    spec.glue = parse_glue(p.glue);
+    return make_model(spec);
+  }
+  if (p.o_amplitude->count())
+    throw std::invalid_argument("--obstacle-amplitude is for --problem cube-obstacle");
+  DecompositionOptions& d = run.solve.decomposition;
+  d.problem = parse_problem(p.problem);
+  d.element = parse_element(p.element);
+  d.glue = parse_glue(p.glue);
+  d.cluster_size = p.cluster_size;
+  const auto n = parse_int_list(p.elements, "--elements");
+  const auto ns = parse_int_list(p.subdomains, "--subdomains");
+  if (n.size() != 1 || ns.size() != 1)
+    throw std::invalid_argument("--elements and --subdomains take one number for " + p.problem);
+  d.elements = n[0];
+  d.subdomains = ns[0];
+  validate(run.solve);
+  return make_builtin_model(d);
+}
+
+// Output paths are checked before any work: usable, and not the same file twice.
+void check_outputs(const OutputOptions& out, const Comm& comm) {
+  if (out.write_report) check_output_path(out.report, "--report");
+  if (!out.write_vtu) return;
+  check_output_path(out.vtu, "--vtu");
+  const auto ext = std::filesystem::path(out.vtu).extension();
+  if (ext != ".vtu" && ext != ".pvtu")
+    throw std::invalid_argument("--vtu '" + out.vtu + "' must end in .vtu or .pvtu");
+  for (const auto& f : vtu_files(out.vtu, comm.size())) {
+    check_output_path(f, "--vtu");
+    if (out.write_report &&
+        std::filesystem::weakly_canonical(f) == std::filesystem::weakly_canonical(out.report))
+      throw std::invalid_argument("--report and --vtu name the same file '" + f + "'");
+  }
+}
+
+// --dry-run: what would run, printed on rank 0 (PETSc's -options_view and -ksp_view): the
+// problem, the automatic choices with the rule that made them, the memory estimate and every
+// option in effect as a problem file's tables. Nothing is set up, solved or written.
+int dry_run(const Model& model, RunOptions run, const Comm& comm) {
+  FetiOptions feti = run.solve.feti;
+  const std::string why = resolve_preconditioner(model, feti);
+  MemoryEstimate estimate;
+  if (run.solve.check_memory) estimate = check_memory(model, feti, comm);
+  if (comm.rank() != 0) return 0;
+  std::printf("htfeti solve --dry-run: nothing is set up, solved or written\n");
+  std::printf("problem:\n%s\n", model.describe().dump(2).c_str());
+  std::printf("choices:\n");
+  std::printf("  algorithm: %s\n", model.has_contact() ? "SMALBE-M with MPRGP (contact)"
+                                                       : "projected CG (equalities only)");
+  std::printf("  preconditioner: %s, scaling %s (%s)\n", to_string(feti.preconditioner).c_str(),
+              to_string(feti.scaling).c_str(), why.c_str());
+  if (run.solve.check_memory) {
+    const char* op = feti.dual_operator == DualOperator::explicit_   ? "explicit"
+                     : feti.dual_operator == DualOperator::implicit ? "implicit"
+                     : estimate.explicit_operator                   ? "explicit"
+                                                                    : "implicit";
+    std::printf("  dual operator: %s (%s)\n", op,
+                estimate.explicit_for_memory ? "the implicit operator would not fit in memory"
+                : run.solve.feti.dual_operator == DualOperator::automatic
+                    ? "automatic: explicit from 25 nodes per subdomain within explicit_budget_gb"
+                    : "requested");
+    std::printf("memory estimate: %.0f MB at the peak on the fullest machine, %.0f MB available\n",
+                estimate.machine_peak_mb, estimate.available_mb);
+  } else {
+    std::printf("  dual operator: %s (decided in setup; no memory estimate with memory_check "
+                "off)\n",
+                to_string(feti.dual_operator).c_str());
+  }
+  std::printf("options in effect (as a problem file's tables):\n%s",
+              options_toml(run).c_str());
+  return 0;
+}
+
+// Writes the VTU and the report after a solve; the report gets the output's cost.
+void write_outputs(SolveOutput& out, const OutputOptions& o, const RunOptions& run,
+                   const Comm& comm) {
+  out.report["options"] = options_json(run);
+  if (o.write_vtu) {
+    VtuOptions vo;
+    vo.ascii = o.vtu_ascii;
+    vo.io = o.vtu_io;
+    const double t0 = seconds_now();
+    const VtuWritten written = write_vtu(o.vtu, *out.model, *out.dual, out.u, out.lambda, vo);
+    const double seconds = comm.max(seconds_now() - t0);
+    double bytes = 0;
+    for (const auto& f : vtu_files(o.vtu, comm.size())) {
+      std::error_code ec;  // (a piece on another machine's disk is not counted)
+      const auto n = comm.rank() == 0 ? std::filesystem::file_size(f, ec) : 0;
+      if (!ec) bytes += static_cast<double>(n);
+    }
+    out.report["timings"]["output"] = seconds;
+    out.report["output_mb"] = bytes / 1048576.0;
+    out.report["output_io"] = written.io;  // (rank 0's piece)
+    if (comm.rank() == 0)
+      std::printf("  solution: %s (%.0f MB in %.2f s)\n", written.path.c_str(),
+                  bytes / 1048576.0, seconds);
+  }
+  if (o.write_report) {
+    std::string error;
+    if (comm.rank() == 0) {
+      try {
+        write_atomically(o.report, out.report.dump(2));
+      } catch (const std::exception& e) {
+        error = e.what();
+      }
+    }
+    comm.agree(error);
+    if (comm.rank() == 0) std::printf("  report:   %s\n", o.report.c_str());
+  }
+}
+
 int run(int argc, char** argv, const Comm& comm) {
   if (argc > 1) {
     const std::string first = argv[1];
@@ -140,220 +414,14 @@ int run(int argc, char** argv, const Comm& comm) {
   app.require_subcommand(1);
   auto* solve_cmd = app.add_subcommand(
       "solve", "solve a problem file (PROBLEM.toml) or a built-in problem (--problem NAME)");
-  std::string problem_file, problem = "membranes", element = "q1", glue = "averages",
-                            ordering = "auto";
-  std::string dual_operator = "auto", elements_text = "128", subdomains_text = "8";
-  OutputOptions out_opt;
-  bool no_report = false, no_vtu = false, no_memory_check = false;
-  SolveOptions opt;
-  opt.decomposition.elements = 128;
-  opt.decomposition.subdomains = 8;
-  solve_cmd->add_option("problem_file", problem_file,
-                        "a problem file (TOML, docs/user-guide.md); options given on the command "
-                        "line override its keys");
-  auto* o_problem =
-      solve_cmd->add_option("--problem", problem,
-                            "built-in: poisson2d | membranes | membranes-coercive | cube-obstacle")
-          ->capture_default_str();
-  auto* o_elements =
-      solve_cmd
-          ->add_option("--elements,-n", elements_text,
-                       "built-ins: n, elements per side of each unit square (h = 1/n); a generated "
-                       "box: NX,NY[,NZ]")
-          ->capture_default_str();
-  auto* o_subdomains =
-      solve_cmd
-          ->add_option("--subdomains", subdomains_text,
-                       "built-ins: N_s, subdomains per side of each unit square (n divisible by "
-                       "N_s); problem files: N (METIS) or SX,SY[,SZ] (generated box)")
-          ->capture_default_str();
-  auto* o_m = solve_cmd
-                   ->add_option("--cluster-size,-m", opt.decomposition.cluster_size,
-                                "m: clusters of m x m (x m) subdomains (1 = TFETI; N_s divisible "
-                                "by m); METIS: subdomains per cluster")
-                   ->capture_default_str()
-                   ->check(kStrictInt)
-                   ->check(CLI::PositiveNumber);
-  auto* o_glue = solve_cmd
-                     ->add_option("--glue", glue,
-                                  "primal gluing inside clusters: corners | averages | "
-                                  "corners+averages")
-                     ->capture_default_str();
-  auto* o_element =
-      solve_cmd->add_option("--element", element, "built-ins: q1 (bilinear) | p1 (linear triangles)")
-          ->capture_default_str();
-  auto* o_rtol = solve_cmd->add_option("--rtol", opt.rtol, "relative precision eps, in (0, 1)")
-                     ->capture_default_str();
-  auto* o_maxit =
-      solve_cmd
-          ->add_option("--max-it", opt.max_iterations,
-                       "iteration limit: PCG iterations, or SMALBE-M outer iterations (0: 1000 / 200)")
-          ->capture_default_str()
-          ->check(kStrictInt);
-  auto* o_ordering = solve_cmd
-                         ->add_option("--ordering", ordering,
-                                      "fill-reducing ordering of subdomain factors: amd | metis | "
-                                      "auto (METIS, except AMD for the implicit operator in 2D); "
-                                      "the explicit operator orders the interface last and the "
-                                      "rest by constrained AMD (amd) or nested dissection (metis)")
-                         ->capture_default_str();
-  auto* o_dual =
-      solve_cmd
-          ->add_option("--dual-operator", dual_operator,
-                       "how F is applied: implicit (sparse solves), explicit (dense local blocks "
-                       "from Schur complements), auto (explicit from 25 nodes per subdomain)")
-          ->capture_default_str();
-  std::string precond_text = "auto", scaling_text = "auto";
-  auto* o_precond =
-      solve_cmd
-          ->add_option("--preconditioner", precond_text,
-                       "FETI preconditioner: none | lumped (B_D K B_D^T) | dirichlet "
-                       "(B_D S B_D^T, S the subdomain Schur complement on the interface) | auto "
-                       "(Dirichlet with a coefficient field; elasticity: lumped, but Dirichlet "
-                       "for H-TFETI-DP with contact; otherwise none); used by PCG and, in face, by "
-                       "MPRGP inside SMALBE-M")
-          ->capture_default_str();
-  auto* o_scaling =
-      solve_cmd
-          ->add_option("--scaling", scaling_text,
-                       "B_D of the preconditioner: multiplicity | stiffness (weights by the "
-                       "diagonal of K, for coefficient jumps between subdomains) | auto "
-                       "(stiffness with a coefficient field)")
-          ->capture_default_str();
-  std::string storage_text = "auto";
-  auto* o_storage =
-      solve_cmd
-          ->add_option("--dirichlet-storage", storage_text,
-                       "Dirichlet preconditioner: dense (S_i stored, 8 n_b^2 bytes per subdomain) "
-                       "| implicit (applied with a factor of K_ii) | auto (dense when all fit 2 "
-                       "GiB per rank)")
-          ->check(CLI::IsMember({"auto", "dense", "implicit"}))
-          ->capture_default_str();
-  int symbolic_cache = 64;
-  auto* o_symcache =
-      solve_cmd
-          ->add_option("--symbolic-cache", symbolic_cache,
-                       "subdomain factorizations share the symbolic analysis (ordering, "
-                       "supernodes) of subdomains with the same sparsity pattern; at most this "
-                       "many patterns are kept per rank (0: analyse every subdomain anew); the "
-                       "factors are the same either way")
-          ->check(CLI::NonNegativeNumber)
-          ->capture_default_str();
-  auto* o_keep = solve_cmd->add_flag("--keep-factors", opt.feti.keep_factors,
-                      "explicit operator: always keep the subdomain factors during the iterations "
-                      "(by default a cluster frees them after its setup, and they are rebuilt for "
-                      "the reconstruction, once the available memory, less what the clusters "
-                      "still to be set up will allocate, has fallen below 30% of what it was "
-                      "when the factorizations began)");
-  double numeric_cache_mb = 512;
-  auto* o_numcache =
-      solve_cmd
-          ->add_option("--numeric-cache", numeric_cache_mb,
-                       "MB per rank of numeric factors kept for subdomains whose matrix repeats a "
-                       "kept one entry for entry (generated boxes): such a subdomain shares the "
-                       "kept factor instead of factoring; the factors are the same either way (0: off; "
-                       "needs --symbolic-cache > 0)")
-          ->check(CLI::NonNegativeNumber)
-          ->capture_default_str();
-  bool release_factors = false;
-  auto* o_release =
-      solve_cmd
-          ->add_flag("--release-factors", release_factors,
-                     "explicit operator: every cluster frees its subdomain factors right after "
-                     "its setup and factors again for the reconstruction (the least memory; by "
-                     "default factors are freed only once memory runs short)")
-          ->excludes(o_keep);
-  auto* o_rho =
-      solve_cmd
-          ->add_option("--rho-factor", opt.smalbe.rho_factor, "SMALBE-M penalty rho = factor * ||PFP||")
-          ->capture_default_str();
-  auto* o_M0 =
-      solve_cmd
-          ->add_option("--M0-factor", opt.smalbe.M0_factor, "SMALBE-M initial M = factor * ||PFP||")
-          ->capture_default_str();
-  auto* o_eta =
-      solve_cmd->add_option("--eta-factor", opt.smalbe.eta_factor, "SMALBE-M eta = factor * ||b||")
-          ->capture_default_str();
-  auto* o_beta =
-      solve_cmd
-          ->add_option("--beta", opt.smalbe.beta, "SMALBE-M: M is divided by beta on a failed test")
-          ->capture_default_str();
-  auto* o_gamma =
-      solve_cmd->add_option("--gamma", opt.smalbe.gamma, "MPRGP proportioning parameter Gamma")
-          ->capture_default_str();
-  auto* o_report = solve_cmd->add_option("--report", out_opt.report, "write the report JSON here")
-                       ->capture_default_str();
-  solve_cmd->add_flag("--no-report", no_report, "do not write a report");
-  auto* o_vtu = solve_cmd
-                    ->add_option("--vtu", out_opt.vtu,
-                                 "write the solution for ParaView here (.vtu, or .pvtu with "
-                                 "several ranks; binary)")
-                    ->capture_default_str();
-  solve_cmd->add_flag("--no-vtu", no_vtu, "do not write VTU output");
-  double explicit_budget_gb = opt.feti.explicit_budget_bytes / (1 << 30);
-  auto* o_expbudget =
-      solve_cmd
-          ->add_option("--explicit-budget", explicit_budget_gb,
-                       "GB per rank: --dual-operator auto takes the explicit operator only when "
-                       "its F_i fit this, or when the implicit operator would not fit in memory")
-          ->check(CLI::NonNegativeNumber)
-          ->capture_default_str();
-  double memory_limit_gb = 0;
-  auto* o_memlimit =
-      solve_cmd
-          ->add_option("--memory-limit", memory_limit_gb,
-                       "GB the solve may use on each machine (default: the machine's available "
-                       "memory); the memory check, the automatic dual operator and the factor "
-                       "release count with it")
-          ->check(CLI::PositiveNumber);
-  solve_cmd->add_flag("--no-memory-check", no_memory_check,
-                      "skip the memory estimate before setup (exit 2 when the estimate exceeds "
-                      "the available memory)");
-  double amplitude = 1.0;
-  auto* o_amplitude =
-      solve_cmd
-          ->add_option("--obstacle-amplitude", amplitude,
-                       "cube-obstacle: the obstacle is u_z >= -A sin(pi x / 50) (A = 1: every "
-                       "bottom node ends in contact; larger A: partial contact)")
-          ->capture_default_str();
-  auto* o_ascii = solve_cmd->add_flag("--vtu-ascii", out_opt.vtu_ascii, "write the VTU as ASCII");
-  auto* o_vtu_io =
-      solve_cmd
-          ->add_option("--vtu-io", out_opt.vtu_io,
-                       "how the binary VTU reaches the disk: buffered (through the page cache), "
-                       "direct (whole 4 KiB blocks by direct I/O from the writer's buffers, the "
-                       "rest through the page cache; buffered where the file system refuses "
-                       "it) or auto (direct for a piece of 256 MiB and more)")
-          ->check(CLI::IsMember({"auto", "buffered", "direct"}))
-          ->capture_default_str();
-  std::string precision_text = "double";
-  auto* o_precision =
-      solve_cmd
-          ->add_option("--explicit-precision", precision_text,
-                       "storage of the explicit F_i (lower triangle, packed): double | single "
-                       "(half the memory and bytes per F; values rounded to single precision, "
-                       "sums in double)")
-          ->check(CLI::IsMember({"double", "single"}))
-          ->capture_default_str();
-  int coarse_steps = 2;
-  auto* o_coarse_steps =
-      solve_cmd
-          ->add_option("--coarse-steps-per-product", coarse_steps,
-                       "coarse steps per SMALBE-M Hessian product: 2 (P, F, P) | 1 (F, then one "
-                       "reduction with E = F G~^T formed in setup; memory and setup time, for "
-                       "many ranks)")
-          ->check(CLI::IsMember({1, 2}))
-          ->capture_default_str();
-  std::string norm_text = "power";
-  auto* o_norm = solve_cmd
-                     ->add_option("--norm-estimate", norm_text,
-                                  "SMALBE-M's estimate of ||PFP||: power (power method) | "
-                                  "lanczos (largest Ritz value of the Lanczos process); at most "
-                                  "50 products, relative change 1e-3")
-                     ->check(CLI::IsMember({"lanczos", "power"}))
-                     ->capture_default_str();
-  auto* o_progress =
-      solve_cmd->add_flag("--progress", opt.progress, "print one line per (outer) iteration");
+  ProblemArgs problem;
+  add_problem_args(solve_cmd, problem);
+  TableArgs table;
+  add_table_args(solve_cmd, table);
+  bool dry = false;
+  solve_cmd->add_flag("--dry-run", dry,
+                      "print the problem, the automatic choices, the memory estimate and every "
+                      "option in effect, and exit without solving or writing anything");
 
   auto* spec_cmd = app.add_subcommand(
       "spectrum",
@@ -391,158 +459,23 @@ int run(int argc, char** argv, const Comm& comm) {
     }
   }
 
+  // Defaults (the member initializers), then the problem file, then the command line.
+  RunOptions opt;
   std::shared_ptr<const Model> model;
   try {
-    if (!problem_file.empty() && o_problem->count() > 0)
+    if (!problem.file.empty() && problem.o_problem->count() > 0)
       throw std::invalid_argument("give a problem file or --problem, not both");
-    if (!problem_file.empty()) {
-      // Defaults, then the file, then what the command line gives.
-      SolveOptions from_file;
-      ProblemSpec spec = read_problem_file(problem_file, from_file, out_opt);
-      if (o_rtol->count()) from_file.rtol = opt.rtol;
-      if (o_maxit->count()) from_file.max_iterations = opt.max_iterations;
-      if (o_ordering->count()) from_file.feti.ordering = parse_ordering(ordering);
-      if (o_dual->count()) from_file.feti.dual_operator = parse_dual_operator(dual_operator);
-      if (o_keep->count()) from_file.feti.keep_factors = opt.feti.keep_factors;
-      if (o_precond->count()) from_file.feti.preconditioner = parse_preconditioner(precond_text);
-      if (o_scaling->count()) from_file.feti.scaling = parse_scaling(scaling_text);
-      if (o_storage->count())
-        from_file.feti.dirichlet_storage = storage_text == "dense" ? 1 : storage_text == "implicit" ? 2 : 0;
-      if (o_rho->count()) from_file.smalbe.rho_factor = opt.smalbe.rho_factor;
-      if (o_M0->count()) from_file.smalbe.M0_factor = opt.smalbe.M0_factor;
-      if (o_eta->count()) from_file.smalbe.eta_factor = opt.smalbe.eta_factor;
-      if (o_beta->count()) from_file.smalbe.beta = opt.smalbe.beta;
-      if (o_gamma->count()) from_file.smalbe.gamma = opt.smalbe.gamma;
-      if (o_progress->count()) from_file.progress = opt.progress;
-      if (o_subdomains->count()) spec.subdomains = parse_int_list(subdomains_text, "--subdomains");
-      if (o_m->count()) spec.cluster_size = opt.decomposition.cluster_size;
-      if (o_glue->count()) spec.glue = parse_glue(glue);
-      if (!spec.builtin.empty() && o_elements->count()) {
-        const auto e = parse_int_list(elements_text, "--elements");
-        if (e.size() != 1) throw std::invalid_argument("--elements takes one number for a built-in");
-        spec.builtin_options.elements = e[0];
-      } else if (o_elements->count()) {
-        if (!spec.mesh_file.empty())
-          throw std::invalid_argument("--elements is for generated boxes, not mesh files");
-        const auto e = parse_int_list(elements_text, "--elements");
-        if (static_cast<int>(e.size()) != spec.box.dim)
-          throw std::invalid_argument("--elements needs " + std::to_string(spec.box.dim) +
-                                      " numbers for this box");
-        for (int d = 0; d < spec.box.dim; ++d) spec.box.elements[d] = e[d];
-      }
-      if (o_amplitude->count())
-        throw std::invalid_argument("--obstacle-amplitude is for --problem cube-obstacle");
-      if (o_element->count() && spec.builtin.empty())
-        throw std::invalid_argument("--element is for the built-in problems; set mesh.element");
-      if (o_element->count()) spec.builtin_options.element = parse_element(element);
-      if (o_report->count()) out_opt.report = o_report->as<std::string>(), out_opt.write_report = true;
-      if (o_vtu->count()) out_opt.vtu = o_vtu->as<std::string>(), out_opt.write_vtu = true;
-      if (o_ascii->count()) out_opt.vtu_ascii = true;
-      if (o_vtu_io->count()) out_opt.vtu_io = o_vtu_io->as<std::string>();
-      opt = from_file;
-      validate_solver(opt);
-      model = make_model(spec);
-    } else if (problem == "cube-obstacle") {
-      const auto e = parse_int_list(o_elements->count() ? elements_text : "10,20,10", "--elements");
-      const auto sd = parse_int_list(o_subdomains->count() ? subdomains_text : "2,4,2", "--subdomains");
-      if (o_element->count()) throw std::invalid_argument("cube-obstacle uses hex8 elements");
-      ProblemSpec spec = cube_obstacle_spec(e, sd, opt.decomposition.cluster_size, amplitude);
-      spec.glue = parse_glue(glue);
-      opt.feti.ordering = parse_ordering(ordering);
-      opt.feti.dual_operator = parse_dual_operator(dual_operator);
-      opt.feti.preconditioner = parse_preconditioner(precond_text);
-      opt.feti.scaling = parse_scaling(scaling_text);
-      opt.feti.dirichlet_storage = storage_text == "dense" ? 1 : storage_text == "implicit" ? 2 : 0;
-      validate_solver(opt);
-      model = make_model(spec);
-    } else {
-      if (o_amplitude->count())
-        throw std::invalid_argument("--obstacle-amplitude is for --problem cube-obstacle");
-      opt.decomposition.problem = parse_problem(problem);
-      opt.decomposition.element = parse_element(element);
-      opt.decomposition.glue = parse_glue(glue);
-      const auto n = parse_int_list(elements_text, "--elements");
-      const auto ns = parse_int_list(subdomains_text, "--subdomains");
-      if (n.size() != 1 || ns.size() != 1)
-        throw std::invalid_argument("--elements and --subdomains take one number for " + problem);
-      opt.decomposition.elements = n[0];
-      opt.decomposition.subdomains = ns[0];
-      opt.feti.ordering = parse_ordering(ordering);
-      opt.feti.dual_operator = parse_dual_operator(dual_operator);
-      opt.feti.preconditioner = parse_preconditioner(precond_text);
-      opt.feti.scaling = parse_scaling(scaling_text);
-      opt.feti.dirichlet_storage = storage_text == "dense" ? 1 : storage_text == "implicit" ? 2 : 0;
-      validate(opt);
-      model = make_builtin_model(opt.decomposition);
-    }
-    if (o_symcache->count()) opt.feti.symbolic_cache_patterns = symbolic_cache;
-    if (o_numcache->count()) opt.feti.numeric_cache_bytes = numeric_cache_mb * 1048576.0;
-    if (release_factors) {
-      if (opt.feti.keep_factors)
-        throw std::invalid_argument("--release-factors contradicts solver.keep_factors = true");
-      opt.feti.factor_budget_bytes = 0;
-    }
-    if (o_norm->count()) opt.norm_estimate = qp::parse_norm_estimate(norm_text);
-    if (o_coarse_steps->count()) opt.coarse_steps_per_product = coarse_steps;
-    if (o_precision->count()) opt.feti.explicit_precision = parse_precision(precision_text);
-    if (no_report) out_opt.write_report = false;
-    if (no_vtu) out_opt.write_vtu = false;
-    if (no_memory_check) opt.check_memory = false;
-    if (o_memlimit->count()) opt.feti.memory_limit_mb = memory_limit_gb * 1024.0;
-    if (o_expbudget->count()) opt.feti.explicit_budget_bytes = explicit_budget_gb * (1 << 30);
-    if (out_opt.write_report) check_output_path(out_opt.report, "--report");
-    if (out_opt.write_vtu) {
-      check_output_path(out_opt.vtu, "--vtu");
-      const auto ext = std::filesystem::path(out_opt.vtu).extension();
-      if (ext != ".vtu" && ext != ".pvtu")
-        throw std::invalid_argument("--vtu '" + out_opt.vtu + "' must end in .vtu or .pvtu");
-      for (const auto& f : vtu_files(out_opt.vtu, comm.size())) {
-        check_output_path(f, "--vtu");
-        if (out_opt.write_report &&
-            std::filesystem::weakly_canonical(f) == std::filesystem::weakly_canonical(out_opt.report))
-          throw std::invalid_argument("--report and --vtu name the same file '" + f + "'");
-      }
-    }
+    model = problem.file.empty() ? builtin_model(problem, table, opt)
+                                 : file_model(problem, table, opt);
+    if (dry) return dry_run(*model, opt, comm);
+    check_outputs(opt.output, comm);
   } catch (const std::invalid_argument& e) {
     return fail(comm, e.what(), 2);
   }
 
-  SolveOutput out = htfeti::solve(model, opt, comm);
+  SolveOutput out = htfeti::solve(model, opt.solve, comm);
   if (comm.rank() == 0) print_summary(out.report);
-  if (out_opt.write_vtu) {
-    VtuOptions vo;
-    vo.ascii = out_opt.vtu_ascii;
-    vo.io = parse_vtu_io(out_opt.vtu_io);
-    const auto t0 = std::chrono::steady_clock::now();
-    const VtuWritten written = write_vtu(out_opt.vtu, *out.model, *out.dual, out.u, out.lambda, vo);
-    const std::string& where = written.path;
-    const double seconds =
-        comm.max(std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
-    double bytes = 0;
-    for (const auto& f : vtu_files(out_opt.vtu, comm.size())) {
-      std::error_code ec;  // (a piece on another machine's disk is not counted)
-      const auto n = comm.rank() == 0 ? std::filesystem::file_size(f, ec) : 0;
-      if (!ec) bytes += static_cast<double>(n);
-    }
-    // The output's cost in the report (written after it): seconds and size of the VTU files.
-    out.report["timings"]["output"] = seconds;
-    out.report["output_mb"] = bytes / 1048576.0;
-    out.report["output_io"] = written.io;  // (rank 0's piece)
-    if (comm.rank() == 0)
-      std::printf("  solution: %s (%.0f MB in %.2f s)\n", where.c_str(), bytes / 1048576.0, seconds);
-  }
-  if (out_opt.write_report) {
-    std::string error;
-    if (comm.rank() == 0) {
-      try {
-        write_atomically(out_opt.report, out.report.dump(2));
-      } catch (const std::exception& e) {
-        error = e.what();
-      }
-    }
-    comm.agree(error);
-    if (comm.rank() == 0) std::printf("  report:   %s\n", out_opt.report.c_str());
-  }
+  write_outputs(out, opt.output, opt, comm);
   if (comm.rank() == 0 && std::fflush(stdout) != 0)
     throw std::runtime_error("cannot write to standard output");
   return out.converged ? 0 : 3;

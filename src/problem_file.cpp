@@ -11,6 +11,7 @@
 #include <stdexcept>
 
 #include "htfeti/expression.hpp"
+#include "htfeti/options.hpp"
 #include "htfeti/mesh/mesh.hpp"
 #include "htfeti/partition/partition.hpp"
 
@@ -119,9 +120,36 @@ std::vector<double> get_numbers(const toml::node& n, const std::string& where) {
   return out;
 }
 
+// A [solver] or [output] value as the options table reads it (its type checked here).
+OptionValue toml_option_value(const OptionSpec& spec, const toml::node& n, const std::string& where) {
+  switch (spec.type) {
+    case OptionType::boolean:
+      if (!n.is_boolean()) bad(where, "must be true or false");
+      return n.value<bool>().value();
+    case OptionType::integer:
+      if (!n.is_integer()) bad(where, "must be an integer");
+      return n.value<long long>().value();
+    case OptionType::number: {
+      if (!n.is_number()) bad(where, "must be a number");
+      const double v = n.value<double>().value();
+      if (!std::isfinite(v)) bad(where, "must be finite");
+      return v;
+    }
+    case OptionType::choice:
+      if (!n.is_string()) bad(where, "must be a string");
+      return n.value<std::string>().value();
+    case OptionType::path:
+      if (n.is_boolean()) return n.value<bool>().value();
+      if (!n.is_string()) bad(where, "must be a file name or false");
+      return n.value<std::string>().value();
+  }
+  bad(where, "unknown option type");
+}
+
+
 }  // namespace
 
-ProblemSpec read_problem_file(const std::string& path, SolveOptions& solver, OutputOptions& output) {
+ProblemSpec read_problem_file(const std::string& path, RunOptions& run) {
   ProblemSpec spec;
   spec.path = path;
   toml::table root;
@@ -378,92 +406,26 @@ ProblemSpec read_problem_file(const std::string& path, SolveOptions& solver, Out
       bad("decomposition.glue", e.what());
     }
   }
-  if (const toml::table* s = table_of(root, "solver", false)) {
-    check_keys(*s, "solver", {"rtol", "max_iterations", "ordering", "dual_operator", "keep_factors", "release_factors",
-                              "preconditioner", "scaling", "dirichlet_storage", "explicit_precision", "explicit_budget_gb", "memory_limit_gb", "norm_estimate", "coarse_steps_per_product", "rho_factor", "M0_factor", "eta_factor", "beta", "gamma", "progress"});
-    solver.rtol = get_double(*s, "solver", "rtol", solver.rtol);
-    {
-      const long long cs =
-          get_int(*s, "solver", "coarse_steps_per_product", solver.coarse_steps_per_product);
-      if (cs != 1 && cs != 2) bad("solver.coarse_steps_per_product", "must be 1 or 2");
-      solver.coarse_steps_per_product = static_cast<int>(cs);
-    }
-    const long long mi = get_int(*s, "solver", "max_iterations", solver.max_iterations);
-    if (mi < 0 || mi > 100000000) bad("solver.max_iterations", "must be a non-negative integer");
-    solver.max_iterations = static_cast<int>(mi);
-    try {
-      if (s->contains("ordering")) solver.feti.ordering = parse_ordering(get_string(*s, "solver", "ordering", ""));
-      if (s->contains("dual_operator"))
-        solver.feti.dual_operator = parse_dual_operator(get_string(*s, "solver", "dual_operator", ""));
-      if (s->contains("preconditioner"))
-        solver.feti.preconditioner =
-            parse_preconditioner(get_string(*s, "solver", "preconditioner", ""));
-      if (s->contains("scaling"))
-        solver.feti.scaling = parse_scaling(get_string(*s, "solver", "scaling", ""));
-      if (s->contains("explicit_precision"))
-        solver.feti.explicit_precision =
-            parse_precision(get_string(*s, "solver", "explicit_precision", ""));
-      if (s->contains("norm_estimate"))
-        solver.norm_estimate =
-            qp::parse_norm_estimate(get_string(*s, "solver", "norm_estimate", ""));
-    } catch (const std::invalid_argument& e) {
-      bad("[solver]", e.what());
-    }
-    if (s->contains("dirichlet_storage")) {
-      const std::string w = get_string(*s, "solver", "dirichlet_storage", "");
-      if (w != "auto" && w != "dense" && w != "implicit")
-        bad("solver.dirichlet_storage", "must be auto, dense or implicit");
-      solver.feti.dirichlet_storage = w == "dense" ? 1 : w == "implicit" ? 2 : 0;
-    }
-    solver.feti.keep_factors = get_bool(*s, "solver", "keep_factors", solver.feti.keep_factors);
-    if (get_bool(*s, "solver", "release_factors", false)) {
-      if (solver.feti.keep_factors)
-        bad("solver.release_factors", "cannot be true together with solver.keep_factors");
-      solver.feti.factor_budget_bytes = 0;
-    }
-    if (s->contains("explicit_budget_gb")) {
-      const double gb = get_double(*s, "solver", "explicit_budget_gb", 0);
-      if (!(gb >= 0) || !std::isfinite(gb)) bad("solver.explicit_budget_gb", "must be a non-negative number");
-      solver.feti.explicit_budget_bytes = gb * (1 << 30);
-    }
-    if (s->contains("memory_limit_gb")) {
-      const double gb = get_double(*s, "solver", "memory_limit_gb", 0);
-      if (!(gb > 0) || !std::isfinite(gb)) bad("solver.memory_limit_gb", "must be a positive number");
-      solver.feti.memory_limit_mb = gb * 1024.0;
-    }
-    solver.smalbe.rho_factor = get_double(*s, "solver", "rho_factor", solver.smalbe.rho_factor);
-    solver.smalbe.M0_factor = get_double(*s, "solver", "M0_factor", solver.smalbe.M0_factor);
-    solver.smalbe.eta_factor = get_double(*s, "solver", "eta_factor", solver.smalbe.eta_factor);
-    solver.smalbe.beta = get_double(*s, "solver", "beta", solver.smalbe.beta);
-    solver.smalbe.gamma = get_double(*s, "solver", "gamma", solver.smalbe.gamma);
-    solver.progress = get_bool(*s, "solver", "progress", solver.progress);
-    try {
-      validate_solver(solver);
-    } catch (const std::invalid_argument& e) {
-      bad("[solver]", e.what());
+  // [solver] and [output]: generated from the options table (options.hpp).
+  for (const char* section : {"solver", "output"}) {
+    const toml::table* t = table_of(root, section, false);
+    if (!t) continue;
+    for (auto&& [k, node] : *t) {
+      const std::string key(k.str()), where = std::string(section) + "." + key;
+      const OptionSpec* spec = find_option(section, key);
+      if (!spec) {
+        std::string list;
+        for (const auto& o : option_table())
+          if (std::string(o.section) == section) list += (list.empty() ? "" : ", ") + std::string(o.key);
+        bad(where, "unknown key (expected one of: " + list + ")");
+      }
+      set_option(run, *spec, toml_option_value(*spec, node, where), "problem file: " + where);
     }
   }
-  if (const toml::table* o = table_of(root, "output", false)) {
-    check_keys(*o, "output", {"report", "vtu", "vtu_ascii", "vtu_io"});
-    for (const char* key : {"report", "vtu"}) {
-      const toml::node* n = o->get(key);
-      if (!n) continue;
-      std::string& target = key[0] == 'r' ? output.report : output.vtu;
-      bool& flag = key[0] == 'r' ? output.write_report : output.write_vtu;
-      if (n->is_boolean()) {
-        if (n->value<bool>().value()) bad(std::string("output.") + key, "give a file name or false");
-        flag = false;
-      } else if (n->is_string()) {
-        target = n->value<std::string>().value();
-        flag = true;
-      } else {
-        bad(std::string("output.") + key, "must be a file name or false");
-      }
-    }
-    output.vtu_ascii = get_bool(*o, "output", "vtu_ascii", output.vtu_ascii);
-    output.vtu_io = get_string(*o, "output", "vtu_io", output.vtu_io);
-    if (output.vtu_io != "auto" && output.vtu_io != "buffered" && output.vtu_io != "direct")
-      bad("output.vtu_io", "must be \"auto\", \"buffered\" or \"direct\", not \"" + output.vtu_io + "\"");
+  try {
+    check_option_combinations(run);
+  } catch (const std::invalid_argument& e) {
+    bad("[solver]", e.what());
   }
   return spec;
 }

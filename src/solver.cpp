@@ -9,34 +9,37 @@
 #include <memory>
 #include <stdexcept>
 
+#include "htfeti/clock.hpp"
 #include "htfeti/feti/dual_reducer.hpp"
 #include "htfeti/memory_estimate.hpp"
+#include "htfeti/options.hpp"
 #include "htfeti/parallel/memory.hpp"
 #include "htfeti/qp/pcg.hpp"
 #include "htfeti/qp/power_norm.hpp"
 
 namespace htfeti {
 
-namespace {
-
-double now() {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
-}
-
-}  // namespace
-
 void validate_solver(const SolveOptions& o) {
-  if (!(o.rtol > 0 && o.rtol < 1)) throw std::invalid_argument("--rtol must lie in (0, 1)");
-  if (o.max_iterations < 0) throw std::invalid_argument("--max-it must be positive");
-  const auto& sm = o.smalbe;
-  if (!(sm.rho_factor > 0)) throw std::invalid_argument("--rho-factor must be positive");
-  if (!(sm.M0_factor > 0)) throw std::invalid_argument("--M0-factor must be positive");
-  if (!(sm.eta_factor > 0)) throw std::invalid_argument("--eta-factor must be positive");
-  if (!(sm.beta > 1)) throw std::invalid_argument("--beta must be greater than 1");
-  if (!(sm.gamma > 0)) throw std::invalid_argument("--gamma must be positive");
-  for (double v : {sm.rho_factor, sm.M0_factor, sm.eta_factor, sm.beta, sm.gamma})
-    if (!std::isfinite(v))
-      throw std::invalid_argument("the SMALBE-M/MPRGP parameters must be finite");
+  // Every range is the options table's (options.hpp): each value is checked by its own row.
+  RunOptions run;
+  run.solve = o;
+  RunOptions scratch = run;
+  for (const auto& spec : option_table()) {
+    if (std::string(spec.section) != "solver") continue;
+    const nlohmann::json v = spec.get(run);
+    OptionValue value;
+    if (v.is_null()) continue;
+    if (v.is_boolean())
+      value = v.get<bool>();
+    else if (v.is_number_integer())
+      value = v.get<long long>();
+    else if (v.is_number())
+      value = v.get<double>();
+    else
+      value = v.get<std::string>();
+    set_option(scratch, spec, value, *spec.flag ? spec.flag : spec.key);
+  }
+  check_option_combinations(run);
 }
 
 void validate(const SolveOptions& o) {
@@ -44,23 +47,30 @@ void validate(const SolveOptions& o) {
   Decomposition check(o.decomposition);  // throws for bad sizes
 }
 
-void resolve_preconditioner(const Model& model, FetiOptions& o) {
+std::string resolve_preconditioner(const Model& model, FetiOptions& o) {
   const bool coefficient = !model.physics().coefficient.empty();
+  std::string why = "requested";
   if (o.preconditioner == PreconditionerKind::automatic) {
-    if (coefficient)
+    const bool clusters = model.num_clusters() < model.num_subdomains();
+    if (coefficient) {
       o.preconditioner = PreconditionerKind::dirichlet;
-    else if (model.physics().kind == PhysicsKind::elasticity)
-      o.preconditioner = model.num_clusters() < model.num_subdomains() && model.has_contact()
-                             ? PreconditionerKind::dirichlet
-                             : PreconditionerKind::lumped;
-    else
+      why = "automatic: a coefficient field";
+    } else if (model.physics().kind == PhysicsKind::elasticity) {
+      o.preconditioner = clusters && model.has_contact() ? PreconditionerKind::dirichlet
+                                                         : PreconditionerKind::lumped;
+      why = clusters && model.has_contact() ? "automatic: elasticity, H-TFETI-DP with contact"
+                                            : "automatic: elasticity";
+    } else {
       o.preconditioner = PreconditionerKind::none;
+      why = "automatic: Laplace without a coefficient field";
+    }
     // Dirichlet by choice of auto only where its dense blocks fit (else none, see FetiOptions).
     if (o.preconditioner == PreconditionerKind::dirichlet)
       o.dirichlet_fallback = PreconditionerKind::none;
   }
   if (o.scaling == Scaling::automatic)
     o.scaling = coefficient ? Scaling::stiffness : Scaling::multiplicity;
+  return why;
 }
 
 SolveOutput solve(const SolveOptions& options, const Comm& comm) {
@@ -78,7 +88,7 @@ SolveOutput solve(std::shared_ptr<const Model> model_ptr, const SolveOptions& op
   const bool verbose = options.progress && comm.rank() == 0;
 
   FetiOptions feti = options.feti;
-  resolve_preconditioner(model, feti);
+  const std::string preconditioner_reason = resolve_preconditioner(model, feti);
   MemoryEstimate estimate;
   if (options.check_memory) estimate = check_memory(model, feti, comm);
   if (verbose && estimate.explicit_for_memory)
@@ -91,7 +101,7 @@ SolveOutput solve(std::shared_ptr<const Model> model_ptr, const SolveOptions& op
                      ? "of --memory-limit"
                      : "available",
                  estimate.machine_peak_mb);
-  double t0 = now();
+  double t0 = seconds_now();
   if (verbose)
     std::fprintf(stderr,
                  "  setup: %d subdomains in %d clusters on %d ranks: assembling, factoring...\n",
@@ -100,7 +110,7 @@ SolveOutput solve(std::shared_ptr<const Model> model_ptr, const SolveOptions& op
       model.layout(), [&model](int s) { return model.input(s); }, comm, feti);
   DualProblem& dual = *out.dual;
   const DualReducer red(comm, dual);
-  const double t_setup = now() - t0;
+  const double t_setup = seconds_now() - t0;
   if (verbose)
     std::fprintf(stderr, "  setup done in %.2f s (dual dimension %lld, coarse %d, %s operator)\n",
                  t_setup, dual.dual_dimension(), dual.coarse_dimension(),
@@ -135,11 +145,11 @@ SolveOutput solve(std::shared_ptr<const Model> model_ptr, const SolveOptions& op
   const double t_image = merged ? dual.coarse_image_stats().seconds : 0.0;
   bool converged = false;
   std::string reason;
-  double t_solve = now();
+  double t_solve = seconds_now();
   auto progress = [&](int it, double gp, double gx) {
     if (verbose)
       std::fprintf(stderr, "  it %5d  ||g^P|| %.3e  ||G lambda|| %.3e  %.2f s\n", it, gp, gx,
-                   now() - t_solve);
+                   seconds_now() - t_solve);
   };
 
   if (!dual.has_inequalities()) {
@@ -170,9 +180,9 @@ SolveOutput solve(std::shared_ptr<const Model> model_ptr, const SolveOptions& op
     Vec fv(merged ? n : 0), qtmp(merged ? n : 0);
     auto coarse_step = [&](const Vec& v, double rho, Vec& y, Vec& qv) {
       F.apply(v, fv);
-      const double t = now();
+      const double t = seconds_now();
       dual.hessian_from_Fv(v, fv, rho, y, qv);
-      merged_seconds += now() - t;
+      merged_seconds += seconds_now() - t;
       ++merged_steps;
     };
     qp::FunctionOperator A([&](const Vec& x, Vec& y) {  // P F P
@@ -237,17 +247,17 @@ SolveOutput solve(std::shared_ptr<const Model> model_ptr, const SolveOptions& op
               {"expansion_steps", r.expansion_steps},
               {"proportioning_steps", r.proportioning_steps}};
   }
-  t_solve = now() - t_solve;
+  t_solve = seconds_now() - t_solve;
   const double peak_mb_solve = peak_rss_mb();
 
-  double t_rec = now();
+  double t_rec = seconds_now();
   out.u = dual.reconstruct(lambda);
-  t_rec = now() - t_rec;
+  t_rec = seconds_now() - t_rec;
   if (verbose) std::fprintf(stderr, "  reconstruction done in %.2f s\n", t_rec);
-  double t_checks = now();  // the report's checks of the solution
+  double t_checks = seconds_now();  // the report's checks of the solution
   const auto kkt = dual.kkt(out.u, lambda);
   const double energy = dual.energy(out.u);
-  t_checks = now() - t_checks;
+  t_checks = seconds_now() - t_checks;
 
   const auto& st = dual.setup_timings();
   auto tmax = [&](double v) { return comm.max(v); };
@@ -286,6 +296,9 @@ SolveOutput solve(std::shared_ptr<const Model> model_ptr, const SolveOptions& op
   rep["factors_released"] = dual.factors_released();
   rep["clusters_released"] = comm.sum(static_cast<long long>(dual.clusters_released()));
   rep["preconditioner"] = to_string(dual.preconditioner());
+  // Why: "requested", or the automatic rule (resolve_preconditioner); a Dirichlet choice of auto
+  // whose dense blocks did not fit fell back to none.
+  rep["preconditioner_reason"] = preconditioner_reason;
   rep["scaling"] = to_string(dual.scaling());
   if (preconditioned)
     // lumped: the sparse K_bb; Dirichlet: S_i dense on every rank, or implicit somewhere.
@@ -319,6 +332,12 @@ SolveOutput solve(std::shared_ptr<const Model> model_ptr, const SolveOptions& op
                 {"min_multiplier", kkt.min_multiplier},
                 {"complementarity", kkt.complementarity}};
   rep["solver"] = solver;
+  // Every solver option in effect, defaults included (the app adds the output options).
+  {
+    RunOptions run;
+    run.solve = options;
+    rep["options"] = {{"solver", options_json(run)["solver"]}};
+  }
   rep["timings"] = {{"setup", tmax(st.assembly + st.constraints)},
                     {"assembly", tmax(st.assembly)},
                     {"factorization", tmax(st.factorization)},

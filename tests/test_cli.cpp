@@ -544,3 +544,56 @@ TEST_F(Cli, DegenerateFloatingBodies) {
     EXPECT_LE(r["kkt"]["max_violation"].get<double>(), 1e-10) << n;  // still feasible
   }
 }
+
+// The options table on the command line (options.hpp): the report echoes every option in
+// effect, the command line overrides the file, --dry-run prints the resolved problem and writes
+// nothing, and non-finite numbers are refused like any bad value.
+TEST_F(Cli, OptionsAreEchoedAndDryRunWritesNothing) {
+  const std::string box =
+      "[mesh]\ngenerator = \"box\"\nsize = [1.0, 1.0]\nelements = [16, 16]\n"
+      "element = \"quad4\"\n[physics]\ntype = \"laplace\"\nsource = 1.0\n"
+      "[[dirichlet]]\ngroup = \"x0\"\nvalue = 0.0\n[decomposition]\nsubdomains = [2, 2]\n"
+      "[solver]\nrtol = 1e-6\nsymbolic_cache = 3\nnumeric_cache_gb = 0.25\n"
+      "[output]\nvtu = false\n";
+  write_file("p.toml", box);
+  ASSERT_EQ(run(bin + " solve p.toml --report r.json --symbolic-cache 5 --beta 3"), 0)
+      << stderr_text();
+  std::ifstream f("r.json");
+  const auto r = nlohmann::json::parse(f);
+  const auto& s = r["options"]["solver"];
+  EXPECT_EQ(s["rtol"], 1e-6);            // the file
+  EXPECT_EQ(s["symbolic_cache"], 5);     // the command line over the file
+  EXPECT_EQ(s["beta"], 3.0);             // the command line alone
+  EXPECT_EQ(s["numeric_cache_gb"], 0.25);
+  EXPECT_EQ(s["gamma"], 1.0);            // a default
+  EXPECT_TRUE(s["memory_limit_gb"].is_null());
+  EXPECT_EQ(r["options"]["output"]["vtu"], false);
+  EXPECT_EQ(r["options"]["output"]["report"], "r.json");
+  EXPECT_EQ(r["solver"]["algorithm"], "pcg");
+  EXPECT_EQ(r["preconditioner_reason"], "automatic: Laplace without a coefficient field");
+  EXPECT_TRUE(fs::exists("r.json"));
+  fs::remove("r.json");
+
+  const int code = std::system((bin + " solve p.toml --dry-run --report r.json --vtu u.vtu "
+                                      "> dry.txt 2> cli_stderr.txt")
+                                   .c_str());
+  ASSERT_TRUE(WIFEXITED(code) && WEXITSTATUS(code) == 0) << stderr_text();
+  std::ifstream d("dry.txt");
+  const std::string text(std::istreambuf_iterator<char>(d), {});
+  for (const char* needle : {"nothing is set up", "\"partitioner\"", "projected CG",
+                             "preconditioner: none", "memory estimate:", "[solver]",
+                             "rtol = 1e-06", "[output]", "report = \"r.json\""})
+    EXPECT_NE(text.find(needle), std::string::npos) << needle << "\n" << text;
+  EXPECT_FALSE(fs::exists("r.json"));
+  EXPECT_FALSE(fs::exists("u.vtu"));
+
+  for (const char* bad : {"--memory-limit nan", "--explicit-budget nan", "--numeric-cache nan",
+                          "--rtol inf", "--dirichlet-budget -1", "--symbolic-cache 1e3",
+                          "--max-it 99999999999"}) {
+    EXPECT_EQ(run(bin + " solve p.toml --report r.json " + bad), 2) << bad;
+    EXPECT_NE(stderr_text().find(std::string(bad).substr(0, std::string(bad).find(' '))),
+              std::string::npos)
+        << bad << ": " << stderr_text();
+    EXPECT_FALSE(fs::exists("r.json")) << bad;
+  }
+}

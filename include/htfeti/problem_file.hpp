@@ -17,11 +17,8 @@
 //                 n.u <= gap(x, y, z) on every node of the group
 //   [decomposition] subdomains = N (METIS) or [sx, sy(, sz)] (generated box), cluster_size,
 //                 glue = "corners" | "averages" | "corners+averages"
-//   [solver]      rtol, max_iterations, ordering, dual_operator, keep_factors, preconditioner,
-//                 scaling, dirichlet_storage, explicit_precision, norm_estimate, rho_factor,
-//                 M0_factor, eta_factor, beta, gamma, progress
-//   [output]      report = "file" | false, vtu = "file" | false, vtu_ascii = bool,
-//                 vtu_io = "auto" | "buffered" | "direct"
+//   [solver], [output]  every option of the options table (options.hpp; `htfeti solve --help`
+//                 and docs/user-guide.md list them)
 #pragma once
 
 #include <array>
@@ -33,18 +30,9 @@
 #include "htfeti/feti/input.hpp"
 #include "htfeti/mesh/box.hpp"
 #include "htfeti/model.hpp"
-#include "htfeti/solver.hpp"
+#include "htfeti/options.hpp"
 
 namespace htfeti {
-
-struct OutputOptions {
-  std::string report = "htfeti-report.json";
-  std::string vtu = "htfeti-solution.vtu";
-  bool write_report = true;
-  bool write_vtu = true;
-  bool vtu_ascii = false;
-  std::string vtu_io = "auto";  ///< auto | buffered | direct (VtuIo)
-};
 
 struct ProblemSpec {
   std::string path;       ///< the problem file
@@ -79,9 +67,10 @@ struct ProblemSpec {
   Glue glue = Glue::averages;
 };
 
-/// Parses and checks a problem file; the [solver] and [output] tables are written into
-/// `solver` and `output` (whose fields keep their values where the file is silent).
-ProblemSpec read_problem_file(const std::string& path, SolveOptions& solver, OutputOptions& output);
+/// Parses and checks a problem file; the [solver] and [output] tables are read through the
+/// options table (options.hpp) into `run`, whose fields keep their values where the file is
+/// silent.
+ProblemSpec read_problem_file(const std::string& path, RunOptions& run);
 
 /// Parses strictly a list of positive integers "8" or "2,4,2" (no signs, spaces, hex).
 std::vector<int> parse_int_list(const std::string& text, const std::string& what);

@@ -66,8 +66,9 @@ SolveOutput solve(const SolveOptions& options, const Comm& comm);
 /// stiffness scaling; elasticity gets lumped, except H-TFETI-DP with contact: Dirichlet; Laplace
 /// without a coefficient field none (on the measured 2D cases its setup costs more than the
 /// iterations it saves). A Dirichlet choice of auto is taken only where the dense S_i fit the
-/// budget (else none). Explicit choices are kept.
-void resolve_preconditioner(const Model& model, FetiOptions& options);
+/// budget (else none). Explicit choices are kept. Returns the reason ("requested" or the rule
+/// that chose), which the report repeats as preconditioner_reason.
+std::string resolve_preconditioner(const Model& model, FetiOptions& options);
 
 /// Checks the solver options; throws std::invalid_argument.
 void validate_solver(const SolveOptions& options);

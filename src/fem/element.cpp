@@ -6,27 +6,9 @@
 
 namespace htfeti {
 
-CellType parse_cell_type(const std::string& name) {
-  if (name == "tri3") return CellType::tri3;
-  if (name == "quad4") return CellType::quad4;
-  if (name == "tet4") return CellType::tet4;
-  if (name == "hex8") return CellType::hex8;
-  throw std::invalid_argument("unknown element '" + name + "' (expected quad4, tri3, hex8 or tet4)");
-}
+CellType parse_cell_type(const std::string& name) { return parse_name(kCellTypeNames, name, "element"); }
 
-std::string to_string(CellType t) {
-  switch (t) {
-    case CellType::tri3:
-      return "tri3";
-    case CellType::quad4:
-      return "quad4";
-    case CellType::tet4:
-      return "tet4";
-    case CellType::hex8:
-      return "hex8";
-  }
-  return "?";
-}
+std::string to_string(CellType value) { return name_of(kCellTypeNames, value); }
 
 int cell_dimension(CellType t) { return t == CellType::tri3 || t == CellType::quad4 ? 2 : 3; }
 int cell_nodes(CellType t) {

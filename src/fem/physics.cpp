@@ -13,15 +13,9 @@
 
 namespace htfeti {
 
-PhysicsKind parse_physics(const std::string& name) {
-  if (name == "laplace") return PhysicsKind::laplace;
-  if (name == "elasticity") return PhysicsKind::elasticity;
-  throw std::invalid_argument("unknown physics '" + name + "' (expected laplace or elasticity)");
-}
+PhysicsKind parse_physics(const std::string& name) { return parse_name(kPhysicsNames, name, "physics"); }
 
-std::string to_string(PhysicsKind kind) {
-  return kind == PhysicsKind::laplace ? "laplace" : "elasticity";
-}
+std::string to_string(PhysicsKind value) { return name_of(kPhysicsNames, value); }
 
 void Physics::validate() const {
   if (dim != 2 && dim != 3) throw std::invalid_argument("the dimension must be 2 or 3");

@@ -8,27 +8,13 @@
 #include <stdexcept>
 #include <string>
 
+#include "htfeti/clock.hpp"
+
 namespace htfeti {
 
-DualOperator parse_dual_operator(const std::string& name) {
-  if (name == "implicit") return DualOperator::implicit;
-  if (name == "explicit") return DualOperator::explicit_;
-  if (name == "auto") return DualOperator::automatic;
-  throw std::invalid_argument("unknown dual operator '" + name +
-                              "' (expected implicit, explicit or auto)");
-}
+DualOperator parse_dual_operator(const std::string& name) { return parse_name(kDualOperatorNames, name, "dual operator"); }
 
-std::string to_string(DualOperator kind) {
-  switch (kind) {
-    case DualOperator::implicit:
-      return "implicit";
-    case DualOperator::explicit_:
-      return "explicit";
-    case DualOperator::automatic:
-      return "auto";
-  }
-  return "?";
-}
+std::string to_string(DualOperator value) { return name_of(kDualOperatorNames, value); }
 
 namespace {
 
@@ -85,7 +71,7 @@ Cluster::Cluster(int id, std::vector<Subdomain*> subs, std::vector<std::vector<C
   }
   if (!error.empty()) throw std::runtime_error(error);
 
-  const auto t0 = std::chrono::steady_clock::now();
+  const double t0 = seconds_now();
   beta_offset_.assign(s + 1, 0);
   for (int i = 0; i < s; ++i) beta_offset_[i + 1] = beta_offset_[i] + subs_[i]->kernel_dimension();
   const int nk = beta_offset_[s];
@@ -192,7 +178,7 @@ Cluster::Cluster(int id, std::vector<Subdomain*> subs, std::vector<std::vector<C
   }
   lu_.compute(Ss);
   if (explicit_) b_ = {};  // the explicit blocks replace the rows of B~ here
-  setup_seconds_ = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  setup_seconds_ = seconds_now() - t0;
   const double rcond = lu_.rcond();
   if (!(rcond > 1e-13))
     throw std::runtime_error("cluster " + std::to_string(id) +

@@ -32,16 +32,13 @@
 #include <string>
 #include <stdexcept>
 
+#include "htfeti/clock.hpp"
 #include "htfeti/feti/dual_problem.hpp"
 #include "htfeti/parallel/memory.hpp"
 
 namespace htfeti {
 
 namespace {
-double now() {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch())
-      .count();
-}
 
 // Greedy colouring in cluster order such that clusters at distance <= 3 differ (the same on
 // every rank: the graph is).
@@ -78,7 +75,7 @@ std::vector<int> distance3_colouring(const std::vector<std::vector<int>>& adj) {
 }  // namespace
 
 void DualProblem::build_coarse_image(double memory_limit_mb) {
-  const double t0 = now();
+  const double t0 = seconds_now();
   const int P = comm_.size(), n_own = layout_dual_.n_owned(), ncl = layout_.num_clusters;
   const MPI_Comm mc = comm_.raw();
 
@@ -267,7 +264,7 @@ void DualProblem::build_coarse_image(double memory_limit_mb) {
   im.stats.E_nonzeros = comm_.sum(static_cast<long long>(im.e_col.size()));
   im.stats.C_nonzeros = static_cast<long long>(im.c_col.size());
   im.built = true;
-  im.stats.seconds = now() - t0;
+  im.stats.seconds = seconds_now() - t0;
 }
 
 void DualProblem::apply_coarse_image(const Vec& z, Vec& y) const {

@@ -1,5 +1,6 @@
 #include "htfeti/feti/dual_problem.hpp"
 
+#include "htfeti/clock.hpp"
 #include "htfeti/parallel/memory.hpp"
 
 #include <omp.h>
@@ -22,9 +23,6 @@
 namespace htfeti {
 
 namespace {
-double now() {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
-}
 }  // namespace
 
 DualProblem::DualProblem(const FetiLayout& layout,
@@ -41,7 +39,7 @@ DualProblem::DualProblem(const FetiLayout& layout,
 
   // 1. Per cluster: generate and assemble the subdomains, their rows of B~ and the cluster's
   //    primal constraints, while the dof sharing is at hand; then drop the sharing.
-  double t = now();
+  double t = seconds_now();
   subs_.resize(nsub);
   std::vector<std::vector<LocalRow>> local_rows(nsub);
   // Exact stiffness scaling on the nodes needs their copy counts. Copies joined primally (corner
@@ -118,11 +116,11 @@ DualProblem::DualProblem(const FetiLayout& layout,
   }
   comm_.agree(error, input_error);
   setup_.shared_matrices = matrices.reuses();
-  setup_.assembly = now() - t;
+  setup_.assembly = seconds_now() - t;
   setup_.peak_mb_assembly = peak_rss_mb();
 
   // 2. Global numbering of the rows by key, owners, and the extended dual layout.
-  t = now();
+  t = seconds_now();
   std::vector<NumberingKey> keys;
   std::vector<int> key_owner;
   std::vector<const LocalRow*> key_row;
@@ -200,7 +198,7 @@ DualProblem::DualProblem(const FetiLayout& layout,
     lr = {};
   }
   local_rows = {};
-  setup_.constraints = now() - t;
+  setup_.constraints = seconds_now() - t;
   setup_.peak_mb_constraints = peak_rss_mb();
 
   // Local numbering of the rows of B~ on each subdomain (distinct multipliers in extended order).
@@ -335,7 +333,7 @@ DualProblem::DualProblem(const FetiLayout& layout,
   }
 
   // 3. Clusters: factorizations, explicit blocks, the primal-constraint systems; d.
-  t = now();
+  t = seconds_now();
   if (options.symbolic_cache_patterns > 0)
     symbolic_ = std::make_unique<SymbolicCache>(options.symbolic_cache_patterns,
                                                 options.numeric_cache_bytes);
@@ -363,7 +361,7 @@ DualProblem::DualProblem(const FetiLayout& layout,
       clusters_[c]->solve(x_[c]);
       b_of_x(c);
       if (precond_kind_ != PreconditionerKind::none) {  // from K_i, before it is freed
-        const double tp = now();
+        const double tp = seconds_now();
         std::string perr;
 #pragma omp parallel for schedule(dynamic) if (!omp_in_parallel() && members(c) > 1)
         for (int i = 0; i < members(c); ++i) {
@@ -382,7 +380,7 @@ DualProblem::DualProblem(const FetiLayout& layout,
         }
         if (!perr.empty()) throw std::runtime_error(perr);
 #pragma omp atomic
-        setup_.preconditioner += now() - tp;
+        setup_.preconditioner += seconds_now() - tp;
       }
       // Factored: energy() and refactoring rebuild K_i. Freed per cluster, so that the peak is
       // the factors plus the matrices of the clusters not yet factored, not both in full.
@@ -434,7 +432,7 @@ DualProblem::DualProblem(const FetiLayout& layout,
 #pragma omp parallel
     Subdomain::release_dual_block_work();
   }
-  setup_.factorization = now() - t;
+  setup_.factorization = seconds_now() - t;
   factors_released_ = comm_.max(static_cast<double>(clusters_released())) > 0;
   if (symbolic_) {
     setup_.symbolic_analyses = symbolic_->analyses();
@@ -456,7 +454,7 @@ DualProblem::DualProblem(const FetiLayout& layout,
 
   // 4. Coarse space: the kernel dimension of every cluster (allgathered), G~ rows
   //    (G~)_{(c,j),k} = R~_{c,j} . b_k, the coarse matrix, e~ and lambda~.
-  t = now();
+  t = seconds_now();
   {
     std::vector<int> dims(ncl), counts(P), displs(P + 1, 0), all(layout_.num_clusters);
     for (int c = 0; c < ncl; ++c) dims[c] = clusters_[c]->kernel_dimension();
@@ -555,7 +553,7 @@ DualProblem::DualProblem(const FetiLayout& layout,
       pin_[s] = Vec::Zero(precond_[s]->size()), pout_[s] = Vec::Zero(precond_[s]->size());
     if (scaling_ == Scaling::stiffness) build_scaling(rho);
   }
-  setup_.coarse = now() - t;
+  setup_.coarse = seconds_now() - t;
   setup_.peak_mb_coarse = peak_rss_mb();
 }
 

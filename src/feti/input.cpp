@@ -5,25 +5,9 @@
 
 namespace htfeti {
 
-Glue parse_glue(const std::string& name) {
-  if (name == "corners") return Glue::corners;
-  if (name == "averages") return Glue::averages;
-  if (name == "corners+averages") return Glue::corners_averages;
-  throw std::invalid_argument("unknown glue '" + name +
-                              "' (expected corners, averages or corners+averages)");
-}
+Glue parse_glue(const std::string& name) { return parse_name(kGlueNames, name, "glue"); }
 
-std::string to_string(Glue glue) {
-  switch (glue) {
-    case Glue::corners:
-      return "corners";
-    case Glue::averages:
-      return "averages";
-    case Glue::corners_averages:
-      return "corners+averages";
-  }
-  return "?";
-}
+std::string to_string(Glue value) { return name_of(kGlueNames, value); }
 
 int FetiLayout::cluster_of(int s) const {
   return static_cast<int>(std::upper_bound(cluster_first.begin(), cluster_first.end(), s) -

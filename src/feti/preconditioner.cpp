@@ -5,42 +5,13 @@
 
 namespace htfeti {
 
-PreconditionerKind parse_preconditioner(const std::string& name) {
-  if (name == "none") return PreconditionerKind::none;
-  if (name == "lumped") return PreconditionerKind::lumped;
-  if (name == "dirichlet") return PreconditionerKind::dirichlet;
-  if (name == "auto") return PreconditionerKind::automatic;
-  throw std::invalid_argument("unknown preconditioner '" + name +
-                              "' (expected none, lumped, dirichlet or auto)");
-}
+PreconditionerKind parse_preconditioner(const std::string& name) { return parse_name(kPreconditionerNames, name, "preconditioner"); }
 
-std::string to_string(PreconditionerKind kind) {
-  switch (kind) {
-    case PreconditionerKind::none:
-      return "none";
-    case PreconditionerKind::lumped:
-      return "lumped";
-    case PreconditionerKind::dirichlet:
-      return "dirichlet";
-    case PreconditionerKind::automatic:
-      return "auto";
-  }
-  return "?";
-}
+std::string to_string(PreconditionerKind value) { return name_of(kPreconditionerNames, value); }
 
-Scaling parse_scaling(const std::string& name) {
-  if (name == "multiplicity") return Scaling::multiplicity;
-  if (name == "stiffness") return Scaling::stiffness;
-  if (name == "auto") return Scaling::automatic;
-  throw std::invalid_argument("unknown scaling '" + name +
-                              "' (expected multiplicity, stiffness or auto)");
-}
+Scaling parse_scaling(const std::string& name) { return parse_name(kScalingNames, name, "scaling"); }
 
-std::string to_string(Scaling scaling) {
-  return scaling == Scaling::multiplicity ? "multiplicity"
-         : scaling == Scaling::stiffness  ? "stiffness"
-                                          : "auto";
-}
+std::string to_string(Scaling value) { return name_of(kScalingNames, value); }
 
 LocalPreconditioner::LocalPreconditioner(const Eigen::SparseMatrix<double>& K,
                                          std::vector<int> interface, PreconditionerKind kind,

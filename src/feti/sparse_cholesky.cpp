@@ -13,16 +13,9 @@ extern "C" void dpotri_(const char* uplo, const int* n, double* a, const int* ld
 
 namespace htfeti {
 
-Ordering parse_ordering(const std::string& name) {
-  if (name == "amd") return Ordering::amd;
-  if (name == "metis") return Ordering::metis;
-  if (name == "auto") return Ordering::automatic;
-  throw std::invalid_argument("unknown ordering '" + name + "' (expected amd, metis or auto)");
-}
+Ordering parse_ordering(const std::string& name) { return parse_name(kOrderingNames, name, "ordering"); }
 
-std::string to_string(Ordering ordering) {
-  return ordering == Ordering::amd ? "amd" : ordering == Ordering::metis ? "metis" : "auto";
-}
+std::string to_string(Ordering value) { return name_of(kOrderingNames, value); }
 
 namespace {
 // A CHOLMOD view (no copy) of the upper triangle `upper` (compressed here), stype = 1.

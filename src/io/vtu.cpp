@@ -320,17 +320,9 @@ std::vector<std::string> vtu_files(const std::string& path, int ranks) {
   return f;
 }
 
-VtuIo parse_vtu_io(const std::string& name) {
-  if (name == "auto") return VtuIo::automatic;
-  if (name == "buffered") return VtuIo::buffered;
-  if (name == "direct") return VtuIo::direct;
-  throw std::invalid_argument("unknown VTU output mode '" + name +
-                              "' (expected auto, buffered or direct)");
-}
+VtuIo parse_vtu_io(const std::string& name) { return parse_name(kVtuIoNames, name, "VTU output mode"); }
 
-std::string to_string(VtuIo io) {
-  return io == VtuIo::automatic ? "auto" : io == VtuIo::buffered ? "buffered" : "direct";
-}
+std::string to_string(VtuIo value) { return name_of(kVtuIoNames, value); }
 
 VtuWritten write_vtu(const std::string& path, const Model& model, DualProblem& dual,
                      const std::vector<Eigen::VectorXd>& u, const Eigen::VectorXd& lambda,

@@ -9,15 +9,9 @@
 
 namespace htfeti {
 
-Precision parse_precision(const std::string& name) {
-  if (name == "double") return Precision::double_;
-  if (name == "single") return Precision::single;
-  throw std::invalid_argument("unknown precision '" + name + "' (expected double or single)");
-}
+Precision parse_precision(const std::string& name) { return parse_name(kPrecisionNames, name, "precision"); }
 
-std::string to_string(Precision precision) {
-  return precision == Precision::double_ ? "double" : "single";
-}
+std::string to_string(Precision value) { return name_of(kPrecisionNames, value); }
 
 namespace {
 

@@ -5,33 +5,13 @@
 
 namespace htfeti {
 
-ProblemKind parse_problem(const std::string& name) {
-  if (name == "poisson2d") return ProblemKind::poisson2d;
-  if (name == "membranes") return ProblemKind::membranes;
-  if (name == "membranes-coercive") return ProblemKind::membranes_coercive;
-  throw std::invalid_argument("unknown problem '" + name +
-                              "' (expected poisson2d, membranes or membranes-coercive)");
-}
+ProblemKind parse_problem(const std::string& name) { return parse_name(kProblemNames, name, "problem"); }
 
-std::string to_string(ProblemKind kind) {
-  switch (kind) {
-    case ProblemKind::poisson2d:
-      return "poisson2d";
-    case ProblemKind::membranes:
-      return "membranes";
-    case ProblemKind::membranes_coercive:
-      return "membranes-coercive";
-  }
-  return "?";
-}
+std::string to_string(ProblemKind value) { return name_of(kProblemNames, value); }
 
-ElementKind parse_element(const std::string& name) {
-  if (name == "q1") return ElementKind::q1;
-  if (name == "p1") return ElementKind::p1;
-  throw std::invalid_argument("unknown element '" + name + "' (expected q1 or p1)");
-}
+ElementKind parse_element(const std::string& name) { return parse_name(kElementNames, name, "element"); }
 
-std::string to_string(ElementKind kind) { return kind == ElementKind::q1 ? "q1" : "p1"; }
+std::string to_string(ElementKind value) { return name_of(kElementNames, value); }
 
 double Problem::load(double x, double y) const {
   if (kind == ProblemKind::poisson2d) return 1.0;

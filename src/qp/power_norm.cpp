@@ -6,15 +6,9 @@
 
 namespace htfeti::qp {
 
-NormEstimate parse_norm_estimate(const std::string& name) {
-  if (name == "lanczos") return NormEstimate::lanczos;
-  if (name == "power") return NormEstimate::power;
-  throw std::invalid_argument("unknown norm estimate '" + name + "' (expected lanczos or power)");
-}
+NormEstimate parse_norm_estimate(const std::string& name) { return parse_name(kNormEstimateNames, name, "norm estimate"); }
 
-std::string to_string(NormEstimate method) {
-  return method == NormEstimate::lanczos ? "lanczos" : "power";
-}
+std::string to_string(NormEstimate value) { return name_of(kNormEstimateNames, value); }
 
 double estimate_norm(Operator& A, const Vec& start, const Reducer& red, int max_iterations,
                      double rtol) {

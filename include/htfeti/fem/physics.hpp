@@ -22,10 +22,12 @@
 
 #include "htfeti/linalg/orthonormal.hpp"
 #include "htfeti/mesh/subdomain_mesh.hpp"
+#include "htfeti/enum_names.hpp"
 
 namespace htfeti {
 
 enum class PhysicsKind { laplace, elasticity };
+inline constexpr std::array<EnumName<PhysicsKind>, 2> kPhysicsNames{{{PhysicsKind::laplace, "laplace"}, {PhysicsKind::elasticity, "elasticity"}}};
 PhysicsKind parse_physics(const std::string& name);  // throws std::invalid_argument
 std::string to_string(PhysicsKind kind);
 

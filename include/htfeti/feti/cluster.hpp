@@ -36,6 +36,7 @@
 #include "htfeti/feti/constraints.hpp"
 #include "htfeti/feti/subdomain.hpp"
 #include "htfeti/linalg/packed_symmetric.hpp"
+#include "htfeti/enum_names.hpp"
 
 namespace htfeti {
 
@@ -44,6 +45,7 @@ namespace htfeti {
 /// of each subdomain onto its interface (explicit), plus the low-rank cluster correction
 /// B_i K_i^+ C_i^T and B_i R_i (see apply_dual).
 enum class DualOperator { implicit, explicit_, automatic };
+inline constexpr std::array<EnumName<DualOperator>, 3> kDualOperatorNames{{{DualOperator::implicit, "implicit"}, {DualOperator::explicit_, "explicit"}, {DualOperator::automatic, "auto"}}};
 DualOperator parse_dual_operator(const std::string& name);
 std::string to_string(DualOperator kind);
 

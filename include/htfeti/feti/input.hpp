@@ -16,12 +16,14 @@
 #include <functional>
 #include <string>
 #include <vector>
+#include "htfeti/enum_names.hpp"
 
 namespace htfeti {
 
 /// Which primal constraints join the subdomains of a cluster (paper, Section 5): corners
 /// (vertices), averages of the kernel over shared edges (2D) or faces (3D), or both.
 enum class Glue { corners, averages, corners_averages };
+inline constexpr std::array<EnumName<Glue>, 3> kGlueNames{{{Glue::corners, "corners"}, {Glue::averages, "averages"}, {Glue::corners_averages, "corners+averages"}}};
 Glue parse_glue(const std::string& name);  // throws std::invalid_argument
 std::string to_string(Glue glue);
 

@@ -29,12 +29,14 @@
 #include <vector>
 
 #include "htfeti/feti/sparse_cholesky.hpp"
+#include "htfeti/enum_names.hpp"
 
 namespace htfeti {
 
 /// automatic: chosen by solve() from the problem class (resolve_preconditioner in solver.hpp);
 /// DualProblem needs it resolved.
 enum class PreconditionerKind { none, lumped, dirichlet, automatic };
+inline constexpr std::array<EnumName<PreconditionerKind>, 4> kPreconditionerNames{{{PreconditionerKind::none, "none"}, {PreconditionerKind::lumped, "lumped"}, {PreconditionerKind::dirichlet, "dirichlet"}, {PreconditionerKind::automatic, "auto"}}};
 PreconditionerKind parse_preconditioner(const std::string& name);  // throws std::invalid_argument
 std::string to_string(PreconditionerKind kind);
 
@@ -45,6 +47,7 @@ std::string to_string(PreconditionerKind kind);
 ///    side of an interface is trusted more (the rho-scaling of Klawonn and Widlund).
 ///  - automatic: stiffness when the problem has a coefficient field, else multiplicity (solve()).
 enum class Scaling { multiplicity, stiffness, automatic };
+inline constexpr std::array<EnumName<Scaling>, 3> kScalingNames{{{Scaling::multiplicity, "multiplicity"}, {Scaling::stiffness, "stiffness"}, {Scaling::automatic, "auto"}}};
 Scaling parse_scaling(const std::string& name);  // throws std::invalid_argument
 std::string to_string(Scaling scaling);
 

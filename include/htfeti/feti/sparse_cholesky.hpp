@@ -8,6 +8,7 @@
 #include <mutex>
 #include <string>
 #include <vector>
+#include "htfeti/enum_names.hpp"
 
 namespace htfeti {
 
@@ -15,6 +16,7 @@ namespace htfeti {
 /// measured with it), METIS nested dissection in 3D (27% fewer factor nonzeros on the
 /// cube-obstacle subdomains, docs/performance.md); resolved by the FETI stage.
 enum class Ordering { amd, metis, automatic };
+inline constexpr std::array<EnumName<Ordering>, 3> kOrderingNames{{{Ordering::amd, "amd"}, {Ordering::metis, "metis"}, {Ordering::automatic, "auto"}}};
 Ordering parse_ordering(const std::string& name);
 std::string to_string(Ordering ordering);
 

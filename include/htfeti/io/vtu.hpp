@@ -16,6 +16,7 @@
 
 #include "htfeti/feti/dual_problem.hpp"
 #include "htfeti/model.hpp"
+#include "htfeti/enum_names.hpp"
 
 namespace htfeti {
 
@@ -25,6 +26,7 @@ namespace htfeti {
 /// where two subdomains' values meet through the page cache; a file system that refuses direct
 /// I/O gets buffered writes. automatic: direct for pieces of kDirectMinBytes and more.
 enum class VtuIo { automatic, buffered, direct };
+inline constexpr std::array<EnumName<VtuIo>, 3> kVtuIoNames{{{VtuIo::automatic, "auto"}, {VtuIo::buffered, "buffered"}, {VtuIo::direct, "direct"}}};
 VtuIo parse_vtu_io(const std::string& name);  // auto | buffered | direct; std::invalid_argument
 std::string to_string(VtuIo io);
 

@@ -12,12 +12,14 @@
 #include <Eigen/Dense>
 #include <string>
 #include <vector>
+#include "htfeti/enum_names.hpp"
 
 namespace htfeti {
 
 /// Storage precision of the explicit F_i: double, or single (half the memory and the bytes
 /// streamed per product; the values are rounded to 24 bits, the sums stay in double).
 enum class Precision { double_, single };
+inline constexpr std::array<EnumName<Precision>, 2> kPrecisionNames{{{Precision::double_, "double"}, {Precision::single, "single"}}};
 Precision parse_precision(const std::string& name);  // throws std::invalid_argument
 std::string to_string(Precision precision);
 

@@ -1,0 +1,88 @@
+// The options of a solve, declared once (docs/architecture.md, "Options"): each row of
+// option_table() gives an option's problem-file key (in [solver] or [output]), its command-line
+// flag, its unit, its help text and how its value is read, checked and echoed. The command line
+// (apps/htfeti.cpp), the problem-file reader (problem_file.cpp), validate_solver(), the report's
+// `options` block and `htfeti solve --dry-run` are all generated from this table; the defaults
+// are the member initializers of SolveOptions and OutputOptions, which the table reads back.
+//
+// Adding an option: a member in SolveOptions (or FetiOptions, SmalbeOptions, OutputOptions) with
+// its default, and one row in option_table() (src/options.cpp). Nothing else.
+#pragma once
+
+#include <functional>
+#include <nlohmann/json.hpp>
+#include <string>
+#include <variant>
+#include <vector>
+
+#include "htfeti/io/vtu.hpp"
+#include "htfeti/solver.hpp"
+
+namespace htfeti {
+
+/// Where the outputs go (the [output] table of a problem file).
+struct OutputOptions {
+  std::string report = "htfeti-report.json";
+  std::string vtu = "htfeti-solution.vtu";
+  bool write_report = true;
+  bool write_vtu = true;
+  bool vtu_ascii = false;
+  VtuIo vtu_io = VtuIo::automatic;
+};
+
+/// Everything `htfeti solve` takes besides the problem itself.
+struct RunOptions {
+  SolveOptions solve;
+  OutputOptions output;
+};
+
+/// How an option's value is written: a switch (true/false; on the command line a flag), an
+/// integer, a number, a word of a fixed list, or a file name that `false` (or the `--no-` flag)
+/// turns off.
+enum class OptionType { boolean, integer, number, choice, path };
+
+/// A value as read from a problem file or the command line, before it is checked.
+using OptionValue = std::variant<bool, long long, double, std::string>;
+
+struct OptionSpec {
+  const char* section;  ///< "solver" or "output": the problem-file table
+  const char* key;      ///< the problem-file key, and the report's name
+  const char* flag;     ///< the command-line flag ("" for none); may carry a short alias
+  /// A flag that sets the value false (a switch), or turns a path off ("" for none).
+  const char* negative_flag;
+  OptionType type;
+  const char* unit;  ///< "GB", "" ...
+  const char* help;
+  std::vector<std::string> choices;  ///< OptionType::choice: the accepted words
+  /// Checks and stores a value; throws std::invalid_argument with a message that does not
+  /// repeat the option's name (the caller prefixes the key or the flag).
+  std::function<void(RunOptions&, const OptionValue&)> set;
+  /// The value in effect, for the report and the dry run (null: "none", e.g. no memory limit).
+  std::function<nlohmann::json(const RunOptions&)> get;
+};
+
+/// Every option of a solve, in the order the help lists them.
+const std::vector<OptionSpec>& option_table();
+
+/// The row whose problem-file key is `key` in `section` (nullptr if none).
+const OptionSpec* find_option(const std::string& section, const std::string& key);
+
+/// Reads a command-line value (the text after the flag) as the option's type, strictly: whole
+/// decimal integers, finite numbers, words of the list. Throws std::invalid_argument.
+OptionValue parse_option_text(const OptionSpec& spec, const std::string& text);
+
+/// set() with the message prefixed by `where` ("--rtol", "problem file: solver.rtol").
+void set_option(RunOptions& run, const OptionSpec& spec, const OptionValue& value,
+                const std::string& where);
+
+/// Checks what one option cannot: combinations (keep_factors with release_factors).
+void check_option_combinations(const RunOptions& run);
+
+/// Every option in effect: {"solver": {key: value, ...}, "output": {...}}.
+nlohmann::json options_json(const RunOptions& run);
+
+/// The options as `[solver]` and `[output]` tables of a problem file (values that are null, such
+/// as no memory limit, as comments).
+std::string options_toml(const RunOptions& run);
+
+}  // namespace htfeti

@@ -1,0 +1,387 @@
+// The options table (options.hpp). Each row binds a problem-file key and a flag to one member of
+// RunOptions; the builders below keep a row to its name, help and range.
+#include "htfeti/options.hpp"
+
+#include <charconv>
+#include <cmath>
+#include <sstream>
+#include <stdexcept>
+
+namespace htfeti {
+
+namespace {
+
+constexpr double kGiB = 1024.0 * 1024.0 * 1024.0;
+
+[[noreturn]] void refuse(const std::string& msg) { throw std::invalid_argument(msg); }
+
+double as_number(const OptionValue& v) {
+  if (const double* d = std::get_if<double>(&v)) return *d;
+  if (const long long* i = std::get_if<long long>(&v)) return static_cast<double>(*i);
+  refuse("must be a number");
+}
+
+long long as_integer(const OptionValue& v) {
+  if (const long long* i = std::get_if<long long>(&v)) return *i;
+  refuse("must be an integer");
+}
+
+bool as_bool(const OptionValue& v) {
+  if (const bool* b = std::get_if<bool>(&v)) return *b;
+  refuse("must be true or false");
+}
+
+const std::string& as_text(const OptionValue& v) {
+  if (const std::string* s = std::get_if<std::string>(&v)) return *s;
+  refuse("must be a string");
+}
+
+// A number option stored as a double member; `check` returns an error message or nullptr.
+using NumberRef = double& (*)(RunOptions&);
+using NumberCheck = const char* (*)(double);
+
+OptionSpec number(const char* key, const char* flag, const char* help, NumberRef ref,
+                  NumberCheck check) {
+  return {"solver", key, flag, "", OptionType::number, "", help, {},
+          [ref, check](RunOptions& r, const OptionValue& v) {
+            const double x = as_number(v);
+            if (!std::isfinite(x)) refuse("must be a finite number");
+            if (const char* msg = check(x)) refuse(msg);
+            ref(r) = x;
+          },
+          [ref](const RunOptions& r) { return nlohmann::json(ref(const_cast<RunOptions&>(r))); }};
+}
+
+// A memory size in GB (GiB: 2^30 bytes) stored in bytes.
+OptionSpec gigabytes(const char* key, const char* flag, const char* help, NumberRef bytes) {
+  return {"solver", key, flag, "", OptionType::number, "GB", help, {},
+          [bytes](RunOptions& r, const OptionValue& v) {
+            const double x = as_number(v);
+            if (!std::isfinite(x) || x < 0) refuse("must be a non-negative number of GB");
+            if (x > 1e9) refuse("must be at most 1e9 GB");
+            bytes(r) = x * kGiB;
+          },
+          [bytes](const RunOptions& r) {
+            return nlohmann::json(bytes(const_cast<RunOptions&>(r)) / kGiB);
+          }};
+}
+
+using IntRef = int& (*)(RunOptions&);
+
+OptionSpec integer(const char* key, const char* flag, const char* help, IntRef ref, long long lo,
+                   long long hi) {
+  return {"solver", key, flag, "", OptionType::integer, "", help, {},
+          [ref, lo, hi](RunOptions& r, const OptionValue& v) {
+            const long long x = as_integer(v);
+            if (x < lo || x > hi)
+              refuse("must be an integer from " + std::to_string(lo) + " to " +
+                     std::to_string(hi) + " (got " + std::to_string(x) + ")");
+            ref(r) = static_cast<int>(x);
+          },
+          [ref](const RunOptions& r) { return nlohmann::json(ref(const_cast<RunOptions&>(r))); }};
+}
+
+using BoolRef = bool& (*)(RunOptions&);
+
+OptionSpec boolean(const char* section, const char* key, const char* flag,
+                   const char* negative_flag, const char* help, BoolRef ref) {
+  return {section, key, flag, negative_flag, OptionType::boolean, "", help, {},
+          [ref](RunOptions& r, const OptionValue& v) { ref(r) = as_bool(v); },
+          [ref](const RunOptions& r) { return nlohmann::json(ref(const_cast<RunOptions&>(r))); }};
+}
+
+template <class E, size_t N>
+OptionSpec choice(const char* section, const char* key, const char* flag, const char* help,
+                  const std::array<EnumName<E>, N>& names, E& (*ref)(RunOptions&)) {
+  return {section, key, flag, "", OptionType::choice, "", help, names_of(names),
+          [ref, &names, key](RunOptions& r, const OptionValue& v) {
+            ref(r) = parse_name(names, as_text(v), key);
+          },
+          [ref, &names](const RunOptions& r) {
+            return nlohmann::json(name_of(names, ref(const_cast<RunOptions&>(r))));
+          }};
+}
+
+// An output file: a name, or false (the --no- flag) for none.
+OptionSpec path(const char* key, const char* flag, const char* negative_flag, const char* help,
+                std::string& (*name)(RunOptions&), bool& (*write)(RunOptions&)) {
+  return {"output", key, flag, negative_flag, OptionType::path, "", help, {},
+          [name, write](RunOptions& r, const OptionValue& v) {
+            if (const bool* b = std::get_if<bool>(&v)) {
+              if (*b) refuse("give a file name or false");
+              write(r) = false;
+              return;
+            }
+            if (!std::holds_alternative<std::string>(v)) refuse("must be a file name or false");
+            const std::string& s = std::get<std::string>(v);
+            if (s.empty()) refuse("is empty (give a file name or false)");
+            name(r) = s;
+            write(r) = true;
+          },
+          [name, write](const RunOptions& r) {
+            auto& rr = const_cast<RunOptions&>(r);
+            return write(rr) ? nlohmann::json(name(rr)) : nlohmann::json(false);
+          }};
+}
+
+enum class DirichletStorage { automatic, dense, implicit };
+constexpr std::array<EnumName<DirichletStorage>, 3> kDirichletStorageNames{
+    {{DirichletStorage::automatic, "auto"},
+     {DirichletStorage::dense, "dense"},
+     {DirichletStorage::implicit, "implicit"}}};
+
+std::vector<OptionSpec> build_table() {
+  std::vector<OptionSpec> t;
+  // --- the QP solvers
+  t.push_back(number(
+      "rtol", "--rtol", "relative precision eps of PCG and SMALBE-M, in (0, 1) (the paper: 1e-4)",
+      [](RunOptions& r) -> double& { return r.solve.rtol; },
+      [](double x) -> const char* { return x > 0 && x < 1 ? nullptr : "must lie in (0, 1)"; }));
+  t.push_back(integer(
+      "max_iterations", "--max-it",
+      "iteration limit: PCG iterations, or SMALBE-M outer iterations (0: 1000 / 200)",
+      [](RunOptions& r) -> int& { return r.solve.max_iterations; }, 0, 100000000));
+  t.push_back(choice(
+      "solver", "norm_estimate", "--norm-estimate",
+      "SMALBE-M's estimate of ||PFP||: power (power method) | lanczos (largest Ritz value of the "
+      "Lanczos process); at most 50 products, relative change 1e-3",
+      qp::kNormEstimateNames, +[](RunOptions& r) -> qp::NormEstimate& {
+        return r.solve.norm_estimate;
+      }));
+  t.push_back(integer("coarse_steps_per_product", "--coarse-steps-per-product",
+                      "coarse steps per SMALBE-M Hessian product: 2 (P, F, P) | 1 (F, then one "
+                      "reduction with E = F G~^T formed in setup; memory and setup time, for "
+                      "many ranks)",
+                      [](RunOptions& r) -> int& { return r.solve.coarse_steps_per_product; }, 1,
+                      2));
+  auto positive = [](double x) -> const char* {
+    return x > 0 && x <= 1e6 ? nullptr : "must lie in (0, 1e6]";
+  };
+  t.push_back(number("rho_factor", "--rho-factor", "SMALBE-M penalty rho = factor * ||PFP||",
+                     [](RunOptions& r) -> double& { return r.solve.smalbe.rho_factor; },
+                     positive));
+  t.push_back(number(
+      "M0_factor", "--M0-factor", "SMALBE-M initial M = factor * ||PFP||",
+      [](RunOptions& r) -> double& { return r.solve.smalbe.M0_factor; },
+      [](double x) -> const char* { return x > 0 && x <= 1e12 ? nullptr : "must lie in (0, 1e12]"; }));
+  t.push_back(number("eta_factor", "--eta-factor", "SMALBE-M eta = factor * ||b||",
+                     [](RunOptions& r) -> double& { return r.solve.smalbe.eta_factor; },
+                     positive));
+  t.push_back(number(
+      "beta", "--beta", "SMALBE-M: M is divided by beta on a failed test (> 1)",
+      [](RunOptions& r) -> double& { return r.solve.smalbe.beta; },
+      [](double x) -> const char* { return x > 1 && x <= 1e6 ? nullptr : "must lie in (1, 1e6]"; }));
+  t.push_back(number("gamma", "--gamma", "MPRGP proportioning parameter Gamma",
+                     [](RunOptions& r) -> double& { return r.solve.smalbe.gamma; }, positive));
+  t.push_back(boolean("solver", "progress", "--progress", "",
+                      "print one line per (outer) iteration (standard error, rank 0)",
+                      [](RunOptions& r) -> bool& { return r.solve.progress; }));
+  // --- the FETI operators
+  t.push_back(choice(
+      "solver", "dual_operator", "--dual-operator",
+      "how F is applied: implicit (sparse solves), explicit (dense local blocks from Schur "
+      "complements), auto (explicit from 25 nodes per subdomain, when the blocks fit "
+      "explicit_budget_gb, or when the implicit operator would not fit in memory)",
+      kDualOperatorNames,
+      +[](RunOptions& r) -> DualOperator& { return r.solve.feti.dual_operator; }));
+  t.push_back(choice(
+      "solver", "explicit_precision", "--explicit-precision",
+      "storage of the explicit F_i (lower triangle, packed): double | single (half the memory "
+      "and bytes per F; values rounded to single precision, sums in double)",
+      kPrecisionNames,
+      +[](RunOptions& r) -> Precision& { return r.solve.feti.explicit_precision; }));
+  t.push_back(choice(
+      "solver", "ordering", "--ordering",
+      "fill-reducing ordering of subdomain factors: amd | metis | auto (METIS, except AMD for "
+      "the implicit operator in 2D); the explicit operator orders the interface last and the "
+      "rest by constrained AMD (amd) or nested dissection (metis)",
+      kOrderingNames, +[](RunOptions& r) -> Ordering& { return r.solve.feti.ordering; }));
+  t.push_back(choice(
+      "solver", "preconditioner", "--preconditioner",
+      "FETI preconditioner: none | lumped (B_D K B_D^T) | dirichlet (B_D S B_D^T, S the "
+      "subdomain Schur complement on the interface) | auto (Dirichlet with a coefficient field; "
+      "elasticity: lumped, but Dirichlet for H-TFETI-DP with contact; otherwise none); used by "
+      "PCG and, in face, by MPRGP inside SMALBE-M",
+      kPreconditionerNames,
+      +[](RunOptions& r) -> PreconditionerKind& { return r.solve.feti.preconditioner; }));
+  t.push_back(choice(
+      "solver", "scaling", "--scaling",
+      "B_D of the preconditioner: multiplicity | stiffness (weights by the diagonal of K, for "
+      "coefficient jumps between subdomains) | auto (stiffness with a coefficient field)",
+      kScalingNames, +[](RunOptions& r) -> Scaling& { return r.solve.feti.scaling; }));
+  t.push_back({"solver", "dirichlet_storage", "--dirichlet-storage", "", OptionType::choice, "",
+               "Dirichlet preconditioner: dense (S_i stored, 8 n_b^2 bytes per subdomain) | "
+               "implicit (applied with a factor of K_ii) | auto (dense when all fit "
+               "dirichlet_budget_gb per rank)",
+               names_of(kDirichletStorageNames),
+               [](RunOptions& r, const OptionValue& v) {
+                 r.solve.feti.dirichlet_storage = static_cast<int>(
+                     parse_name(kDirichletStorageNames, as_text(v), "dirichlet storage"));
+               },
+               [](const RunOptions& r) {
+                 return nlohmann::json(name_of(
+                     kDirichletStorageNames,
+                     static_cast<DirichletStorage>(r.solve.feti.dirichlet_storage)));
+               }});
+  t.push_back(gigabytes(
+      "dirichlet_budget_gb", "--dirichlet-budget",
+      "GB per rank: with dirichlet_storage = auto the Dirichlet preconditioner stores its S_i "
+      "dense when they fit this, else applies them with a factor of K_ii",
+      [](RunOptions& r) -> double& { return r.solve.feti.dirichlet_dense_budget_bytes; }));
+  // --- memory
+  t.push_back(gigabytes(
+      "explicit_budget_gb", "--explicit-budget",
+      "GB per rank: --dual-operator auto takes the explicit operator only when its F_i fit "
+      "this, or when the implicit operator would not fit in memory",
+      [](RunOptions& r) -> double& { return r.solve.feti.explicit_budget_bytes; }));
+  t.push_back({"solver", "memory_limit_gb", "--memory-limit", "", OptionType::number, "GB",
+               "GB the solve may use on each machine (default none: the machine's available "
+               "memory); the memory check, the automatic dual operator and the factor release "
+               "count with it",
+               {},
+               [](RunOptions& r, const OptionValue& v) {
+                 const double x = as_number(v);
+                 if (!std::isfinite(x) || !(x > 0)) refuse("must be a positive number of GB");
+                 if (x > 1e9) refuse("must be at most 1e9 GB");
+                 r.solve.feti.memory_limit_mb = x * 1024.0;
+               },
+               [](const RunOptions& r) {
+                 const double mb = r.solve.feti.memory_limit_mb;
+                 return mb != 0 ? nlohmann::json(mb / 1024.0) : nlohmann::json(nullptr);
+               }});
+  t.push_back(boolean("solver", "memory_check", "", "--no-memory-check",
+                      "estimate the memory before setup, and stop with exit 2 when the estimate "
+                      "exceeds the available memory (--no-memory-check: skip the estimate)",
+                      [](RunOptions& r) -> bool& { return r.solve.check_memory; }));
+  t.push_back(boolean(
+      "solver", "keep_factors", "--keep-factors", "",
+      "explicit operator: always keep the subdomain factors during the iterations (by default a "
+      "cluster frees them after its setup, and they are rebuilt for the reconstruction, once the "
+      "available memory, less what the clusters still to be set up will allocate, has fallen "
+      "below 30% of what it was when the factorizations began)",
+      [](RunOptions& r) -> bool& { return r.solve.feti.keep_factors; }));
+  t.push_back({"solver", "release_factors", "--release-factors", "", OptionType::boolean, "",
+               "explicit operator: every cluster frees its subdomain factors right after its "
+               "setup and factors again for the reconstruction (the least memory; by default "
+               "factors are freed only once memory runs short)",
+               {},
+               [](RunOptions& r, const OptionValue& v) {
+                 r.solve.feti.factor_budget_bytes = as_bool(v) ? 0.0 : -1.0;
+               },
+               [](const RunOptions& r) {
+                 return nlohmann::json(r.solve.feti.factor_budget_bytes == 0);
+               }});
+  t.push_back(integer(
+      "symbolic_cache", "--symbolic-cache",
+      "subdomain factorizations share the symbolic analysis (ordering, supernodes) of "
+      "subdomains with the same sparsity pattern; at most this many patterns are kept per rank "
+      "(0: analyse every subdomain anew); the factors are the same either way",
+      [](RunOptions& r) -> int& { return r.solve.feti.symbolic_cache_patterns; }, 0, 1000000));
+  t.push_back(gigabytes(
+      "numeric_cache_gb", "--numeric-cache",
+      "GB per rank of numeric factors kept for subdomains whose matrix repeats a kept one entry "
+      "for entry (generated boxes): such a subdomain shares the kept factor instead of "
+      "factoring; the factors are the same either way (0: off; needs symbolic_cache > 0)",
+      [](RunOptions& r) -> double& { return r.solve.feti.numeric_cache_bytes; }));
+  // --- output
+  t.push_back(path("report", "--report", "--no-report", "the report JSON (false: none)",
+                   [](RunOptions& r) -> std::string& { return r.output.report; },
+                   [](RunOptions& r) -> bool& { return r.output.write_report; }));
+  t.push_back(path("vtu", "--vtu", "--no-vtu",
+                   "the solution for ParaView (.vtu, or .pvtu with several ranks; binary; false: "
+                   "none)",
+                   [](RunOptions& r) -> std::string& { return r.output.vtu; },
+                   [](RunOptions& r) -> bool& { return r.output.write_vtu; }));
+  t.push_back(boolean("output", "vtu_ascii", "--vtu-ascii", "", "write the VTU as ASCII",
+                      [](RunOptions& r) -> bool& { return r.output.vtu_ascii; }));
+  t.push_back(choice(
+      "output", "vtu_io", "--vtu-io",
+      "how the binary VTU reaches the disk: buffered (through the page cache), direct (whole 4 "
+      "KiB blocks by direct I/O from the writer's buffers, the rest through the page cache; "
+      "buffered where the file system refuses it) or auto (direct for a piece of 256 MiB and "
+      "more)",
+      kVtuIoNames, +[](RunOptions& r) -> VtuIo& { return r.output.vtu_io; }));
+  return t;
+}
+
+}  // namespace
+
+const std::vector<OptionSpec>& option_table() {
+  static const std::vector<OptionSpec> table = build_table();
+  return table;
+}
+
+const OptionSpec* find_option(const std::string& section, const std::string& key) {
+  for (const auto& o : option_table())
+    if (section == o.section && key == o.key) return &o;
+  return nullptr;
+}
+
+OptionValue parse_option_text(const OptionSpec& spec, const std::string& text) {
+  switch (spec.type) {
+    case OptionType::boolean:
+      if (text == "true") return true;
+      if (text == "false") return false;
+      refuse("'" + text + "' is not true or false");
+    case OptionType::integer: {
+      long long v = 0;
+      const auto r = std::from_chars(text.data(), text.data() + text.size(), v);
+      const bool digits = !text.empty() && (text[0] >= '0' && text[0] <= '9');
+      if (!digits || r.ec != std::errc() || r.ptr != text.data() + text.size())
+        refuse("'" + text + "' is not a non-negative decimal integer (or it is too large)");
+      return v;
+    }
+    case OptionType::number: {
+      double v = 0;
+      const auto r = std::from_chars(text.data(), text.data() + text.size(), v);
+      if (text.empty() || r.ec != std::errc() || r.ptr != text.data() + text.size())
+        refuse("'" + text + "' is not a number");
+      if (!std::isfinite(v)) refuse("'" + text + "' is not a finite number");
+      return v;
+    }
+    case OptionType::choice:
+    case OptionType::path:
+      return text;
+  }
+  refuse("unknown option type");
+}
+
+void set_option(RunOptions& run, const OptionSpec& spec, const OptionValue& value,
+                const std::string& where) {
+  try {
+    spec.set(run, value);
+  } catch (const std::invalid_argument& e) {
+    throw std::invalid_argument(where + ": " + e.what());
+  }
+}
+
+void check_option_combinations(const RunOptions& run) {
+  if (run.solve.feti.keep_factors && run.solve.feti.factor_budget_bytes == 0)
+    refuse(
+        "solver.keep_factors (--keep-factors) and solver.release_factors (--release-factors) "
+        "contradict each other");
+}
+
+nlohmann::json options_json(const RunOptions& run) {
+  nlohmann::json j = {{"solver", nlohmann::json::object()}, {"output", nlohmann::json::object()}};
+  for (const auto& o : option_table()) j[o.section][o.key] = o.get(run);
+  return j;
+}
+
+std::string options_toml(const RunOptions& run) {
+  std::ostringstream s;
+  for (const char* section : {"solver", "output"}) {
+    s << "[" << section << "]\n";
+    for (const auto& o : option_table()) {
+      if (std::string(o.section) != section) continue;
+      const nlohmann::json v = o.get(run);
+      if (v.is_null())
+        s << "# " << o.key << " = (none)\n";
+      else
+        s << o.key << " = " << v.dump() << "\n";
+    }
+  }
+  return s.str();
+}
+
+}  // namespace htfeti

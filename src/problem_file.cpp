@@ -96,13 +96,6 @@ std::string get_string(const toml::table& t, const std::string& where, const cha
   return n->value<std::string>().value();
 }
 
-bool get_bool(const toml::table& t, const std::string& where, const char* key, bool def) {
-  const toml::node* n = t.get(key);
-  if (!n) return def;
-  if (!n->is_boolean()) bad(where + "." + key, "must be true or false");
-  return n->value<bool>().value();
-}
-
 std::vector<double> get_numbers(const toml::node& n, const std::string& where) {
   std::vector<double> out;
   if (n.is_number()) {

@@ -16,8 +16,151 @@
 #include "htfeti/parallel/memory.hpp"
 #include "htfeti/qp/pcg.hpp"
 #include "htfeti/qp/power_norm.hpp"
+#include "htfeti/qp/qp.hpp"
 
 namespace htfeti {
+
+namespace {
+
+using Vec = Eigen::VectorXd;
+
+// The dual problem's operators for the QP solvers, each counted and timed apart (qp::Operator):
+// F, the projector P onto Ker G~ and the preconditioner M^{-1}; and the one-step products.
+struct DualOperators {
+  explicit DualOperators(DualProblem& dual)
+      : F([&dual](const Vec& x, Vec& y) { dual.apply_F(x, y); }),
+        P([&dual](const Vec& x, Vec& y) { dual.project(x, y); }),
+        M([&dual](const Vec& x, Vec& y) { dual.apply_preconditioner(x, y); }),
+        preconditioned(dual.preconditioner() != PreconditionerKind::none) {}
+  qp::FunctionOperator F, P, M;
+  bool preconditioned;
+  long merged_steps = 0;        // products taken in one coarse step
+  double merged_seconds = 0;    // their time after F v
+};
+
+// What a QP solve gives the report.
+struct QpSolve {
+  bool converged = false;
+  std::string reason;
+  int outer = 0, inner = 0;
+  long matvecs = 0;
+  nlohmann::json solver;
+};
+
+// The dual problem without contact (the paper's (11) with equalities only): projected CG from
+// lambda~, preconditioned by P M^{-1} P when a preconditioner was built.
+QpSolve solve_without_contact(DualProblem& dual, DualOperators& ops, Vec& lambda,
+                              const SolveOptions& options, const qp::Reducer& red,
+                              const qp::Progress& progress) {
+  const int n = dual.n_owned();
+  qp::QuadraticProgram qp;
+  qp.hessian = qp::borrow(ops.F);
+  qp.linear = dual.d();
+  qp.equality_projector = qp::borrow(ops.P);
+  qp::PcgOptions po;
+  po.rtol = options.rtol;
+  po.max_iterations = options.max_iterations > 0 ? options.max_iterations : 1000;
+  // PCG applies Z only to projected residuals w = P w, so Z = P M^{-1} is P M^{-1} P there.
+  Vec pz(ops.preconditioned ? n : 0);
+  qp::FunctionOperator Z([&](const Vec& x, Vec& y) {
+    ops.M.apply(x, pz);
+    ops.P.apply(pz, y);
+  });
+  lambda = dual.lambda_tilde();
+  const auto r = qp::projected_cg(qp, lambda, red, po, progress, ops.preconditioned ? &Z : nullptr);
+  QpSolve out;
+  out.outer = r.iterations;
+  out.matvecs = ops.F.count();
+  out.converged = r.reason == qp::StopReason::converged;
+  out.reason = to_string(r.reason);
+  out.solver = {{"algorithm", "pcg"},
+                {"projected_residual", r.projected_residual},
+                {"projected_rhs", r.projected_rhs}};
+  return out;
+}
+
+// The contact problem (the paper's (11)): the dual QP min 1/2 l'F l - d'l, l_I >= 0, G~ l = e~,
+// homogenized by lambda~ ((12)) and put on Ker G~ by the projector ((15)), then SMALBE-M with
+// MPRGP inside. With one coarse step per product (merged) the Hessian P F P and H_rho are
+// formed from F v and the coarse image (DualProblem::hessian_from_Fv).
+QpSolve solve_with_contact(DualProblem& dual, DualOperators& ops, Vec& lambda,
+                           const SolveOptions& options, const qp::Reducer& red,
+                           const qp::Progress& progress, bool merged) {
+  const int n = dual.n_owned();
+  qp::QuadraticProgram dual_qp;
+  dual_qp.hessian = qp::borrow(ops.F);
+  dual_qp.linear = dual.d();
+  dual_qp.constraints = std::make_shared<qp::LowerBounds>(dual.lower_bounds());
+  dual_qp.equality_projector = qp::borrow(ops.P);
+  // lambda = lambda~ + x: b = P(d - F lambda~), x_I >= -lambda~_I, A = P F P.
+  qp::QuadraticProgram qp = qp::enforce_by_projector(qp::homogenize(dual_qp, dual.lambda_tilde()));
+  Vec fv(merged ? n : 0), qtmp(merged ? n : 0);
+  auto coarse_step = [&](const Vec& v, double rho, Vec& y, Vec& qv) {
+    ops.F.apply(v, fv);
+    const double t = seconds_now();
+    dual.hessian_from_Fv(v, fv, rho, y, qv);
+    ops.merged_seconds += seconds_now() - t;
+    ++ops.merged_steps;
+  };
+  if (merged)  // P F P in one coarse step
+    qp.hessian = std::make_shared<qp::FunctionOperator>(
+        [&](const Vec& x, Vec& y) { coarse_step(x, 0.0, y, qtmp); });
+  Vec start(n);
+  for (int i = 0; i < n; ++i)  // depends on global indices only, not on the rank count
+    start[i] = 1.0 + 0.5 * std::sin(0.7 * static_cast<double>(dual.global_index(i)) + 0.3);
+  ops.P.apply(start, start);
+  const double normA = options.norm_estimate == qp::NormEstimate::lanczos
+                           ? qp::estimate_norm_lanczos(*qp.hessian, start, red)
+                           : qp::estimate_norm(*qp.hessian, start, red);
+  const long norm_matvecs = qp.hessian->count();
+  qp::SmalbeOptions so = options.smalbe;
+  so.rtol = options.rtol;
+  if (options.max_iterations > 0) so.max_outer = options.max_iterations;
+  Vec px(n), pw(ops.preconditioned ? n : 0), pz(ops.preconditioned ? n : 0);
+  qp::SmalbeHooks hooks;
+  // PFP v + rho (v - P v), and Q v = v - P v: one projection of v serves all three.
+  hooks.fused_hessian = [&](const Vec& v, double rho, Vec& y, Vec& qv) {
+    if (merged) return coarse_step(v, rho, y, qv);
+    ops.P.apply(v, px);
+    ops.F.apply(px, y);
+    ops.P.apply(y, y);
+    qv = v - px;
+    y += rho * qv;
+  };
+  // In face: Z_rho = P M^{-1} P + Q / rho, exact on Im Q where H_rho = rho I.
+  if (ops.preconditioned)
+    hooks.preconditioner = [&](const Vec& v, double rho, Vec& y) {
+      ops.P.apply(v, pw);
+      ops.M.apply(pw, pz);
+      ops.P.apply(pz, y);
+      y += (v - pw) / rho;
+    };
+  Vec x = Vec::Zero(n);
+  const auto r = qp::smalbe(qp, normA, x, red, so, hooks, progress);
+  lambda = qp.shift + x;
+  QpSolve out;
+  out.outer = r.outer_iterations;
+  out.inner = r.inner_iterations;
+  out.matvecs = r.hessian_applications;
+  out.converged = r.reason == qp::StopReason::converged;
+  out.reason = to_string(r.reason);
+  out.solver = {{"algorithm", "smalbe-m+mprgp"},
+                {"projected_gradient", r.projected_gradient},
+                {"equality_residual", r.equality_residual},
+                {"rhs_norm", r.rhs_norm},
+                {"norm_estimate", normA},
+                {"norm_estimate_matvecs", norm_matvecs},
+                {"norm_estimate_method", qp::to_string(options.norm_estimate)},
+                {"rho", r.rho},
+                {"M_final", r.M},
+                {"alpha", r.alpha},
+                {"cg_steps", r.cg_steps},
+                {"expansion_steps", r.expansion_steps},
+                {"proportioning_steps", r.proportioning_steps}};
+  return out;
+}
+
+}  // namespace
 
 void validate_solver(const SolveOptions& o) {
   // Every range is the options table's (options.hpp): each value is checked by its own row.
@@ -115,24 +258,11 @@ SolveOutput solve(std::shared_ptr<const Model> model_ptr, const SolveOptions& op
     std::fprintf(stderr, "  setup done in %.2f s (dual dimension %lld, coarse %d, %s operator)\n",
                  t_setup, dual.dual_dimension(), dual.coarse_dimension(),
                  dual.explicit_operator() ? "explicit" : "implicit");
-  const int n = dual.n_owned();
-  using Vec = Eigen::VectorXd;
-
-  qp::FunctionOperator F([&](const Vec& x, Vec& y) { dual.apply_F(x, y); });
-  qp::FunctionOperator P([&](const Vec& x, Vec& y) { dual.project(x, y); });
-  // The preconditioner M^{-1} (counted and timed apart) and its projected forms.
-  const bool preconditioned = dual.preconditioner() != PreconditionerKind::none;
-  qp::FunctionOperator M([&](const Vec& x, Vec& y) { dual.apply_preconditioner(x, y); });
-  Vec pw(preconditioned ? n : 0), pz(preconditioned ? n : 0);
-  Vec lambda = dual.lambda_tilde();
-  nlohmann::json solver;
-  int outer = 0, inner = 0;
-  long matvecs = 0;
+  DualOperators ops(dual);
+  Vec lambda;
   // One coarse step per Hessian product: only SMALBE-M's products take it (PCG's iterates stay
   // in Ker G, where P F needs one projection anyway).
   const bool merged = options.coarse_steps_per_product == 1 && dual.has_inequalities();
-  long merged_steps = 0;
-  double merged_seconds = 0;
   if (merged) {  // part of the setup: E = F G~^T and C = G~ E
     dual.build_coarse_image(options.feti.memory_limit_mb);
     if (verbose) {
@@ -143,110 +273,15 @@ SolveOutput solve(std::shared_ptr<const Model> model_ptr, const SolveOptions& op
     }
   }
   const double t_image = merged ? dual.coarse_image_stats().seconds : 0.0;
-  bool converged = false;
-  std::string reason;
   double t_solve = seconds_now();
   auto progress = [&](int it, double gp, double gx) {
     if (verbose)
       std::fprintf(stderr, "  it %5d  ||g^P|| %.3e  ||G lambda|| %.3e  %.2f s\n", it, gp, gx,
                    seconds_now() - t_solve);
   };
-
-  if (!dual.has_inequalities()) {
-    qp::PcgOptions po;
-    po.rtol = options.rtol;
-    po.max_iterations = options.max_iterations > 0 ? options.max_iterations : 1000;
-    // PCG applies Z only to projected residuals w = P w, so Z = P M^{-1} is P M^{-1} P there.
-    qp::FunctionOperator Z([&](const Vec& x, Vec& y) {
-      M.apply(x, pz);
-      P.apply(pz, y);
-    });
-    const auto r = qp::projected_cg(F, P, dual.d(), lambda, red, po, progress,
-                                    preconditioned ? &Z : nullptr);
-    outer = r.iterations;
-    matvecs = F.count();
-    converged = r.reason == qp::StopReason::converged;
-    reason = to_string(r.reason);
-    solver = {{"algorithm", "pcg"},
-              {"projected_residual", r.projected_residual},
-              {"projected_rhs", r.projected_rhs}};
-  } else {
-    // Homogenize (paper, (12)): lambda = lambda~ + x, G x = 0, x_I >= -lambda~_I.
-    Vec tmp(n), b(n), lower = dual.lower_bounds() - dual.lambda_tilde();
-    F.apply(dual.lambda_tilde(), tmp);
-    P.apply(dual.d() - tmp, b);
-    // One coarse step per product (--coarse-steps-per-product 1): P F P v + rho Q v from F v
-    // and the coarse image E = F G~^T, C = G~ E (DualProblem::hessian_from_Fv).
-    Vec fv(merged ? n : 0), qtmp(merged ? n : 0);
-    auto coarse_step = [&](const Vec& v, double rho, Vec& y, Vec& qv) {
-      F.apply(v, fv);
-      const double t = seconds_now();
-      dual.hessian_from_Fv(v, fv, rho, y, qv);
-      merged_seconds += seconds_now() - t;
-      ++merged_steps;
-    };
-    qp::FunctionOperator A([&](const Vec& x, Vec& y) {  // P F P
-      if (merged) return coarse_step(x, 0.0, y, qtmp);
-      P.apply(x, tmp);
-      F.apply(tmp, y);
-      P.apply(y, y);
-    });
-    qp::FunctionOperator Q([&](const Vec& x, Vec& y) {  // Q = I - P
-      P.apply(x, y);
-      y = x - y;
-    });
-    Vec start(n);
-    for (int i = 0; i < n; ++i)  // depends on global indices only, not on the rank count
-      start[i] = 1.0 + 0.5 * std::sin(0.7 * static_cast<double>(dual.global_index(i)) + 0.3);
-    P.apply(start, start);
-    const double normA = options.norm_estimate == qp::NormEstimate::lanczos
-                             ? qp::estimate_norm_lanczos(A, start, red)
-                             : qp::estimate_norm(A, start, red);
-    const long norm_matvecs = A.count();
-    qp::SmalbeOptions so = options.smalbe;
-    so.rtol = options.rtol;
-    if (options.max_iterations > 0) so.max_outer = options.max_iterations;
-    Vec x = Vec::Zero(n);
-    long H_count = 0;
-    Vec px(n);
-    // PFP v + rho (v - P v), and Q v = v - P v: one projection of v serves all three.
-    const qp::PenalizedHessian H = [&](const Vec& v, double rho, Vec& y, Vec& qv) {
-      if (merged) return coarse_step(v, rho, y, qv);
-      P.apply(v, px);
-      F.apply(px, y);
-      P.apply(y, y);
-      qv = v - px;
-      y += rho * qv;
-    };
-    // In face: Z_rho = P M^{-1} P + Q / rho, exact on Im Q where H_rho = rho I.
-    const qp::PenalizedApply Zrho = [&](const Vec& v, double rho, Vec& y) {
-      P.apply(v, pw);
-      M.apply(pw, pz);
-      P.apply(pz, y);
-      y += (v - pw) / rho;
-    };
-    const auto r = qp::smalbe(A, Q, b, lower, x, normA, red, so, progress, &H_count, H,
-                              preconditioned ? Zrho : qp::PenalizedApply{});
-    lambda += x;
-    outer = r.outer_iterations;
-    inner = r.inner_iterations;
-    matvecs = H_count;
-    converged = r.reason == qp::StopReason::converged;
-    reason = to_string(r.reason);
-    solver = {{"algorithm", "smalbe-m+mprgp"},
-              {"projected_gradient", r.projected_gradient},
-              {"equality_residual", r.equality_residual},
-              {"rhs_norm", r.rhs_norm},
-              {"norm_estimate", normA},
-              {"norm_estimate_matvecs", norm_matvecs},
-              {"norm_estimate_method", qp::to_string(options.norm_estimate)},
-              {"rho", r.rho},
-              {"M_final", r.M},
-              {"alpha", r.alpha},
-              {"cg_steps", r.cg_steps},
-              {"expansion_steps", r.expansion_steps},
-              {"proportioning_steps", r.proportioning_steps}};
-  }
+  const QpSolve qs = dual.has_inequalities()
+                         ? solve_with_contact(dual, ops, lambda, options, red, progress, merged)
+                         : solve_without_contact(dual, ops, lambda, options, red, progress);
   t_solve = seconds_now() - t_solve;
   const double peak_mb_solve = peak_rss_mb();
 
@@ -300,23 +335,23 @@ SolveOutput solve(std::shared_ptr<const Model> model_ptr, const SolveOptions& op
   // whose dense blocks did not fit fell back to none.
   rep["preconditioner_reason"] = preconditioner_reason;
   rep["scaling"] = to_string(dual.scaling());
-  if (preconditioned)
+  if (ops.preconditioned)
     // lumped: the sparse K_bb; Dirichlet: S_i dense on every rank, or implicit somewhere.
     rep["preconditioner_storage"] =
         dual.preconditioner() == PreconditionerKind::lumped                ? "sparse"
         : comm.min(dual.preconditioner_dense() ? 1.0 : 0.0) > 0 ? "dense"
                                                                  : "implicit";
-  rep["converged"] = converged;
-  rep["stop_reason"] = reason;
-  rep["outer_iterations"] = outer;
-  rep["inner_iterations"] = inner;
-  rep["matvecs"] = matvecs;
-  rep["F_applications"] = F.count();
-  rep["projector_applications"] = P.count();
+  rep["converged"] = qs.converged;
+  rep["stop_reason"] = qs.reason;
+  rep["outer_iterations"] = qs.outer;
+  rep["inner_iterations"] = qs.inner;
+  rep["matvecs"] = qs.matvecs;
+  rep["F_applications"] = ops.F.count();
+  rep["projector_applications"] = ops.P.count();
   // 2: P v, F, P per Hessian product; 1: F v, then one reduction and the coarse image (SMALBE-M
   // only: PCG and problems without contact keep 2).
   rep["coarse_steps_per_product"] = merged ? 1 : 2;
-  rep["merged_coarse_steps"] = merged_steps;
+  rep["merged_coarse_steps"] = ops.merged_steps;
   if (merged) {
     const auto& cs = dual.coarse_image_stats();
     rep["coarse_image"] = {{"colours", cs.colours},
@@ -325,13 +360,13 @@ SolveOutput solve(std::shared_ptr<const Model> model_ptr, const SolveOptions& op
                            {"C_nonzeros", cs.C_nonzeros},
                            {"mb", (12.0 * cs.E_nonzeros + 12.0 * cs.C_nonzeros) / 1048576.0}};
   }
-  rep["preconditioner_applications"] = M.count();
+  rep["preconditioner_applications"] = ops.M.count();
   rep["objective"] = energy;
   rep["kkt"] = {{"equality_residual", kkt.equality_residual},
                 {"max_violation", kkt.max_violation},
                 {"min_multiplier", kkt.min_multiplier},
                 {"complementarity", kkt.complementarity}};
-  rep["solver"] = solver;
+  rep["solver"] = qs.solver;
   // Every solver option in effect, defaults included (the app adds the output options).
   {
     RunOptions run;
@@ -345,15 +380,15 @@ SolveOutput solve(std::shared_ptr<const Model> model_ptr, const SolveOptions& op
                     {"constraints", tmax(st.constraints)},
                     {"coarse_problem", tmax(st.coarse)},
                     {"solve", tmax(t_solve)},
-                    {"F", tmax(F.seconds())},
-                    {"projector", tmax(P.seconds() + merged_seconds)},
-                    {"preconditioner", tmax(M.seconds())},
+                    {"F", tmax(ops.F.seconds())},
+                    {"projector", tmax(ops.P.seconds() + ops.merged_seconds)},
+                    {"preconditioner", tmax(ops.M.seconds())},
                     {"preconditioner_setup", tmax(st.preconditioner)},
                     // the part of "projector" spent in one-step products (after F v)
-                    {"merged_coarse_steps", tmax(merged_seconds)},
+                    {"merged_coarse_steps", tmax(ops.merged_seconds)},
                     {"coarse_image", tmax(t_image)},
-                    {"vector_work", tmax(t_solve - F.seconds() - P.seconds() - merged_seconds -
-                                         M.seconds())},
+                    {"vector_work", tmax(t_solve - ops.F.seconds() - ops.P.seconds() -
+                                         ops.merged_seconds - ops.M.seconds())},
                     {"reconstruction", tmax(t_rec)},
                     {"checks", tmax(t_checks)},
                     {"total", tmax(t_setup + t_image + t_solve + t_rec + t_checks)}};
@@ -448,7 +483,7 @@ SolveOutput solve(std::shared_ptr<const Model> model_ptr, const SolveOptions& op
     rep["displacement"] = {{"max_norm", comm.max(umax)}, {"mean_norm", total / nodes}};
   }
   out.lambda = std::move(lambda);
-  out.converged = converged;
+  out.converged = qs.converged;
   return out;
 }
 

@@ -145,11 +145,8 @@ TEST(HotPath, SmalbeAllocatesNothingPerIteration) {
         F.apply(tmp, v);
         P.apply(v, v);
       });
-      qp::FunctionOperator Q([&](const Eigen::VectorXd& u, Eigen::VectorXd& v) {
-        P.apply(u, v);
-        v = u - v;
-      });
-      const qp::PenalizedHessian H = [&](const Eigen::VectorXd& v, double rho,
+      qp::SmalbeHooks hooks;
+      hooks.fused_hessian = [&](const Eigen::VectorXd& v, double rho,
                                          Eigen::VectorXd& y, Eigen::VectorXd& qv) {
         if (steps == 1) {
           F.apply(v, fv);
@@ -164,14 +161,18 @@ TEST(HotPath, SmalbeAllocatesNothingPerIteration) {
       };
       F.apply(dual->lambda_tilde(), tmp);
       P.apply(dual->d() - tmp, b);
-      const Eigen::VectorXd lower = dual->lower_bounds() - dual->lambda_tilde();
+      qp::QuadraticProgram qp;
+      qp.hessian = qp::borrow(A);
+      qp.linear = b;
+      qp.constraints =
+          std::make_shared<qp::LowerBounds>(dual->lower_bounds() - dual->lambda_tilde());
+      qp.equality_projector = qp::borrow(P);
       DualReducer red(comm, *dual);
       qp::SmalbeOptions so;
       so.rtol = 1e-14;  // never met: the inner cap ends both runs
       so.max_inner = run == 0 ? 10 : 20;
-      long products = 0;
       Counting counting;
-      qp::smalbe(A, Q, b, lower, x, 12.0, red, so, {}, &products, H);
+      qp::smalbe(qp, 12.0, x, red, so, hooks);
       counts[run] = counting.allocations();
     }
     EXPECT_EQ(counts[1], counts[0]) << steps << " coarse steps per product";
@@ -193,8 +194,12 @@ TEST(HotPath, ProjectedCgAllocatesNothingPerIteration) {
     qp::PcgOptions po;
     po.rtol = 1e-300;  // never met: the iteration cap ends both runs
     po.max_iterations = run == 0 ? 10 : 20;
+    qp::QuadraticProgram qp;
+    qp.hessian = qp::borrow(F);
+    qp.linear = dual->d();
+    qp.equality_projector = qp::borrow(P);
     Counting counting;
-    const auto r = qp::projected_cg(F, P, dual->d(), x, red, po);
+    const auto r = qp::projected_cg(qp, x, red, po);
     counts[run] = counting.allocations();
     EXPECT_EQ(r.iterations, po.max_iterations);
   }

@@ -9,6 +9,7 @@
 #include "htfeti/qp/mprgp.hpp"
 #include "htfeti/qp/pcg.hpp"
 #include "htfeti/qp/power_norm.hpp"
+#include "htfeti/qp/qp.hpp"
 #include "htfeti/qp/smalbe.hpp"
 
 using namespace htfeti;
@@ -33,6 +34,19 @@ struct Qp {
   Eigen::MatrixXd A, G;  // G: orthonormal rows (may be empty)
   Vec b, l;
 };
+
+// The QP object of a test problem: A (not owned), b, the bounds l and, with equalities, the
+// projector P = I - G'G onto Ker G (owned by the returned QP).
+QuadraticProgram qp_of(Operator& A, const Qp& q, bool bounds = true) {
+  QuadraticProgram out;
+  out.hessian = borrow(A);
+  out.linear = q.b;
+  if (bounds) out.constraints = std::make_shared<LowerBounds>(q.l);
+  const Eigen::Index n = q.b.size();
+  out.equality_projector = std::make_shared<DenseOperator>(
+      Eigen::MatrixXd::Identity(n, n) - q.G.transpose() * q.G);
+  return out;
+}
 
 // Random QP: A = M'M + shift (or P M P + ... for the singular FETI-like case).
 Qp random_qp(int n, int bounded, int equalities, unsigned seed, bool singular_off_kernel) {
@@ -177,23 +191,27 @@ TEST_P(SmalbeConformance, MatchesEnumeratedActiveSets) {
   const Qp q = random_qp(n, bounded, me, seed, singular);
   DenseOperator A(q.A);
   const Eigen::MatrixXd Qm = q.G.transpose() * q.G;
-  DenseOperator Q(Qm);
   SerialReducer red;
   SmalbeOptions opt;
   opt.rtol = 1e-11;
   const double normA = estimate_norm(A, Vec::Ones(n), red, 200, 1e-10);
   Vec x = Vec::Zero(n);
-  const auto r = smalbe(A, Q, q.b, q.l, x, normA, red, opt);
+  const auto r = smalbe(qp_of(A, q), normA, x, red, opt);
   ASSERT_EQ(r.reason, StopReason::converged);
   EXPECT_LT((x - exact_solution(q, bounded)).norm(), 1e-7);
   expect_kkt(q, x, 1e-8);
-  // The combined penalized operator gives the same iterates.
+  // The combined penalized operator gives the same iterates (with SMALBE-M's arithmetic:
+  // A v + rho (v - P v)).
   Vec x2 = Vec::Zero(n);
+  const Eigen::MatrixXd Pq = Eigen::MatrixXd::Identity(n, n) - Qm;
   const PenalizedHessian combined = [&](const Vec& v, double rho, Vec& y, Vec& qv) {
-    qv = Qm * v;
-    y = q.A * v + rho * qv;
+    qv = v - Pq * v;
+    y = q.A * v;
+    y += rho * qv;
   };
-  const auto r2 = smalbe(A, Q, q.b, q.l, x2, normA, red, opt, {}, nullptr, combined);
+  SmalbeHooks fused;
+  fused.fused_hessian = combined;
+  const auto r2 = smalbe(qp_of(A, q), normA, x2, red, opt, fused);
   ASSERT_EQ(r2.reason, StopReason::converged);
   EXPECT_EQ(r2.inner_iterations, r.inner_iterations);
   EXPECT_LT((x2 - x).norm(), 1e-10);
@@ -205,7 +223,9 @@ TEST_P(SmalbeConformance, MatchesEnumeratedActiveSets) {
     y = Pm * (Dinv * (Pm * v)) + Qm * v / rho;
   };
   Vec x3 = Vec::Zero(n);
-  const auto r3 = smalbe(A, Q, q.b, q.l, x3, normA, red, opt, {}, nullptr, {}, Zrho);
+  SmalbeHooks preconditioned;
+  preconditioned.preconditioner = Zrho;
+  const auto r3 = smalbe(qp_of(A, q), normA, x3, red, opt, preconditioned);
   ASSERT_EQ(r3.reason, StopReason::converged);
   EXPECT_LT((x3 - exact_solution(q, bounded)).norm(), 1e-7);
   expect_kkt(q, x3, 1e-8);
@@ -226,7 +246,11 @@ TEST(Pcg, EqualityConstrainedMatchesKkt) {
   Vec x = q.G.transpose() * e;
   PcgOptions opt;
   opt.rtol = 1e-12;
-  const auto r = projected_cg(A, P, q.b, x, red, opt);
+  QuadraticProgram pq;
+  pq.hessian = borrow(A);
+  pq.linear = q.b;
+  pq.equality_projector = borrow(P);
+  const auto r = projected_cg(pq, x, red, opt);
   ASSERT_EQ(r.reason, StopReason::converged);
   EXPECT_LT((q.G * x - e).norm(), 1e-12);
   EXPECT_LT((Pm * (q.A * x - q.b)).norm(), 1e-10);
@@ -235,7 +259,7 @@ TEST(Pcg, EqualityConstrainedMatchesKkt) {
   const Eigen::MatrixXd Zm = Pm * q.A.diagonal().cwiseInverse().asDiagonal() * Pm;
   DenseOperator Z(Zm);
   Vec xz = q.G.transpose() * e;
-  const auto rz = projected_cg(A, P, q.b, xz, red, opt, {}, &Z);
+  const auto rz = projected_cg(pq, xz, red, opt, {}, &Z);
   ASSERT_EQ(rz.reason, StopReason::converged);
   EXPECT_LT((q.G * xz - e).norm(), 1e-12);
   EXPECT_LT((xz - x).norm(), 1e-9 * x.norm());
@@ -262,7 +286,11 @@ TEST(Failures, NonConvergenceIsAResult) {
   DenseOperator identity(Eigen::MatrixXd::Identity(4, 4));
   Vec y = Vec::Zero(4);
   PcgOptions po;
-  const auto rp = projected_cg(negative, identity, Vec::Ones(4), y, red, po);
+  QuadraticProgram nq;
+  nq.hessian = borrow(negative);
+  nq.linear = Vec::Ones(4);
+  nq.equality_projector = borrow(identity);
+  const auto rp = projected_cg(nq, y, red, po);
   EXPECT_EQ(rp.reason, StopReason::breakdown);
 }
 
@@ -320,14 +348,13 @@ TEST(Failures, SmalbeIterationLimitIsAResult) {
   const Qp q = random_qp(10, 6, 2, 4, false);
   DenseOperator A(q.A);
   const Eigen::MatrixXd Qm = q.G.transpose() * q.G;
-  DenseOperator Q(Qm);
   SerialReducer red;
   SmalbeOptions opt;
   opt.rtol = 1e-12;
   opt.max_outer = 1;
   const double normA = estimate_norm(A, Vec::Ones(10), red, 200, 1e-10);
   Vec x = Vec::Zero(10);
-  const auto r = smalbe(A, Q, q.b, q.l, x, normA, red, opt);
+  const auto r = smalbe(qp_of(A, q), normA, x, red, opt);
   EXPECT_EQ(r.reason, StopReason::max_iterations);
   EXPECT_EQ(r.outer_iterations, 1);
   EXPECT_TRUE(x.allFinite());
@@ -398,4 +425,51 @@ TEST(Mprgp, GivenGradientPathMatchesComputedGradient) {
   EXPECT_EQ(A2.count(), A1.count() - 1);
   EXPECT_LT((x1 - x2).norm(), 1e-12 * x1.norm());
   EXPECT_LT((x1 - exact_solution(q, 7)).norm(), 1e-8);
+}
+
+// The QP transforms (qp.hpp) on a small dense problem: homogenize shifts b, the bounds and the
+// solution; enforce_by_projector gives P A P and P b; SMALBE-M on the transformed QP solves the
+// original one; parts of the wrong size are refused.
+TEST(QpTransforms, HomogenizeAndProjectGiveTheDualForm) {
+  const int n = 8;
+  const Qp q = random_qp(n, 4, 2, 11, false);
+  DenseOperator A(q.A);
+  QuadraticProgram base = qp_of(A, q);
+  const Eigen::MatrixXd Pm = Eigen::MatrixXd::Identity(n, n) - q.G.transpose() * q.G;
+  const Vec x0 = Vec::LinSpaced(n, -0.3, 0.4);
+  const QuadraticProgram h = homogenize(base, x0);
+  EXPECT_LT((h.linear - (q.b - q.A * x0)).norm(), 1e-14);
+  const auto* hb = dynamic_cast<const LowerBounds*>(h.constraints.get());
+  ASSERT_NE(hb, nullptr);
+  EXPECT_EQ(hb->lower().head(4), (q.l - x0).head(4));
+  EXPECT_TRUE(hb->lower().tail(4).array().isInf().all());
+  EXPECT_EQ(h.shift, x0);
+  const QuadraticProgram p = enforce_by_projector(h);
+  EXPECT_LT((p.linear - Pm * h.linear).norm(), 1e-13);
+  const Vec v = Vec::LinSpaced(n, 1.0, 2.0);
+  Vec y(n);
+  p.hessian->apply(v, y);
+  EXPECT_LT((y - Pm * q.A * Pm * v).norm(), 1e-12);
+  EXPECT_EQ(A.count(), 2);  // one in homogenize, one in the product above
+  // A second homogenization adds to the shift.
+  EXPECT_LT((homogenize(h, x0).shift - 2 * x0).norm(), 1e-15);
+  // Wrong sizes are refused.
+  QuadraticProgram bad = base;
+  bad.constraints = std::make_shared<LowerBounds>(Vec::Zero(n + 1));
+  EXPECT_THROW(bad.check(), std::invalid_argument);
+  EXPECT_THROW(homogenize(base, Vec::Zero(n - 1)), std::invalid_argument);
+  QuadraticProgram none;
+  EXPECT_THROW(none.check(), std::invalid_argument);
+  QuadraticProgram no_eq = base;
+  no_eq.equality_projector = nullptr;
+  EXPECT_THROW(enforce_by_projector(no_eq), std::invalid_argument);
+  Vec x = Vec::Zero(n);
+  SerialReducer red;
+  EXPECT_THROW(smalbe(no_eq, 1.0, x, red, SmalbeOptions{}), std::invalid_argument);
+  QuadraticProgram unbounded = base;
+  unbounded.constraints = nullptr;
+  EXPECT_THROW(smalbe(unbounded, 1.0, x, red, SmalbeOptions{}), std::invalid_argument);
+  Vec short_x = Vec::Zero(n - 1);
+  EXPECT_THROW(smalbe(base, 1.0, short_x, red, SmalbeOptions{}), std::invalid_argument);
+  EXPECT_THROW(projected_cg(base, x, red, PcgOptions{}), std::invalid_argument);  // has bounds
 }

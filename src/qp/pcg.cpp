@@ -1,9 +1,18 @@
 #include "htfeti/qp/pcg.hpp"
 
+#include <stdexcept>
+
 namespace htfeti::qp {
 
-PcgResult projected_cg(Operator& A, Operator& P, const Vec& b, Vec& x, const Reducer& red,
+PcgResult projected_cg(const QuadraticProgram& qp, Vec& x, const Reducer& red,
                        const PcgOptions& opt, const Progress& progress, Operator* Z) {
+  qp.check();
+  if (!qp.equality_projector) throw std::invalid_argument("PCG: the QP has no equality projector");
+  if (qp.constraints) throw std::invalid_argument("PCG: the QP has a constraint set (SMALBE-M)");
+  if (x.size() != qp.size()) throw std::invalid_argument("PCG: x has the wrong size");
+  Operator& A = *qp.hessian;
+  Operator& P = *qp.equality_projector;
+  const Vec& b = qp.linear;
   PcgResult res;
   const Eigen::Index n = b.size();
   Vec r(n), w(n), p(n), q(n), z(Z ? n : 0);

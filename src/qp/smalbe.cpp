@@ -5,26 +5,24 @@
 
 namespace htfeti::qp {
 
-SmalbeResult smalbe(Operator& A, Operator& Q, const Vec& b, const Vec& l, Vec& x, double normA,
-                    const Reducer& red, const SmalbeOptions& opt, const Progress& progress,
-                    long* H_applications, const PenalizedHessian& penalized,
-                    const PenalizedApply& preconditioner) {
+SmalbeResult smalbe(const QuadraticProgram& qp, double normA, Vec& x, const Reducer& red,
+                    const SmalbeOptions& opt, const SmalbeHooks& hooks, const Progress& progress) {
+  qp.check();
+  const auto* bounds = dynamic_cast<const LowerBounds*>(qp.constraints.get());
+  if (!bounds) throw std::invalid_argument("SMALBE-M: MPRGP needs lower bounds as constraints");
+  if (!qp.equality_projector) throw std::invalid_argument("SMALBE-M: the QP has no equalities");
+  if (x.size() != qp.size()) throw std::invalid_argument("SMALBE-M: x has the wrong size");
   if (!(normA > 0)) throw std::invalid_argument("SMALBE-M: ||A|| estimate must be positive");
   SmalbeResult res;
+  const Vec& b = qp.linear;
+  const Vec& l = bounds->lower();
   const Eigen::Index n = b.size();
   const double rho = opt.rho_factor * normA;
-  Vec qx(n), qv(n);
-  // H_rho = A + rho Q; the image Q v of every argument is left in qv, from which MPRGP keeps
-  // Q x up to date for the stopping test (TrackedImage).
-  FunctionOperator H([&](const Vec& v, Vec& y) {
-    if (penalized) {
-      penalized(v, rho, y, qv);
-      return;
-    }
-    A.apply(v, y);
-    Q.apply(v, qv);
-    y += rho * qv;
-  });
+  ComplementOperator Q(qp.equality_projector);  // Q = I - P
+  Vec qx(n);
+  // H_rho = A + rho Q; the image Q v of every argument is left in H.image(), from which MPRGP
+  // keeps Q x up to date for the stopping test (TrackedImage).
+  PenalizedOperator H(*qp.hessian, Q, rho, n, hooks.fused_hessian);
   res.rhs_norm = red.norm(b);
   const double bnorm = res.rhs_norm > 0 ? res.rhs_norm : 1.0;
   const double tol = opt.rtol * bnorm;
@@ -33,13 +31,13 @@ SmalbeResult smalbe(Operator& A, Operator& Q, const Vec& b, const Vec& l, Vec& x
   res.rho = rho;
   res.alpha = 2.0 / (opt.norm_safety * std::max(normA, rho));
 
-  FunctionOperator Z([&](const Vec& v, Vec& y) { preconditioner(v, rho, y); });
+  FunctionOperator Z([&](const Vec& v, Vec& y) { hooks.preconditioner(v, rho, y); });
   MprgpOptions mo;
   mo.gamma = opt.gamma;
   mo.alpha = res.alpha;
-  if (preconditioner) mo.preconditioner = &Z;
+  if (hooks.preconditioner) mo.preconditioner = &Z;
   TrackedImage image;
-  image.last = &qv;
+  image.last = &H.image();
   image.tx = Vec::Zero(n);  // set by MPRGP's first application of H to the start x
   mo.image = &image;
   Vec nu = Vec::Zero(n), rhs(n), g(n), lag(n);
@@ -93,7 +91,7 @@ SmalbeResult smalbe(Operator& A, Operator& Q, const Vec& b, const Vec& l, Vec& x
     if (k > 0 && L < L_prev + 0.5 * rho * qnorm * qnorm) M /= opt.beta;
     L_prev = L;
   }
-  if (H_applications) *H_applications = H.count();
+  res.hessian_applications = H.count();
   return res;
 }
 

@@ -11,19 +11,9 @@
 #include <Eigen/Dense>
 #include <array>
 #include <string>
-#include "htfeti/enum_names.hpp"
+#include "htfeti/mesh/cell.hpp"
 
 namespace htfeti {
-
-enum class CellType : int { tri3, quad4, tet4, hex8 };
-
-inline constexpr std::array<EnumName<CellType>, 4> kCellTypeNames{{{CellType::quad4, "quad4"}, {CellType::tri3, "tri3"}, {CellType::hex8, "hex8"}, {CellType::tet4, "tet4"}}};
-CellType parse_cell_type(const std::string& name);  // throws std::invalid_argument
-std::string to_string(CellType type);
-int cell_dimension(CellType type);
-int cell_nodes(CellType type);
-/// VTK cell type number (5 triangle, 9 quad, 10 tetra, 12 hexahedron).
-int vtk_cell_type(CellType type);
 
 /// Material of the elasticity physics: Young's modulus and Poisson's ratio.
 struct Material {
@@ -50,10 +40,6 @@ Eigen::MatrixXd elasticity_matrix(int dim, const Material& material);
 /// 2D plane strain, with s_zz = nu (s_xx + s_yy)).
 double von_mises(int dim, const Eigen::VectorXd& stress, double poisson);
 
-/// Facets (boundary faces) of the cell, as local node indices: edges of 2D cells, faces of 3D
-/// cells (triangles or quads). Used to find the domain boundary and to apply tractions.
-int cell_facet_count(CellType type);
-int cell_facet(CellType type, int facet, int* nodes);  // returns the number of nodes
 /// Measure (length or area) of a facet with coordinates x (3 per node), 2, 3 or 4 nodes.
 double facet_measure(int dim, int nodes, const double* x);
 

@@ -20,6 +20,7 @@
 #include <string>
 #include <vector>
 
+#include "htfeti/fem/element.hpp"
 #include "htfeti/linalg/orthonormal.hpp"
 #include "htfeti/mesh/subdomain_mesh.hpp"
 #include "htfeti/enum_names.hpp"

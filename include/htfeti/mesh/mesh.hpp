@@ -9,7 +9,7 @@
 #include <string>
 #include <vector>
 
-#include "htfeti/fem/element.hpp"
+#include "htfeti/mesh/cell.hpp"
 
 namespace htfeti {
 

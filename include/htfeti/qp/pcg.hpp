@@ -1,6 +1,6 @@
 // Projected conjugate gradients for the equality-constrained dual problem (paper, (11) without
 // inequalities): min 1/2 x'Ax - b'x subject to G x = e, started from a feasible x0 (G x0 = e), with
-// P the orthogonal projector onto Ker G. Every iterate stays feasible because every direction is
+// P the orthogonal projector onto Ker G (the QP's equality projector, qp.hpp). Every iterate stays feasible because every direction is
 // a P-image. Stops when ||P(b - A x)|| <= rtol ||P b||.
 //
 // With a preconditioner Z (the caller's P M^{-1} P, symmetric positive definite on Ker G) the
@@ -12,7 +12,7 @@
 // (and one of Z, one more dot product, when preconditioned).
 #pragma once
 
-#include "htfeti/qp/operator.hpp"
+#include "htfeti/qp/qp.hpp"
 
 namespace htfeti::qp {
 
@@ -28,8 +28,10 @@ struct PcgResult {
   double projected_rhs = 0;       ///< ||P b||
 };
 
-/// x: feasible start in, solution out. A counts its applications (see Operator).
-PcgResult projected_cg(Operator& A, Operator& P, const Vec& b, Vec& x, const Reducer& red,
+/// qp: the Hessian A, the linear term b and the equality projector P (required); no constraint
+/// set (std::invalid_argument otherwise). x: feasible start in, solution out. A counts its
+/// applications (see Operator).
+PcgResult projected_cg(const QuadraticProgram& qp, Vec& x, const Reducer& red,
                        const PcgOptions& options, const Progress& progress = {},
                        Operator* preconditioner = nullptr);
 

@@ -1,8 +1,8 @@
 // SMALBE-M: semimonotonic augmented Lagrangian for bound and equality constraints (Dostal 2009,
-// ch. 9; Dostal et al. 2016, ch. 9; the paper's outer solver, Section 7.3) for
+// ch. 9; Dostal et al. 2016, ch. 9; the paper's outer solver, Section 7.3) for the QP (qp.hpp)
 //     min 1/2 x'Ax - b'x   subject to  x_i >= l_i  and  G x = 0,
-// where G has orthonormal rows and is given only through Q = G'G, the orthogonal projector onto
-// Im G' (then ||G x|| = ||Q x||). The multiplier mu of G x = 0 is kept as nu = G' mu.
+// where G has orthonormal rows and is given only through the QP's projector P onto Ker G, and
+// Q = I - P = G'G (then ||G x|| = ||Q x||). The multiplier mu of G x = 0 is kept as nu = G' mu.
 //
 // Outer iteration k (paper, (12)/(15), with H_rho = A + rho Q, here A = PFP so ||H|| = max(||A||,
 // rho)):
@@ -11,13 +11,14 @@
 //   2. nu^{k+1} = nu^k + rho Q x^k;
 //   3. if L(x^k, mu^k) < L(x^{k-1}, mu^{k-1}) + rho/2 ||G x^k||^2, then M_{k+1} = M_k / beta.
 // Stops when ||g^P|| <= rtol ||b|| and ||G x|| <= rtol ||b||.
-// Cost: the inner MPRGP iterations, each one H_rho application (one A, one Q; with A = PFP and a
-// PenalizedHessian, two projections in all); the stopping test's ||G x|| comes from Q x tracked
-// by MPRGP (TrackedImage, one axpy); an outer iteration adds one Q (x checked afresh) and a few
-// vector operations.
+// Cost: the inner MPRGP iterations, each one H_rho application (PenalizedOperator: one A, one Q;
+// with A = PFP and a fused PenalizedHessian, two projections in all); the stopping test's
+// ||G x|| comes from Q x tracked by MPRGP (TrackedImage of H_rho's image(), one axpy); an outer
+// iteration adds one Q (x checked afresh) and a few vector operations.
 #pragma once
 
 #include "htfeti/qp/mprgp.hpp"
+#include "htfeti/qp/qp.hpp"
 
 namespace htfeti::qp {
 
@@ -38,26 +39,30 @@ struct SmalbeResult {
   int outer_iterations = 0;
   int inner_iterations = 0;
   int cg_steps = 0, expansion_steps = 0, proportioning_steps = 0;
+  long hessian_applications = 0;  ///< of H_rho (the products the paper counts)
   double projected_gradient = 0;  ///< ||g^P|| at exit
   double equality_residual = 0;   ///< ||G x|| at exit
   double rhs_norm = 0;            ///< ||b||
   double rho = 0, M = 0, alpha = 0;
 };
 
-/// y = A x + rho Q x and qx = Q x in one go, for callers that can share work between the two
-/// (with A = PFP and Q = I - P, one projection of x serves both). Without it SMALBE-M applies A
-/// and Q apart.
-using PenalizedHessian = std::function<void(const Vec& x, double rho, Vec& y, Vec& qx)>;
 /// y = Z_rho x (the preconditioner in face, which depends on rho).
 using PenalizedApply = std::function<void(const Vec& x, double rho, Vec& y)>;
 
-/// normA: an estimate of ||A|| (estimate_norm). x: start in, solution out. H_rho applications are
-/// counted by the operator `counted_H` if given (so a caller can report them), else not at all.
-/// preconditioner (optional): y = Z_rho x, a symmetric positive definite approximation of
-/// H_rho^{-1}, used by MPRGP in face (for A = PFP: P M^{-1} P + Q / rho, exact on Im Q).
-SmalbeResult smalbe(Operator& A, Operator& Q, const Vec& b, const Vec& lower, Vec& x, double normA,
-                    const Reducer& red, const SmalbeOptions& options, const Progress& progress = {},
-                    long* H_applications = nullptr, const PenalizedHessian& penalized = {},
-                    const PenalizedApply& preconditioner = {});
+/// Faster ways to do SMALBE-M's work that a caller may know (both optional).
+struct SmalbeHooks {
+  /// H_rho x and Q x in one go (PenalizedOperator); without it A and Q are applied apart.
+  PenalizedHessian fused_hessian;
+  /// y = Z_rho x, a symmetric positive definite approximation of H_rho^{-1}, used by MPRGP in
+  /// face (for A = PFP: P M^{-1} P + Q / rho, exact on Im Q).
+  PenalizedApply preconditioner;
+};
+
+/// qp: lower bounds (LowerBounds) and an equality projector are required (std::invalid_argument
+/// otherwise). normA: an estimate of ||A|| (estimate_norm). x: start in, solution out (of qp;
+/// its shift is the caller's to add).
+SmalbeResult smalbe(const QuadraticProgram& qp, double normA, Vec& x, const Reducer& red,
+                    const SmalbeOptions& options, const SmalbeHooks& hooks = {},
+                    const Progress& progress = {});
 
 }  // namespace htfeti::qp

@@ -256,9 +256,9 @@ void DualProblem::build_coarse_image(double memory_limit_mb) {
   im.ab = Vec::Zero(2 * coarse_dimension());
   im.z1 = Vec::Zero(coarse_dimension());
   im.z2 = Vec::Zero(coarse_dimension());
-  im.ext2 = Vec::Zero(layout_dual_.n_ext());
-  im.ext_out2 = Vec::Zero(layout_dual_.n_ext());
-  im.gflat2 = Vec::Zero(gflat_.size());
+  im.ext_in_second = Vec::Zero(layout_dual_.n_ext());
+  im.ext_out_second = Vec::Zero(layout_dual_.n_ext());
+  im.gflat_second = Vec::Zero(gflat_.size());
   im.stats.colours = ncolours;
   im.stats.F_applications = applications;
   im.stats.E_nonzeros = comm_.sum(static_cast<long long>(im.e_col.size()));
@@ -282,8 +282,8 @@ void DualProblem::hessian_from_Fv(const Vec& v, const Vec& fv, double rho, Vec& 
   // [G~ v; G~ F v]: the rank's rows in one pass over G~, then one reduction of both.
   const int ncl = static_cast<int>(clusters_.size());
   gather_to_ext(v);
-  im.ext2.head(n) = fv;
-  layout_dual_.forward(im.ext2.data());
+  im.ext_in_second.head(n) = fv;
+  layout_dual_.forward(im.ext_in_second.data());
   im.ab.setZero();
   double* a = im.ab.data();
   double* b = a + nc;
@@ -292,7 +292,7 @@ void DualProblem::hessian_from_Fv(const Vec& v, const Vec& fv, double rho, Vec& 
     const int base = coarse_first_[clusters_[c]->id()];
     for (size_t j = 0; j < g_rows_[c].size(); ++j) {
       double s = 0, t = 0;
-      for (const auto& [k, g] : g_rows_[c][j]) s += g * ext_in_[k], t += g * im.ext2[k];
+      for (const auto& [k, g] : g_rows_[c][j]) s += g * ext_in_[k], t += g * im.ext_in_second[k];
       a[base + static_cast<int>(j)] = s, b[base + static_cast<int>(j)] = t;
     }
   }
@@ -305,22 +305,22 @@ void DualProblem::hessian_from_Fv(const Vec& v, const Vec& fv, double rho, Vec& 
     im.z2[row] = s;
   }
   coarse_solve(im.z2);
-  // G~^T z1 (into ext_out_) and G~^T z2 (into ext_out2) in one pass over G~.
+  // G~^T z1 (into ext_out_) and G~^T z2 (into ext_out_second) in one pass over G~.
 #pragma omp parallel for schedule(dynamic, 16) if (outer_parallel_)
   for (int c = 0; c < ncl; ++c) {
-    for (int p = g_first_[c]; p < g_first_[c + 1]; ++p) gflat_[p] = 0.0, im.gflat2[p] = 0.0;
+    for (int p = g_first_[c]; p < g_first_[c + 1]; ++p) gflat_[p] = 0.0, im.gflat_second[p] = 0.0;
     const int base = coarse_first_[clusters_[c]->id()];
     for (size_t j = 0; j < g_pairs_[c].size(); ++j) {
       const double s = im.z1[base + static_cast<int>(j)], t = im.z2[base + static_cast<int>(j)];
-      for (const auto& [p, g] : g_pairs_[c][j]) gflat_[p] += g * s, im.gflat2[p] += g * t;
+      for (const auto& [p, g] : g_pairs_[c][j]) gflat_[p] += g * s, im.gflat_second[p] += g * t;
     }
   }
   clu_sum_.combine(gflat_.data(), ext_out_.data());
-  clu_sum_.combine(im.gflat2.data(), im.ext_out2.data());
+  clu_sum_.combine(im.gflat_second.data(), im.ext_out_second.data());
   qv = ext_out_.head(n);
   y.resize(n);
 #pragma omp parallel for schedule(static) if (n > 50000 && !omp_in_parallel())
-  for (int e = 0; e < n; ++e) y[e] = fv[e] - image_row(e, im.z1) - im.ext_out2[e] + rho * qv[e];
+  for (int e = 0; e < n; ++e) y[e] = fv[e] - image_row(e, im.z1) - im.ext_out_second[e] + rho * qv[e];
 }
 
 }  // namespace htfeti

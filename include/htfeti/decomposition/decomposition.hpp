@@ -48,7 +48,6 @@ class Decomposition {
   long long nodes_per_subdomain() const { return (H() + 1LL) * (H() + 1LL); }
   /// Primal unknowns of the decomposed problem (every subdomain has its own copy of its nodes).
   long long primal_dimension() const { return 1LL * num_subdomains() * nodes_per_subdomain(); }
-  bool glue_corners() const { return m() > 1 && opt_.glue != Glue::averages; }
   bool glue_averages() const { return m() > 1 && opt_.glue != Glue::corners; }
 
   SubdomainPosition position(int subdomain) const;
@@ -62,9 +61,6 @@ class Decomposition {
 
   /// The generated mesh of the squares (one or two boxes, Q1 -> quad4, P1 -> tri3).
   BoxGrid grid() const;
-
-  /// Subdomain-local node index of grid node (a, b), a, b in [0, H].
-  int local_node(int a, int b) const { return b * (H() + 1) + a; }
 
  private:
   DecompositionOptions opt_;

@@ -140,7 +140,7 @@ class DualProblem {
     return d;
   }
   /// Clusters [first, last) of this rank.
-  std::pair<int, int> cluster_range() const { return {c0_, c1_}; }
+  std::pair<int, int> cluster_range() const { return {first_cluster_, end_cluster_}; }
   const SetupTimings& setup_timings() const { return setup_; }
   /// Global index of owned entry i.
   long long global_index(int i) const { return layout_dual_.global(i); }
@@ -282,6 +282,26 @@ class DualProblem {
     double value;
   };
   static_assert(sizeof(Row) == 24);
+  // The setup in stages (the constructor calls them in this order; Setup carries what one stage
+  // hands to the next and is dropped at the end). dual_problem.cpp, coarse_space.cpp.
+  struct Setup;
+  // 1. Per cluster: the subdomains assembled, their rows of B~ and the primal constraints.
+  void assemble_subdomains(const std::function<SubdomainInput(int)>& make_input, Setup& st);
+  // 2. The multipliers numbered globally by key (owners, extended layout, row data) ...
+  void number_multipliers(Setup& st);
+  // ... and on each subdomain (local rows of B~, the ordered sums over subdomains).
+  void number_local_rows(Setup& st);
+  // The dual operator (implicit or explicit) and the ordering of the factors.
+  void choose_operator(Setup& st);
+  // The preconditioner's interfaces and its storage (dense or implicit Dirichlet blocks).
+  void plan_preconditioner(Setup& st);
+  // 3. Clusters: factorizations, explicit blocks, primal-constraint systems, the local
+  //    preconditioners, the clusters' parts of d, and the factor release.
+  void set_up_clusters(Setup& st);
+  // 4. The coarse space: cluster kernel dimensions, the rows of G~ and its pairs for G~^T.
+  void set_up_coarse_space(Setup& st);
+  // The coarse factor, d, e~, lambda~, the bounds and the scaling.
+  void finish_setup(Setup& st);
   void gather_to_ext(const Vec& owned);                        // ext_in_ = [owned, ghosts]
   void cluster_rhs_from_ext(int c, bool add_f, double sign);   // x_i = (f_i) + sign B_i^T ext_in_
   void b_of_x(int c);                                          // contrib_ = B_i x_i, per row entry
@@ -323,7 +343,7 @@ class DualProblem {
   const Comm& comm_;
   SetupTimings setup_;
   long long n_dual_ = 0, n_inequalities_ = 0;
-  int c0_ = 0, c1_ = 0;            // local clusters
+  int first_cluster_ = 0, end_cluster_ = 0;            // local clusters
   std::vector<int> sub_first_;     // per local cluster: first local subdomain index
   std::vector<int> coarse_first_;  // per global cluster: first coarse index (num_clusters + 1)
   std::vector<std::unique_ptr<Subdomain>> subs_;
@@ -352,7 +372,7 @@ class DualProblem {
     std::vector<int> e_ptr, e_col, c_ptr, c_col;
     std::vector<double> e_val, c_val;
     Vec ab, z1, z2;  // work: [G~ v; G~ F v], the two coarse solutions
-    Vec ext2, gflat2, ext_out2;  // work: the second vector of the fused G~ and G~^T passes
+    Vec ext_in_second, gflat_second, ext_out_second;  // work: the second vector of the fused G~ and G~^T passes
     CoarseImageStats stats;
   } image_;
   double image_row(int e, const Vec& z) const {  // (E z)_e, E's columns in increasing order
@@ -399,9 +419,9 @@ class DualProblem {
   void copy_sums(std::vector<Vec>& v, std::vector<Vec>& sums);  // sums_e = sum_c v_c (node dofs)
   bool exact_node_scaling_ = false;
   std::vector<std::vector<int>> node_copies_;   // per local subdomain: copies of each node
-  std::vector<std::vector<int>> npos_;          // interface positions with per-node gluing rows
-  std::vector<std::vector<double>> ncopies_, ndelta_;  // their copy count and weight delta
-  std::vector<Vec> pw_, pq_, psum_;                   // interface work vectors
+  std::vector<std::vector<int>> node_row_positions_;          // interface positions with per-node gluing rows
+  std::vector<std::vector<double>> node_row_copies_, node_row_delta_;  // their copy count and weight delta
+  std::vector<Vec> scaling_w_, scaling_q_, scaling_sums_;                   // interface work vectors
   PreconditionerKind precond_kind_ = PreconditionerKind::none;
   Scaling scaling_ = Scaling::multiplicity;
   bool precond_dense_ = true;

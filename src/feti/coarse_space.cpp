@@ -1,0 +1,376 @@
+// The coarse space of the dual problem (paper, (13)-(15)): G~ = R~^T B~^T by rows per cluster,
+// G~^T summed per (cluster, multiplier) pair, the coarse matrix G~ G~^T assembled at the owners
+// of the multipliers in a fixed order, its factor (sparse Cholesky, or dense with the null space
+// of unrestrained rigid motions), and the projector P = I - G~^T (G~ G~^T)^{-1} G~. Cost of one
+// projection: one pass of G~ and of G~^T over the owned multipliers, one allreduce of a coarse
+// vector, one sparse coarse solve on every rank.
+#include <mpi.h>
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <numeric>
+#include <stdexcept>
+#include <string>
+
+#include "dual_setup.hpp"
+#include "htfeti/clock.hpp"
+#include "htfeti/feti/dual_problem.hpp"
+#include "htfeti/parallel/memory.hpp"
+
+namespace htfeti {
+
+void DualProblem::set_up_coarse_space(Setup& st) {
+  const int P = st.P, ncl = st.ncl;
+  const int n_ext = layout_dual_.n_ext();
+  // 4. Coarse space: the kernel dimension of every cluster (allgathered), G~ rows
+  //    (G~)_{(c,j),k} = R~_{c,j} . b_k, the coarse matrix, e~ and lambda~.
+  st.coarse_start = seconds_now();
+  {
+    std::vector<int> dims(ncl), counts(P), displs(P + 1, 0), all(layout_.num_clusters);
+    for (int c = 0; c < ncl; ++c) dims[c] = clusters_[c]->kernel_dimension();
+    for (int r = 0; r < P; ++r) {
+      const auto [a, b] = layout_.cluster_range(r, P);
+      counts[r] = b - a;
+      displs[r + 1] = displs[r] + counts[r];
+    }
+    MPI_Allgatherv(dims.data(), ncl, MPI_INT, all.data(), counts.data(), displs.data(), MPI_INT,
+                   comm_.raw());
+    coarse_first_.assign(layout_.num_clusters + 1, 0);
+    for (int c = 0; c < layout_.num_clusters; ++c) coarse_first_[c + 1] = coarse_first_[c] + all[c];
+  }
+  g_rows_.resize(ncl);
+  std::vector<double> acc(n_ext, 0.0);
+  std::vector<int> hit;
+  for (int c = 0; c < ncl; ++c) {
+    const int dk = clusters_[c]->kernel_dimension();
+    g_rows_[c].resize(dk);
+    for (int j = 0; j < dk; ++j) {
+      hit.clear();
+      for (int i = 0; i < members(c); ++i)
+        for (const auto& r : rows_[sub_of(c, i)]) {
+          if (acc[r.k] == 0.0) hit.push_back(r.k);
+          acc[r.k] += r.value * clusters_[c]->kernel_entry(i, r.dof, j);
+        }
+      std::sort(hit.begin(), hit.end(), [&](int a, int b) {  // global order, as on one rank
+        return layout_dual_.global(a) < layout_dual_.global(b);
+      });
+      hit.erase(std::unique(hit.begin(), hit.end()), hit.end());
+      for (int k : hit) {
+        if (acc[k] != 0.0) g_rows_[c][j].push_back({k, acc[k]});
+        acc[k] = 0.0;
+      }
+    }
+  }
+  {  // G~^T by ordered sums over clusters: one pair per (cluster, multiplier)
+    std::vector<int> pk;
+    std::vector<long long> pc;
+    g_pairs_.resize(ncl);
+    g_first_.assign(ncl + 1, 0);
+    for (int c = 0; c < ncl; ++c) {
+      std::vector<int> ks;
+      for (const auto& row : g_rows_[c])
+        for (const auto& [k, g] : row) ks.push_back(k);
+      std::sort(ks.begin(), ks.end());
+      ks.erase(std::unique(ks.begin(), ks.end()), ks.end());
+      const int base = static_cast<int>(pk.size());
+      for (int k : ks) pk.push_back(k), pc.push_back(first_cluster_ + c);
+      g_pairs_[c].resize(g_rows_[c].size());
+      for (size_t j = 0; j < g_rows_[c].size(); ++j)
+        for (const auto& [k, g] : g_rows_[c][j])
+          g_pairs_[c][j].push_back(
+              {base + static_cast<int>(std::lower_bound(ks.begin(), ks.end(), k) - ks.begin()), g});
+      g_first_[c + 1] = static_cast<int>(pk.size());
+    }
+    clu_sum_ = OrderedSum(comm_, layout_dual_, pk, pc, owner_);
+    gflat_ = Vec::Zero(static_cast<int>(pk.size()));
+  }
+  ext_in_ = Vec::Zero(n_ext);
+  ext_out_ = Vec::Zero(n_ext);
+  coarse_work_ = Vec::Zero(coarse_dimension());
+}
+
+void DualProblem::finish_setup(Setup& st) {
+  const int ncl = st.ncl, nsub = st.nsub;
+  const int n_own = layout_dual_.n_owned();
+  auto& rho = st.rho;
+  assemble_coarse(std::vector<double>(n_own, 1.0), coarse_factor_);
+
+  scatter_contrib();  // d: the clusters' parts were computed with their setup
+  contrib_ = {};      // needed for nothing else
+  d_ = ext_out_.head(n_own) - c_;
+  e_ = Vec::Zero(coarse_dimension());
+  for (int c = 0; c < ncl; ++c)
+    for (int i = 0; i < members(c); ++i)
+      clusters_[c]->kernel_dot(i, subs_[sub_of(c, i)]->f(), &e_[coarse_first_[first_cluster_ + c]]);
+  comm_.sum_in_place(e_.data(), static_cast<int>(e_.size()));
+  if (coarse_factor_.null_dimension() > 0) {
+    // Solvable only if the load has no component along the unrestrained rigid motions
+    // (e = R~^T f must lie in the range of G~).
+    const Eigen::VectorXd along = coarse_factor_.null.transpose() * e_;
+    if (along.norm() > 1e-10 * std::max(e_.norm(), 1e-300) || (e_.norm() == 0 && along.norm() > 0))
+      throw std::invalid_argument(
+          "the problem has no solution: the load has a resultant along " +
+          describe_null(coarse_factor_.null) +
+          " that no Dirichlet condition or contact restrains (add a Dirichlet condition or "
+          "balance the load)");
+  }
+  coarse_work_ = e_;
+  coarse_solve(coarse_work_);
+  lambda_tilde_.resize(n_own);
+  apply_Gt(coarse_work_, lambda_tilde_);
+  lower_.resize(n_own);
+  for (int k = 0; k < n_own; ++k)
+    lower_[k] =
+        kind_[k] == MultiplierKind::contact ? 0.0 : -std::numeric_limits<double>::infinity();
+  if (precond_kind_ != PreconditionerKind::none) {
+    pin_.resize(nsub), pout_.resize(nsub);
+    for (int s = 0; s < nsub; ++s)
+      pin_[s] = Vec::Zero(precond_[s]->size()), pout_[s] = Vec::Zero(precond_[s]->size());
+    if (scaling_ == Scaling::stiffness) build_scaling(rho);
+  }
+  setup_.coarse = seconds_now() - st.coarse_start;
+  setup_.peak_mb_coarse = peak_rss_mb();
+}
+
+
+// G~ and G~^T: every cluster has its own rows of the coarse vector and its own pairs of gflat_,
+// so threads take clusters and each value is formed in the same order as by one thread.
+void DualProblem::apply_G(const Vec& lambda, Vec& coarse) {
+  gather_to_ext(lambda);
+  coarse.setZero(coarse_dimension());
+  const int nc = static_cast<int>(clusters_.size());
+#pragma omp parallel for schedule(dynamic, 16) if (outer_parallel_)
+  for (int c = 0; c < nc; ++c) {
+    const int base = coarse_first_[clusters_[c]->id()];
+    for (size_t j = 0; j < g_rows_[c].size(); ++j) {
+      double s = 0;
+      for (const auto& [k, g] : g_rows_[c][j]) s += g * ext_in_[k];
+      coarse[base + static_cast<int>(j)] = s;
+    }
+  }
+  comm_.sum_in_place(coarse.data(), static_cast<int>(coarse.size()));
+}
+
+void DualProblem::gt_into_ext(const Vec& coarse) {
+  const int nc = static_cast<int>(clusters_.size());
+#pragma omp parallel for schedule(dynamic, 16) if (outer_parallel_)
+  for (int c = 0; c < nc; ++c) {
+    for (int p = g_first_[c]; p < g_first_[c + 1]; ++p) gflat_[p] = 0.0;
+    const int base = coarse_first_[clusters_[c]->id()];
+    for (size_t j = 0; j < g_pairs_[c].size(); ++j) {
+      const double z = coarse[base + static_cast<int>(j)];
+      for (const auto& [p, g] : g_pairs_[c][j]) gflat_[p] += g * z;
+    }
+  }
+  clu_sum_.combine(gflat_.data(), ext_out_.data());
+}
+
+void DualProblem::apply_Gt(const Vec& coarse, Vec& lambda) {
+  gt_into_ext(coarse);
+  lambda = ext_out_.head(layout_dual_.n_owned());
+}
+
+void DualProblem::project(const Vec& x, Vec& y) {
+  apply_G(x, coarse_work_);    // G~ x
+  coarse_solve(coarse_work_);  // (G~ G~^T)^{-1} G~ x
+  gt_into_ext(coarse_work_);   // G~^T (G~ G~^T)^{-1} G~ x, owned part in ext_out_
+  y = x - ext_out_.head(layout_dual_.n_owned());
+}
+
+namespace {
+// MPI datatypes for arrays of a struct of (long long, int..., double) fields.
+template <class T, size_t N>
+MPI_Datatype struct_type(const std::array<MPI_Aint, N>& disp, const std::array<MPI_Datatype, N>& types) {
+  int bl[N];
+  for (size_t i = 0; i < N; ++i) bl[i] = 1;
+  MPI_Datatype tmp, out;
+  MPI_Type_create_struct(static_cast<int>(N), bl, disp.data(), types.data(), &tmp);
+  MPI_Type_create_resized(tmp, 0, sizeof(T), &out);
+  MPI_Type_free(&tmp);
+  MPI_Type_commit(&out);
+  return out;
+}
+}  // namespace
+
+std::vector<DualProblem::GItem> DualProblem::g_columns_at_owners() const {
+  // Every cluster sends (k, coarse row, g) for its nonzeros of G~ to the owner of k. Counts are
+  // in items (MPI datatypes), not bytes.
+  MPI_Datatype item_type = struct_type<GItem, 3>(
+      {offsetof(GItem, k), offsetof(GItem, row), offsetof(GItem, g)},
+      {MPI_LONG_LONG, MPI_INT, MPI_DOUBLE});
+  const int P = comm_.size();
+  std::vector<std::vector<GItem>> out(P);
+  for (size_t c = 0; c < clusters_.size(); ++c) {
+    const int base = coarse_first_[clusters_[c]->id()];
+    for (size_t j = 0; j < g_rows_[c].size(); ++j)
+      for (const auto& [k, g] : g_rows_[c][j])
+        out[owner_[k]].push_back({layout_dual_.global(k), base + static_cast<int>(j), g});
+  }
+  std::vector<int> scount(P), rcount(P), sdisp(P + 1, 0), rdisp(P + 1, 0);
+  for (int r = 0; r < P; ++r) scount[r] = static_cast<int>(out[r].size());
+  MPI_Alltoall(scount.data(), 1, MPI_INT, rcount.data(), 1, MPI_INT, comm_.raw());
+  for (int r = 0; r < P; ++r)
+    sdisp[r + 1] = sdisp[r] + scount[r], rdisp[r + 1] = rdisp[r] + rcount[r];
+  std::vector<GItem> sbuf(sdisp[P]), rbuf(rdisp[P]);
+  for (int r = 0, pos = 0; r < P; ++r)
+    for (const auto& it : out[r]) sbuf[pos++] = it;
+  out = {};
+  MPI_Alltoallv(sbuf.data(), scount.data(), sdisp.data(), item_type, rbuf.data(), rcount.data(),
+                rdisp.data(), item_type, comm_.raw());
+  MPI_Type_free(&item_type);
+  std::stable_sort(rbuf.begin(), rbuf.end(), [](const GItem& x, const GItem& y) {
+    return x.k != y.k ? x.k < y.k : x.row < y.row;
+  });
+  return rbuf;
+}
+
+std::vector<DualProblem::CoarseTriplet> DualProblem::allgather_sorted(
+    const std::vector<CoarseTriplet>& mine) const {
+  MPI_Datatype trip_type = struct_type<CoarseTriplet, 4>(
+      {offsetof(CoarseTriplet, k), offsetof(CoarseTriplet, a), offsetof(CoarseTriplet, b),
+       offsetof(CoarseTriplet, v)},
+      {MPI_LONG_LONG, MPI_INT, MPI_INT, MPI_DOUBLE});
+  const int P = comm_.size();
+  int nmine = static_cast<int>(mine.size());
+  std::vector<int> counts(P), disp(P + 1, 0);
+  MPI_Allgather(&nmine, 1, MPI_INT, counts.data(), 1, MPI_INT, comm_.raw());
+  for (int r = 0; r < P; ++r) disp[r + 1] = disp[r] + counts[r];
+  std::vector<CoarseTriplet> all(disp[P]);
+  MPI_Allgatherv(mine.data(), nmine, trip_type, all.data(), counts.data(), disp.data(), trip_type,
+                 comm_.raw());
+  MPI_Type_free(&trip_type);
+  // Each entry's partial sums in key order, whatever rank formed them.
+  std::sort(all.begin(), all.end(), [](const CoarseTriplet& x, const CoarseTriplet& y) {
+    return x.a != y.a ? x.a < y.a : x.b != y.b ? x.b < y.b : x.k < y.k;
+  });
+  return all;
+}
+
+std::vector<DualProblem::CoarseTriplet> DualProblem::owner_cluster_sums(
+    const std::vector<GItem>& gcol, const ProductsOf& products_of) const {
+  // Products summed per owner cluster of the multiplier (all of a cluster's multipliers live on
+  // one rank whatever the rank count), in multiplier order; the caller adds the partial sums in
+  // cluster order (allgather_sorted). Rank-count independent, and O(entries touched per
+  // cluster) memory instead of one triplet per product (78 per multiplier for G~ G~^T in 3D
+  // elasticity).
+  std::vector<std::pair<int, size_t>> groups;  // (owner cluster, first item of the multiplier)
+  for (size_t i = 0; i < gcol.size(); ++i)
+    if (i == 0 || gcol[i].k != gcol[i - 1].k)
+      groups.push_back({block_[layout_dual_.ext_index(gcol[i].k)], i});
+  std::stable_sort(groups.begin(), groups.end(),
+                   [](const auto& x, const auto& y) { return x.first < y.first; });
+  std::vector<CoarseTriplet> mine, products;
+  for (size_t g0 = 0; g0 < groups.size();) {
+    size_t g1 = g0;
+    while (g1 < groups.size() && groups[g1].first == groups[g0].first) ++g1;
+    products.clear();
+    for (size_t g = g0; g < g1; ++g) {
+      const size_t i = groups[g].second;
+      size_t j = i;
+      while (j < gcol.size() && gcol[j].k == gcol[i].k) ++j;
+      products_of(i, j, products);
+    }
+    std::stable_sort(products.begin(), products.end(),
+                     [](const CoarseTriplet& x, const CoarseTriplet& y) {
+                       return x.a != y.a ? x.a < y.a : x.b < y.b;  // stable: multiplier order
+                     });
+    for (size_t p = 0; p < products.size();) {
+      size_t q = p;
+      double v = 0;
+      for (; q < products.size() && products[q].a == products[p].a &&
+             products[q].b == products[p].b;
+           ++q)
+        v += products[q].v;
+      mine.push_back({groups[g0].first, products[p].a, products[p].b, v});
+      p = q;
+    }
+    g0 = g1;
+  }
+  return mine;
+}
+
+void DualProblem::assemble_coarse(const std::vector<double>& weight, CoarseFactor& factor) {
+  // (G~ W G~^T)_{ab} = sum_k w_k g_ak g_bk. The owners of the multipliers form the products and
+  // sum equal entries; the summed triplets are shared (every rank factors the coarse matrix).
+  using Triplet = CoarseTriplet;
+  std::vector<GItem> rbuf = g_columns_at_owners();
+  std::vector<Triplet> mine = owner_cluster_sums(
+      rbuf, [&](size_t i, size_t j, std::vector<Triplet>& products) {
+        const double w = weight[layout_dual_.ext_index(rbuf[i].k)];
+        if (w != 0.0)
+          for (size_t a = i; a < j; ++a)
+            for (size_t b = a; b < j; ++b) {
+              int ca = rbuf[a].row, cb = rbuf[b].row;
+              if (ca > cb) std::swap(ca, cb);
+              products.push_back({rbuf[i].k, ca, cb, w * rbuf[a].g * rbuf[b].g});
+            }
+      });
+  rbuf = {};
+  // Sum each entry's partial sums in cluster order whatever rank formed them (k: the cluster).
+  const std::vector<Triplet> all = allgather_sorted(mine);
+  mine = {};
+  std::vector<Eigen::Triplet<double>> trip;
+  trip.reserve(all.size());
+  for (const auto& t : all) trip.emplace_back(t.a, t.b, t.v);
+  Eigen::SparseMatrix<double> GGt(coarse_dimension(), coarse_dimension());
+  GGt.setFromTriplets(trip.begin(), trip.end());
+  factor.sparse = SparseCholesky(Ordering::amd);
+  factor.use_dense = false;
+  factor.null.resize(0, 0);
+  bool singular = false;
+  {
+    // BLAS on one thread: called outside a parallel region, OpenBLAS's OpenMP flavour would
+    // use every thread, and its threaded blocks round differently per thread count (the coarse
+    // factor of Table 3's 2,048 clusters moved by an ulp between 1 and 2 threads, and with it
+    // lambda~ and the energy by 1e-11). The coarse matrix is small; nothing is lost.
+    const int threads = omp_get_max_threads();
+    omp_set_num_threads(1);
+    try {
+      factor.sparse.factorize(GGt);
+    } catch (const std::exception&) {
+      singular = true;  // the same on every rank: every rank factors the same matrix
+    }
+    omp_set_num_threads(threads);
+  }
+  if (!singular) return;
+  const int nc = coarse_dimension();
+  if (nc > kMaxDenseCoarse)
+    throw std::runtime_error(
+        "the coarse problem G G^T is singular: some rigid motion of a subdomain or cluster is "
+        "restrained by no Dirichlet condition or contact row (coarse dimension " +
+        std::to_string(nc) + " is too large to name it)");
+  const Eigen::MatrixXd upper(GGt);  // entries (a, b) with a <= b
+  Eigen::MatrixXd A = upper.selfadjointView<Eigen::Upper>();
+  Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(A);
+  const auto& ev = eig.eigenvalues();
+  const double top = std::max(ev.cwiseAbs().maxCoeff(), 1e-300);
+  int nnull = 0;
+  while (nnull < nc && ev[nnull] <= 1e-10 * top) ++nnull;
+  factor.null = eig.eigenvectors().leftCols(nnull);
+  A.noalias() += factor.null * factor.null.transpose();
+  factor.dense.compute(A);
+  factor.use_dense = true;
+  if (factor.dense.info() != Eigen::Success)
+    throw std::runtime_error("the coarse problem G G^T could not be factored");
+}
+
+std::string DualProblem::describe_null(const Eigen::MatrixXd& Z) const {
+  // Clusters carrying the null directions (largest coefficients), by global cluster id.
+  std::vector<int> clusters;
+  const double top = Z.size() ? Z.cwiseAbs().maxCoeff() : 0.0;
+  for (int c = 0; c < layout_.num_clusters; ++c) {
+    double m = 0;
+    for (int j = coarse_first_[c]; j < coarse_first_[c + 1]; ++j)
+      m = std::max(m, Z.row(j).cwiseAbs().maxCoeff());
+    if (m > 1e-3 * top) clusters.push_back(c);
+  }
+  std::string s;
+  for (size_t i = 0; i < clusters.size() && i < 8; ++i)
+    s += (i ? ", " : "") + std::to_string(clusters[i]);
+  if (clusters.size() > 8) s += ", ... (" + std::to_string(clusters.size()) + " in all)";
+  const bool one = layout_.num_clusters == layout_.num_subdomains;
+  return std::to_string(Z.cols()) + " rigid motion(s) of " + (one ? "subdomain(s) " : "cluster(s) ") + s;
+}
+
+}  // namespace htfeti

@@ -1,0 +1,213 @@
+// After the solve (paper, (10)): the primal solution u = K~^+ (f - B~^T lambda) + R~ alpha, its
+// energy, the KKT checks of the report and the contact output (per-row data, nodal contact
+// forces and the remaining gap for the VTU). Each is one pass over the subdomains and a few
+// reductions; reconstruct() adds one K~^+ per cluster and one coarse solve.
+#include <mpi.h>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <numeric>
+#include <stdexcept>
+
+#include "htfeti/clock.hpp"
+#include "htfeti/feti/dual_problem.hpp"
+#include "htfeti/parallel/memory.hpp"
+
+namespace htfeti {
+
+// OpenMP over the rank's clusters; an exception inside is carried out of the region.
+template <class Body>
+void DualProblem::for_each_cluster(Body body) {
+  const int nc = static_cast<int>(clusters_.size());
+  std::string error;
+#pragma omp parallel for schedule(dynamic) if (outer_parallel_)
+  for (int c = 0; c < nc; ++c) {
+    try {
+      body(c);
+    } catch (const std::exception& e) {
+#pragma omp critical
+      error = e.what();
+    }
+  }
+  if (!error.empty()) throw std::runtime_error(error);
+}
+
+void DualProblem::apply_B(const std::vector<Vec>& u, Vec& out) {
+  flat_.setZero();
+  for (size_t s = 0; s < subs_.size(); ++s)
+    for (const auto& r : rows_[s]) flat_[flat_off_[s] + r.j] += r.value * u[s][r.dof];
+  combine_subdomains();
+  out = ext_out_.head(layout_dual_.n_owned());
+}
+
+std::vector<DualProblem::Vec> DualProblem::reconstruct(const Vec& lambda) {
+  const int n_own = layout_dual_.n_owned();
+  gather_to_ext(lambda);
+  std::vector<Vec> u(subs_.size());
+  std::string error;
+  try {
+    for_each_cluster([&](int c) {
+      // Freed factors are rebuilt plain (ordering_, no interface last): solve() is all the
+      // reconstruction needs, and that factor is cheaper (docs/method.md); u then
+      // agrees with the kept factors' u to round-off.
+      if (released_[c]) clusters_[c]->refactor(ordering_, symbolic_.get(), false);
+      cluster_rhs_from_ext(c, true, -1.0);  // f - B~^T lambda
+      clusters_[c]->solve(x_[c]);
+      for (int i = 0; i < members(c); ++i) u[sub_of(c, i)] = x_[c][i];
+      if (released_[c]) clusters_[c]->release_factors();
+    });
+  } catch (const std::exception& e) {
+    error = e.what();
+  }
+  comm_.agree(error);
+  // B u0 = d + c - F lambda; alpha solves G~ D G~^T alpha = G~ D (c - B u0), D masking the
+  // contact rows with lambda_i = 0 (paper, (10)).
+  Vec r;
+  apply_B(u, r);
+  r = c_ - r;
+  std::vector<double> weight(n_own, 1.0);
+  bool masked = false;
+  for (int k = 0; k < n_own; ++k)
+    if (kind_[k] == MultiplierKind::contact && !(lambda[k] > 0.0)) {
+      weight[k] = 0.0;
+      r[k] = 0.0;
+      masked = true;
+    }
+  Vec alpha;
+  apply_G(r, alpha);
+  if (comm_.max(masked ? 1.0 : 0.0) > 0.0) {
+    CoarseFactor masked_factor;
+    assemble_coarse(weight, masked_factor);
+    reconstruction_null_ = masked_factor.null_dimension();
+    masked_factor.solve(alpha);
+  } else {
+    coarse_solve(alpha);
+  }
+  for (size_t c = 0; c < clusters_.size(); ++c) {
+    const double* a = &alpha[coarse_first_[clusters_[c]->id()]];
+    for (int i = 0; i < members(static_cast<int>(c)); ++i)
+      clusters_[c]->kernel_add(i, a, u[sub_of(static_cast<int>(c), i)]);
+  }
+  return u;
+}
+
+double DualProblem::energy(const std::vector<Vec>& u) const {
+  // Per-subdomain energies summed in subdomain order (rank-count independent).
+  // Threads take subdomains (each rebuilds its K_i if it was freed: the cost of this function);
+  // the sum below is in subdomain order, so the result does not depend on the thread count.
+  std::vector<double> e(layout_.num_subdomains, 0.0);
+  const int n = static_cast<int>(subs_.size());
+#pragma omp parallel for schedule(dynamic)
+  for (int s = 0; s < n; ++s) e[subs_[s]->id()] = subs_[s]->energy(u[s]);
+  if (comm_.size() > 1)
+    MPI_Allreduce(MPI_IN_PLACE, e.data(), static_cast<int>(e.size()), MPI_DOUBLE, MPI_SUM, comm_.raw());
+  double q = 0;
+  for (double v : e) q += v;
+  return q;
+}
+
+DualProblem::Kkt DualProblem::kkt(const std::vector<Vec>& u, const Vec& lambda) {
+  Vec bu;
+  apply_B(u, bu);
+  double viol = 0, minmult = std::numeric_limits<double>::infinity(), compl_ = 0;
+  bool any_contact = false;
+  Vec sq = Vec::Zero(layout_dual_.n_owned());
+  for (int k = 0; k < layout_dual_.n_owned(); ++k) {
+    if (kind_[k] != MultiplierKind::contact) {
+      sq[k] = (bu[k] - c_[k]) * (bu[k] - c_[k]);
+      continue;
+    }
+    any_contact = true;
+    const double s = contact_scale_[k];
+    const double gap = (c_[k] - bu[k]) / s;  // gap - n.(u_a - u_b), >= 0 when feasible
+    const double force = s * lambda[k];
+    viol = std::max(viol, -gap);
+    minmult = std::min(minmult, force);
+    compl_ = std::max(compl_, std::abs(force * gap));
+  }
+  Kkt r;
+  r.equality_residual = std::sqrt(sum(sq));
+  r.max_violation = comm_.max(viol);
+  r.min_multiplier = comm_.sum(any_contact ? 1.0 : 0.0) > 0 ? comm_.min(minmult) : 0.0;
+  r.complementarity = comm_.max(compl_);
+  return r;
+}
+
+DualProblem::ContactData DualProblem::contact_data(const std::vector<Vec>& u, const Vec& lambda) {
+  // n.(avg u_a) from the entries on node a (coefficients scale n_i / k_a), n.(avg u_b) likewise.
+  const int n_own = layout_dual_.n_owned();
+  Vec a = Vec::Zero(layout_dual_.n_ext()), b = Vec::Zero(layout_dual_.n_ext());
+  for (int side : {1, -1}) {
+    flat_.setZero();
+    for (size_t s = 0; s < subs_.size(); ++s)
+      for (const auto& r : rows_[s])
+        if (r.side == side) flat_[flat_off_[s] + r.j] += side * r.value * u[s][r.dof];
+    combine_subdomains();
+    (side > 0 ? a : b).head(n_own) = ext_out_.head(n_own);
+  }
+  std::vector<double> mine;
+  for (int k = 0; k < n_own; ++k)
+    if (kind_[k] == MultiplierKind::contact) {
+      const double s = contact_scale_[k];
+      const auto& p = contact_point_[k];
+      mine.insert(mine.end(),
+                  {p[0], p[1], p[2], a[k] / s, b[k] / s, contact_gap_[k], s * lambda[k]});
+    }
+  constexpr int W = 7;
+  const int P = comm_.size();
+  int count = static_cast<int>(mine.size());
+  std::vector<int> counts(P), disp(P + 1, 0);
+  MPI_Gather(&count, 1, MPI_INT, counts.data(), 1, MPI_INT, 0, comm_.raw());
+  for (int r = 0; r < P; ++r) disp[r + 1] = disp[r] + counts[r];
+  std::vector<double> all(comm_.rank() == 0 ? disp[P] : 0);
+  MPI_Gatherv(mine.data(), count, MPI_DOUBLE, all.data(), counts.data(), disp.data(), MPI_DOUBLE, 0,
+              comm_.raw());
+  ContactData data;
+  if (comm_.rank() != 0) return data;
+  std::vector<std::array<double, W>> rows(all.size() / W);
+  for (size_t i = 0; i < rows.size(); ++i)
+    for (int j = 0; j < W; ++j) rows[i][j] = all[W * i + j];
+  std::sort(rows.begin(), rows.end());
+  for (const auto& r : rows) {
+    data.x.push_back(r[0]);
+    data.y.push_back(r[1]);
+    data.z.push_back(r[2]);
+    data.u_a.push_back(r[3]);
+    data.u_b.push_back(r[4]);
+    data.gap.push_back(r[5]);
+    data.force.push_back(r[6]);
+  }
+  return data;
+}
+
+std::vector<DualProblem::Vec> DualProblem::contact_forces(const Vec& lambda) {
+  gather_to_ext(lambda);
+  std::vector<Vec> out(subs_.size());
+  for (size_t s = 0; s < subs_.size(); ++s) {
+    out[s] = Vec::Zero(subs_[s]->size());
+    for (const auto& r : rows_[s])
+      if (r.side != 0) out[s][r.dof] -= r.value * ext_in_[r.k];
+  }
+  return out;
+}
+
+std::vector<DualProblem::Vec> DualProblem::contact_gap_field(const std::vector<Vec>& u) {
+  Vec bu;
+  apply_B(u, bu);
+  const int n_own = layout_dual_.n_owned();
+  Vec rem = Vec::Zero(layout_dual_.n_ext());
+  for (int k = 0; k < n_own; ++k)
+    if (kind_[k] == MultiplierKind::contact) rem[k] = (c_[k] - bu[k]) / contact_scale_[k];
+  layout_dual_.forward(rem.data());
+  std::vector<Vec> out(subs_.size());
+  for (size_t s = 0; s < subs_.size(); ++s) {
+    const int dpn = subs_[s]->dofs_per_node();
+    out[s] = Vec::Constant(subs_[s]->size() / dpn, std::numeric_limits<double>::quiet_NaN());
+    for (const auto& r : rows_[s])
+      if (r.side != 0) out[s][r.dof / dpn] = rem[r.k];
+  }
+  return out;
+}
+
+}  // namespace htfeti

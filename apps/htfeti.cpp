@@ -4,23 +4,21 @@
 #include <malloc.h>
 #include <mpi.h>
 #include <omp.h>
+#include <unistd.h>
 
 #include <CLI/CLI.hpp>
 #include <algorithm>
 #include <cstdio>
-
 #include <filesystem>
 #include <fstream>
 #include <iostream>
-
-#include <unistd.h>
 
 #include "htfeti/clock.hpp"
 #include "htfeti/io/vtu.hpp"
 #include "htfeti/memory_estimate.hpp"
 #include "htfeti/options.hpp"
-#include "htfeti/problem_file.hpp"
 #include "htfeti/parallel/threads.hpp"
+#include "htfeti/problem_file.hpp"
 #include "htfeti/solver.hpp"
 
 namespace htfeti {
@@ -74,7 +72,8 @@ void check_output_path(const std::string& path, const std::string& option) {
   namespace fs = std::filesystem;
   std::error_code ec;
   const fs::path p(path);
-  if (fs::is_directory(p, ec)) throw std::invalid_argument(option + " '" + path + "' is a directory");
+  if (fs::is_directory(p, ec))
+    throw std::invalid_argument(option + " '" + path + "' is a directory");
   if (p.filename().empty() || p.filename() == "." || p.filename() == "..")
     throw std::invalid_argument(option + " '" + path + "' names no file");
   const fs::path dir = p.parent_path().empty() ? fs::path(".") : p.parent_path();
@@ -105,9 +104,10 @@ void print_summary(const nlohmann::json& r) {
   const int free_motions = std::max(r["unrestrained_rigid_motions"].get<int>(),
                                     r["unrestrained_at_solution"].get<int>());
   if (free_motions > 0)
-    std::printf("  note: the solution is not unique: %d rigid motion(s) restrained by no Dirichlet "
-                "condition and no active contact; their components are chosen zero\n",
-                free_motions);
+    std::printf(
+        "  note: the solution is not unique: %d rigid motion(s) restrained by no Dirichlet "
+        "condition and no active contact; their components are chosen zero\n",
+        free_motions);
   // Name what ran: projected CG for equalities alone, SMALBE-M with MPRGP inside for contact.
   const bool pcg = r["solver"]["algorithm"] == "pcg";
   const std::string state = r["converged"].get<bool>()
@@ -153,8 +153,8 @@ struct ProblemArgs {
   std::string elements = "128", subdomains = "8";
   int cluster_size = 1;
   double amplitude = 1.0;
-  CLI::Option *o_problem = nullptr, *o_elements = nullptr, *o_subdomains = nullptr,
-              *o_m = nullptr, *o_glue = nullptr, *o_element = nullptr, *o_amplitude = nullptr;
+  CLI::Option *o_problem = nullptr, *o_elements = nullptr, *o_subdomains = nullptr, *o_m = nullptr,
+              *o_glue = nullptr, *o_element = nullptr, *o_amplitude = nullptr;
 };
 
 void add_problem_args(CLI::App* cmd, ProblemArgs& p) {
@@ -213,8 +213,8 @@ void add_table_args(CLI::App* cmd, TableArgs& args) {
     const nlohmann::json d = o.get(defaults);
     const std::string def = d.is_null() ? "none" : d.is_string() ? d.get<std::string>() : d.dump();
     const std::string key = std::string(" [") + o.section + "." + o.key +
-                            (*o.unit ? std::string(", ") + o.unit : std::string()) +
-                            "; default " + def + "]";
+                            (*o.unit ? std::string(", ") + o.unit : std::string()) + "; default " +
+                            def + "]";
     if (*o.flag && o.type == OptionType::boolean)
       args.option[i] = cmd->add_flag(std::string(o.flag))->description(o.help + key);
     else if (*o.flag)
@@ -343,7 +343,7 @@ int dry_run(const Model& model, RunOptions run, const Comm& comm) {
   std::printf("  preconditioner: %s, scaling %s (%s)\n", to_string(feti.preconditioner).c_str(),
               to_string(feti.scaling).c_str(), why.c_str());
   if (run.solve.check_memory) {
-    const char* op = feti.dual_operator == DualOperator::explicit_   ? "explicit"
+    const char* op = feti.dual_operator == DualOperator::explicit_  ? "explicit"
                      : feti.dual_operator == DualOperator::implicit ? "implicit"
                      : estimate.explicit_operator                   ? "explicit"
                                                                     : "implicit";
@@ -355,12 +355,12 @@ int dry_run(const Model& model, RunOptions run, const Comm& comm) {
     std::printf("memory estimate: %.0f MB at the peak on the fullest machine, %.0f MB available\n",
                 estimate.machine_peak_mb, estimate.available_mb);
   } else {
-    std::printf("  dual operator: %s (decided in setup; no memory estimate with memory_check "
-                "off)\n",
-                to_string(feti.dual_operator).c_str());
+    std::printf(
+        "  dual operator: %s (decided in setup; no memory estimate with memory_check "
+        "off)\n",
+        to_string(feti.dual_operator).c_str());
   }
-  std::printf("options in effect (as a problem file's tables):\n%s",
-              options_toml(run).c_str());
+  std::printf("options in effect (as a problem file's tables):\n%s", options_toml(run).c_str());
   return 0;
 }
 
@@ -385,8 +385,8 @@ void write_outputs(SolveOutput& out, const OutputOptions& o, const RunOptions& r
     out.report["output_mb"] = bytes / 1048576.0;
     out.report["output_io"] = written.io;  // (rank 0's piece)
     if (comm.rank() == 0)
-      std::printf("  solution: %s (%.0f MB in %.2f s)\n", written.path.c_str(),
-                  bytes / 1048576.0, seconds);
+      std::printf("  solution: %s (%.0f MB in %.2f s)\n", written.path.c_str(), bytes / 1048576.0,
+                  seconds);
   }
   if (o.write_report) {
     std::string error;
@@ -465,8 +465,8 @@ int run(int argc, char** argv, const Comm& comm) {
   try {
     if (!problem.file.empty() && problem.o_problem->count() > 0)
       throw std::invalid_argument("give a problem file or --problem, not both");
-    model = problem.file.empty() ? builtin_model(problem, table, opt)
-                                 : file_model(problem, table, opt);
+    model =
+        problem.file.empty() ? builtin_model(problem, table, opt) : file_model(problem, table, opt);
     if (dry) return dry_run(*model, opt, comm);
     check_outputs(opt.output, comm);
   } catch (const std::invalid_argument& e) {

@@ -74,10 +74,9 @@ MemoryEstimate estimate_memory(const Model& model, const FetiOptions& options, c
       options.dual_operator == DualOperator::explicit_ ||
       (options.dual_operator == DualOperator::automatic && nodes >= kExplicitMinNodes &&
        explicit_bytes <= options.explicit_budget_bytes);
-  const Ordering ordering =
-      options.ordering == Ordering::automatic
-          ? (layout.dim == 3 || is_explicit ? Ordering::metis : Ordering::amd)
-          : options.ordering;
+  const Ordering ordering = options.ordering == Ordering::automatic
+                                ? (layout.dim == 3 || is_explicit ? Ordering::metis : Ordering::amd)
+                                : options.ordering;
   e.explicit_operator = is_explicit;
   e.explicit_eligible = nodes >= kExplicitMinNodes;
   Subdomain sample(std::move(in.system));
@@ -111,14 +110,14 @@ MemoryEstimate estimate_memory(const Model& model, const FetiOptions& options, c
     // Released factors (FetiOptions::keep_factors): at most the clusters being set up at one
     // time hold theirs (threads x the rank's largest cluster).
     const bool released =
-        !options.keep_factors && (options.factor_budget_bytes < 0 ||
-                                  8.0 * 100.0 * unknowns > options.factor_budget_bytes);
+        !options.keep_factors &&
+        (options.factor_budget_bytes < 0 || 8.0 * 100.0 * unknowns > options.factor_budget_bytes);
     if (released) {
       int largest = 1;
       for (int c = c0; c < c1; ++c)
         largest = std::max(largest, layout.cluster_first[c + 1] - layout.cluster_first[c]);
-      const double working = std::min(subdomains, static_cast<double>(largest) *
-                                                      std::max(1, omp_get_max_threads()));
+      const double working =
+          std::min(subdomains, static_cast<double>(largest) * std::max(1, omp_get_max_threads()));
       e.factors_held_mb = e.shared_factors > 0 ? std::min(e.factors_mb, f_bytes * working / kMiB)
                                                : e.factors_mb * working / subdomains;
     }

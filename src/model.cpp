@@ -89,7 +89,8 @@ class BuiltinModel final : public Model {
     for (int k = 0; k < m.num_nodes(); ++k) {
       const long long g = m.global_node[k];
       const int q = static_cast<int>(g / per_box);
-      const int gx = static_cast<int>(g % per_box % (n + 1)), gy = static_cast<int>(g % per_box / (n + 1));
+      const int gx = static_cast<int>(g % per_box % (n + 1)),
+                gy = static_cast<int>(g % per_box / (n + 1));
       if (problem.dirichlet(q, gx, gy, n)) in.dirichlet.push_back({k, 0, 0.0});
       if (!problem.has_contact()) continue;
       // Contact on x = 1: node a = (square 0, x = n), node b = (square 1, x = 0), u_a - u_b <= 0.

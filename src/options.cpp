@@ -42,7 +42,14 @@ using NumberCheck = const char* (*)(double);
 
 OptionSpec number(const char* key, const char* flag, const char* help, NumberRef ref,
                   NumberCheck check) {
-  return {"solver", key, flag, "", OptionType::number, "", help, {},
+  return {"solver",
+          key,
+          flag,
+          "",
+          OptionType::number,
+          "",
+          help,
+          {},
           [ref, check](RunOptions& r, const OptionValue& v) {
             const double x = as_number(v);
             if (!std::isfinite(x)) refuse("must be a finite number");
@@ -54,7 +61,14 @@ OptionSpec number(const char* key, const char* flag, const char* help, NumberRef
 
 // A memory size in GB (GiB: 2^30 bytes) stored in bytes.
 OptionSpec gigabytes(const char* key, const char* flag, const char* help, NumberRef bytes) {
-  return {"solver", key, flag, "", OptionType::number, "GB", help, {},
+  return {"solver",
+          key,
+          flag,
+          "",
+          OptionType::number,
+          "GB",
+          help,
+          {},
           [bytes](RunOptions& r, const OptionValue& v) {
             const double x = as_number(v);
             if (!std::isfinite(x) || x < 0) refuse("must be a non-negative number of GB");
@@ -70,12 +84,19 @@ using IntRef = int& (*)(RunOptions&);
 
 OptionSpec integer(const char* key, const char* flag, const char* help, IntRef ref, long long lo,
                    long long hi) {
-  return {"solver", key, flag, "", OptionType::integer, "", help, {},
+  return {"solver",
+          key,
+          flag,
+          "",
+          OptionType::integer,
+          "",
+          help,
+          {},
           [ref, lo, hi](RunOptions& r, const OptionValue& v) {
             const long long x = as_integer(v);
             if (x < lo || x > hi)
-              refuse("must be an integer from " + std::to_string(lo) + " to " +
-                     std::to_string(hi) + " (got " + std::to_string(x) + ")");
+              refuse("must be an integer from " + std::to_string(lo) + " to " + std::to_string(hi) +
+                     " (got " + std::to_string(x) + ")");
             ref(r) = static_cast<int>(x);
           },
           [ref](const RunOptions& r) { return nlohmann::json(ref(const_cast<RunOptions&>(r))); }};
@@ -85,7 +106,14 @@ using BoolRef = bool& (*)(RunOptions&);
 
 OptionSpec boolean(const char* section, const char* key, const char* flag,
                    const char* negative_flag, const char* help, BoolRef ref) {
-  return {section, key, flag, negative_flag, OptionType::boolean, "", help, {},
+  return {section,
+          key,
+          flag,
+          negative_flag,
+          OptionType::boolean,
+          "",
+          help,
+          {},
           [ref](RunOptions& r, const OptionValue& v) { ref(r) = as_bool(v); },
           [ref](const RunOptions& r) { return nlohmann::json(ref(const_cast<RunOptions&>(r))); }};
 }
@@ -93,7 +121,14 @@ OptionSpec boolean(const char* section, const char* key, const char* flag,
 template <class E, size_t N>
 OptionSpec choice(const char* section, const char* key, const char* flag, const char* help,
                   const std::array<EnumName<E>, N>& names, E& (*ref)(RunOptions&)) {
-  return {section, key, flag, "", OptionType::choice, "", help, names_of(names),
+  return {section,
+          key,
+          flag,
+          "",
+          OptionType::choice,
+          "",
+          help,
+          names_of(names),
           [ref, &names, key](RunOptions& r, const OptionValue& v) {
             ref(r) = parse_name(names, as_text(v), key);
           },
@@ -105,7 +140,14 @@ OptionSpec choice(const char* section, const char* key, const char* flag, const 
 // An output file: a name, or false (the --no- flag) for none.
 OptionSpec path(const char* key, const char* flag, const char* negative_flag, const char* help,
                 std::string& (*name)(RunOptions&), bool& (*write)(RunOptions&)) {
-  return {"output", key, flag, negative_flag, OptionType::path, "", help, {},
+  return {"output",
+          key,
+          flag,
+          negative_flag,
+          OptionType::path,
+          "",
+          help,
+          {},
           [name, write](RunOptions& r, const OptionValue& v) {
             if (const bool* b = std::get_if<bool>(&v)) {
               if (*b) refuse("give a file name or false");
@@ -145,34 +187,38 @@ std::vector<OptionSpec> build_table() {
       "solver", "norm_estimate", "--norm-estimate",
       "SMALBE-M's estimate of ||PFP||: power (power method) | lanczos (largest Ritz value of the "
       "Lanczos process); at most 50 products, relative change 1e-3",
-      qp::kNormEstimateNames, +[](RunOptions& r) -> qp::NormEstimate& {
-        return r.solve.norm_estimate;
-      }));
-  t.push_back(integer("coarse_steps_per_product", "--coarse-steps-per-product",
-                      "coarse steps per SMALBE-M Hessian product: 2 (P, F, P) | 1 (F, then one "
-                      "reduction with E = F G~^T formed in setup; memory and setup time, for "
-                      "many ranks)",
-                      [](RunOptions& r) -> int& { return r.solve.coarse_steps_per_product; }, 1,
-                      2));
+      qp::kNormEstimateNames,
+      +[](RunOptions& r) -> qp::NormEstimate& { return r.solve.norm_estimate; }));
+  t.push_back(integer(
+      "coarse_steps_per_product", "--coarse-steps-per-product",
+      "coarse steps per SMALBE-M Hessian product: 2 (P, F, P) | 1 (F, then one "
+      "reduction with E = F G~^T formed in setup; memory and setup time, for "
+      "many ranks)",
+      [](RunOptions& r) -> int& { return r.solve.coarse_steps_per_product; }, 1, 2));
   auto positive = [](double x) -> const char* {
     return x > 0 && x <= 1e6 ? nullptr : "must lie in (0, 1e6]";
   };
-  t.push_back(number("rho_factor", "--rho-factor", "SMALBE-M penalty rho = factor * ||PFP||",
-                     [](RunOptions& r) -> double& { return r.solve.smalbe.rho_factor; },
-                     positive));
+  t.push_back(number(
+      "rho_factor", "--rho-factor", "SMALBE-M penalty rho = factor * ||PFP||",
+      [](RunOptions& r) -> double& { return r.solve.smalbe.rho_factor; }, positive));
   t.push_back(number(
       "M0_factor", "--M0-factor", "SMALBE-M initial M = factor * ||PFP||",
       [](RunOptions& r) -> double& { return r.solve.smalbe.M0_factor; },
-      [](double x) -> const char* { return x > 0 && x <= 1e12 ? nullptr : "must lie in (0, 1e12]"; }));
-  t.push_back(number("eta_factor", "--eta-factor", "SMALBE-M eta = factor * ||b||",
-                     [](RunOptions& r) -> double& { return r.solve.smalbe.eta_factor; },
-                     positive));
+      [](double x) -> const char* {
+        return x > 0 && x <= 1e12 ? nullptr : "must lie in (0, 1e12]";
+      }));
+  t.push_back(number(
+      "eta_factor", "--eta-factor", "SMALBE-M eta = factor * ||b||",
+      [](RunOptions& r) -> double& { return r.solve.smalbe.eta_factor; }, positive));
   t.push_back(number(
       "beta", "--beta", "SMALBE-M: M is divided by beta on a failed test (> 1)",
       [](RunOptions& r) -> double& { return r.solve.smalbe.beta; },
-      [](double x) -> const char* { return x > 1 && x <= 1e6 ? nullptr : "must lie in (1, 1e6]"; }));
-  t.push_back(number("gamma", "--gamma", "MPRGP proportioning parameter Gamma",
-                     [](RunOptions& r) -> double& { return r.solve.smalbe.gamma; }, positive));
+      [](double x) -> const char* {
+        return x > 1 && x <= 1e6 ? nullptr : "must lie in (1, 1e6]";
+      }));
+  t.push_back(number(
+      "gamma", "--gamma", "MPRGP proportioning parameter Gamma",
+      [](RunOptions& r) -> double& { return r.solve.smalbe.gamma; }, positive));
   t.push_back(boolean("solver", "progress", "--progress", "",
                       "print one line per (outer) iteration (standard error, rank 0)",
                       [](RunOptions& r) -> bool& { return r.solve.progress; }));
@@ -219,9 +265,9 @@ std::vector<OptionSpec> build_table() {
                      parse_name(kDirichletStorageNames, as_text(v), "dirichlet storage"));
                },
                [](const RunOptions& r) {
-                 return nlohmann::json(name_of(
-                     kDirichletStorageNames,
-                     static_cast<DirichletStorage>(r.solve.feti.dirichlet_storage)));
+                 return nlohmann::json(
+                     name_of(kDirichletStorageNames,
+                             static_cast<DirichletStorage>(r.solve.feti.dirichlet_storage)));
                }});
   t.push_back(gigabytes(
       "dirichlet_budget_gb", "--dirichlet-budget",
@@ -234,7 +280,12 @@ std::vector<OptionSpec> build_table() {
       "GB per rank: --dual-operator auto takes the explicit operator only when its F_i fit "
       "this, or when the implicit operator would not fit in memory",
       [](RunOptions& r) -> double& { return r.solve.feti.explicit_budget_bytes; }));
-  t.push_back({"solver", "memory_limit_gb", "--memory-limit", "", OptionType::number, "GB",
+  t.push_back({"solver",
+               "memory_limit_gb",
+               "--memory-limit",
+               "",
+               OptionType::number,
+               "GB",
                "GB the solve may use on each machine (default none: the machine's available "
                "memory); the memory check, the automatic dual operator and the factor release "
                "count with it",
@@ -260,17 +311,21 @@ std::vector<OptionSpec> build_table() {
       "available memory, less what the clusters still to be set up will allocate, has fallen "
       "below 30% of what it was when the factorizations began)",
       [](RunOptions& r) -> bool& { return r.solve.feti.keep_factors; }));
-  t.push_back({"solver", "release_factors", "--release-factors", "", OptionType::boolean, "",
-               "explicit operator: every cluster frees its subdomain factors right after its "
-               "setup and factors again for the reconstruction (the least memory; by default "
-               "factors are freed only once memory runs short)",
-               {},
-               [](RunOptions& r, const OptionValue& v) {
-                 r.solve.feti.factor_budget_bytes = as_bool(v) ? 0.0 : -1.0;
-               },
-               [](const RunOptions& r) {
-                 return nlohmann::json(r.solve.feti.factor_budget_bytes == 0);
-               }});
+  t.push_back(
+      {"solver",
+       "release_factors",
+       "--release-factors",
+       "",
+       OptionType::boolean,
+       "",
+       "explicit operator: every cluster frees its subdomain factors right after its "
+       "setup and factors again for the reconstruction (the least memory; by default "
+       "factors are freed only once memory runs short)",
+       {},
+       [](RunOptions& r, const OptionValue& v) {
+         r.solve.feti.factor_budget_bytes = as_bool(v) ? 0.0 : -1.0;
+       },
+       [](const RunOptions& r) { return nlohmann::json(r.solve.feti.factor_budget_bytes == 0); }});
   t.push_back(integer(
       "symbolic_cache", "--symbolic-cache",
       "subdomain factorizations share the symbolic analysis (ordering, supernodes) of "
@@ -284,14 +339,16 @@ std::vector<OptionSpec> build_table() {
       "factoring; the factors are the same either way (0: off; needs symbolic_cache > 0)",
       [](RunOptions& r) -> double& { return r.solve.feti.numeric_cache_bytes; }));
   // --- output
-  t.push_back(path("report", "--report", "--no-report", "the report JSON (false: none)",
-                   [](RunOptions& r) -> std::string& { return r.output.report; },
-                   [](RunOptions& r) -> bool& { return r.output.write_report; }));
-  t.push_back(path("vtu", "--vtu", "--no-vtu",
-                   "the solution for ParaView (.vtu, or .pvtu with several ranks; binary; false: "
-                   "none)",
-                   [](RunOptions& r) -> std::string& { return r.output.vtu; },
-                   [](RunOptions& r) -> bool& { return r.output.write_vtu; }));
+  t.push_back(path(
+      "report", "--report", "--no-report", "the report JSON (false: none)",
+      [](RunOptions& r) -> std::string& { return r.output.report; },
+      [](RunOptions& r) -> bool& { return r.output.write_report; }));
+  t.push_back(path(
+      "vtu", "--vtu", "--no-vtu",
+      "the solution for ParaView (.vtu, or .pvtu with several ranks; binary; false: "
+      "none)",
+      [](RunOptions& r) -> std::string& { return r.output.vtu; },
+      [](RunOptions& r) -> bool& { return r.output.write_vtu; }));
   t.push_back(boolean("output", "vtu_ascii", "--vtu-ascii", "", "write the VTU as ASCII",
                       [](RunOptions& r) -> bool& { return r.output.vtu_ascii; }));
   t.push_back(choice(

@@ -11,8 +11,8 @@
 #include <stdexcept>
 
 #include "htfeti/expression.hpp"
-#include "htfeti/options.hpp"
 #include "htfeti/mesh/mesh.hpp"
+#include "htfeti/options.hpp"
 #include "htfeti/partition/partition.hpp"
 
 namespace htfeti {
@@ -22,11 +22,12 @@ std::vector<int> parse_int_list(const std::string& text, const std::string& what
   size_t pos = 0;
   while (true) {
     const size_t comma = text.find(',', pos);
-    const std::string item = text.substr(pos, comma == std::string::npos ? std::string::npos : comma - pos);
+    const std::string item =
+        text.substr(pos, comma == std::string::npos ? std::string::npos : comma - pos);
     int v = 0;
     const auto r = std::from_chars(item.data(), item.data() + item.size(), v);
-    if (item.empty() || r.ec != std::errc() || r.ptr != item.data() + item.size() || item[0] == '+' ||
-        item[0] == '-')
+    if (item.empty() || r.ec != std::errc() || r.ptr != item.data() + item.size() ||
+        item[0] == '+' || item[0] == '-')
       throw std::invalid_argument(what + " must be a positive integer or a list like 2,4,2 (got '" +
                                   text + "')");
     if (v <= 0) throw std::invalid_argument(what + " must be positive (got '" + text + "')");
@@ -114,7 +115,8 @@ std::vector<double> get_numbers(const toml::node& n, const std::string& where) {
 }
 
 // A [solver] or [output] value as the options table reads it (its type checked here).
-OptionValue toml_option_value(const OptionSpec& spec, const toml::node& n, const std::string& where) {
+OptionValue toml_option_value(const OptionSpec& spec, const toml::node& n,
+                              const std::string& where) {
   switch (spec.type) {
     case OptionType::boolean:
       if (!n.is_boolean()) bad(where, "must be true or false");
@@ -139,7 +141,6 @@ OptionValue toml_option_value(const OptionSpec& spec, const toml::node& n, const
   bad(where, "unknown option type");
 }
 
-
 }  // namespace
 
 ProblemSpec read_problem_file(const std::string& path, RunOptions& run) {
@@ -150,14 +151,15 @@ ProblemSpec read_problem_file(const std::string& path, RunOptions& run) {
     root = toml::parse_file(path);
   } catch (const toml::parse_error& e) {
     std::ostringstream msg;
-    msg << "problem file '" << path << "': " << e.description() << " (line " << e.source().begin.line
-        << ")";
+    msg << "problem file '" << path << "': " << e.description() << " (line "
+        << e.source().begin.line << ")";
     throw std::invalid_argument(msg.str());
   } catch (const std::exception& e) {
     throw std::invalid_argument("problem file '" + path + "' cannot be read: " + e.what());
   }
-  check_keys(root, "", {"mesh", "physics", "dirichlet", "load", "contact", "decomposition",
-                        "solver", "output"});
+  check_keys(
+      root, "",
+      {"mesh", "physics", "dirichlet", "load", "contact", "decomposition", "solver", "output"});
   // [mesh]
   const toml::table& mesh = *table_of(root, "mesh", true);
   check_keys(mesh, "mesh", {"file", "generator", "size", "elements", "element", "builtin"});
@@ -179,199 +181,202 @@ ProblemSpec read_problem_file(const std::string& path, RunOptions& run) {
     o.elements = static_cast<int>(n);
     spec.subdomains = {8};
   } else {
-  const bool has_file = mesh.contains("file"), has_gen = mesh.contains("generator");
-  if (has_file == has_gen) bad("[mesh]", "give exactly one of 'file' and 'generator'");
-  if (has_file) {
-    for (const char* k : {"size", "elements", "element"})
-      if (mesh.contains(k)) bad(std::string("mesh.") + k, "is for generator = \"box\" only");
-    const std::filesystem::path f = get_string(mesh, "mesh", "file", "");
-    spec.mesh_file = f.is_absolute() ? f.string()
-                                     : (std::filesystem::path(path).parent_path() / f).string();
-  } else {
-    if (get_string(mesh, "mesh", "generator", "") != "box")
-      bad("mesh.generator", "must be \"box\"");
-    const std::string el = get_string(mesh, "mesh", "element", "", true);
-    try {
-      spec.box.cell = parse_cell_type(el);
-    } catch (const std::invalid_argument& e) {
-      bad("mesh.element", e.what());
-    }
-    spec.box.dim = cell_dimension(spec.box.cell);
-    const toml::node* sz = mesh.get("size");
-    if (!sz) bad("mesh.size", "missing");
-    const auto size = get_numbers(*sz, "mesh.size");
-    if (static_cast<int>(size.size()) != spec.box.dim)
-      bad("mesh.size", "must have " + std::to_string(spec.box.dim) + " numbers for " + el);
-    const toml::node* ne = mesh.get("elements");
-    if (!ne || !ne->is_array()) bad("mesh.elements", "missing, or not an array of integers");
-    int d = 0;
-    for (const auto& e : *ne->as_array()) {
-      if (!e.is_integer() || d >= 3) bad("mesh.elements", "must be an array of positive integers");
-      spec.box.elements[d++] = static_cast<int>(e.value<long long>().value());
-    }
-    if (d != spec.box.dim) bad("mesh.elements", "must have " + std::to_string(spec.box.dim) + " integers");
-    for (int i = 0; i < spec.box.dim; ++i) {
-      if (!(size[i] > 0)) bad("mesh.size", "must be positive");
-      if (spec.box.elements[i] <= 0) bad("mesh.elements", "must be positive");
-      spec.box.size[i] = size[i];
-    }
-  }
-  // [physics]
-  const toml::table& ph = *table_of(root, "physics", true);
-  const std::string type = get_string(ph, "physics", "type", "", true);
-  try {
-    spec.physics.kind = parse_physics(type);
-  } catch (const std::invalid_argument& e) {
-    bad("physics.type", e.what());
-  }
-  spec.physics.dim = has_gen ? spec.box.dim : 3;  // set from the mesh later for files
-  if (const toml::node* c = ph.get("coefficient")) {
-    if (c->is_number()) {
-      std::ostringstream o;
-      o.precision(17);
-      o << c->value<double>().value();
-      spec.physics.coefficient = o.str();
-    } else if (c->is_string()) {
-      spec.physics.coefficient = c->value<std::string>().value();
+    const bool has_file = mesh.contains("file"), has_gen = mesh.contains("generator");
+    if (has_file == has_gen) bad("[mesh]", "give exactly one of 'file' and 'generator'");
+    if (has_file) {
+      for (const char* k : {"size", "elements", "element"})
+        if (mesh.contains(k)) bad(std::string("mesh.") + k, "is for generator = \"box\" only");
+      const std::filesystem::path f = get_string(mesh, "mesh", "file", "");
+      spec.mesh_file =
+          f.is_absolute() ? f.string() : (std::filesystem::path(path).parent_path() / f).string();
     } else {
-      bad("physics.coefficient", "must be a number or an expression string");
+      if (get_string(mesh, "mesh", "generator", "") != "box")
+        bad("mesh.generator", "must be \"box\"");
+      const std::string el = get_string(mesh, "mesh", "element", "", true);
+      try {
+        spec.box.cell = parse_cell_type(el);
+      } catch (const std::invalid_argument& e) {
+        bad("mesh.element", e.what());
+      }
+      spec.box.dim = cell_dimension(spec.box.cell);
+      const toml::node* sz = mesh.get("size");
+      if (!sz) bad("mesh.size", "missing");
+      const auto size = get_numbers(*sz, "mesh.size");
+      if (static_cast<int>(size.size()) != spec.box.dim)
+        bad("mesh.size", "must have " + std::to_string(spec.box.dim) + " numbers for " + el);
+      const toml::node* ne = mesh.get("elements");
+      if (!ne || !ne->is_array()) bad("mesh.elements", "missing, or not an array of integers");
+      int d = 0;
+      for (const auto& e : *ne->as_array()) {
+        if (!e.is_integer() || d >= 3)
+          bad("mesh.elements", "must be an array of positive integers");
+        spec.box.elements[d++] = static_cast<int>(e.value<long long>().value());
+      }
+      if (d != spec.box.dim)
+        bad("mesh.elements", "must have " + std::to_string(spec.box.dim) + " integers");
+      for (int i = 0; i < spec.box.dim; ++i) {
+        if (!(size[i] > 0)) bad("mesh.size", "must be positive");
+        if (spec.box.elements[i] <= 0) bad("mesh.elements", "must be positive");
+        spec.box.size[i] = size[i];
+      }
     }
+    // [physics]
+    const toml::table& ph = *table_of(root, "physics", true);
+    const std::string type = get_string(ph, "physics", "type", "", true);
     try {
-      Expression check(spec.physics.coefficient);
+      spec.physics.kind = parse_physics(type);
     } catch (const std::invalid_argument& e) {
-      bad("physics.coefficient", e.what());
+      bad("physics.type", e.what());
     }
-  }
-  if (spec.physics.kind == PhysicsKind::laplace) {
-    check_keys(ph, "physics", {"type", "source", "coefficient"});
-    if (const toml::node* s = ph.get("source")) {
-      if (s->is_number()) {
+    spec.physics.dim = has_gen ? spec.box.dim : 3;  // set from the mesh later for files
+    if (const toml::node* c = ph.get("coefficient")) {
+      if (c->is_number()) {
         std::ostringstream o;
         o.precision(17);
-        o << s->value<double>().value();
-        spec.source = o.str();
-      } else if (s->is_string()) {
-        spec.source = s->value<std::string>().value();
+        o << c->value<double>().value();
+        spec.physics.coefficient = o.str();
+      } else if (c->is_string()) {
+        spec.physics.coefficient = c->value<std::string>().value();
       } else {
-        bad("physics.source", "must be a number or an expression string");
+        bad("physics.coefficient", "must be a number or an expression string");
       }
       try {
-        Expression check(spec.source);
+        Expression check(spec.physics.coefficient);
       } catch (const std::invalid_argument& e) {
-        bad("physics.source", e.what());
+        bad("physics.coefficient", e.what());
       }
     }
-  } else {
-    check_keys(ph, "physics", {"type", "young", "poisson", "density", "gravity", "coefficient"});
-    spec.physics.material.young = get_double(ph, "physics", "young", 0, true);
-    spec.physics.material.poisson = get_double(ph, "physics", "poisson", 0, true);
-    spec.physics.density = get_double(ph, "physics", "density", 0);
-    if (const toml::node* g = ph.get("gravity")) {
-      const auto gv = get_numbers(*g, "physics.gravity");
-      if (gv.size() < 2 || gv.size() > 3) bad("physics.gravity", "must have 2 or 3 components");
-      for (size_t i = 0; i < gv.size(); ++i) spec.physics.gravity[i] = gv[i];
-    }
-    try {
-      Physics p = spec.physics;
-      p.dim = 3;
-      p.validate();
-    } catch (const std::invalid_argument& e) {
-      bad("[physics]", e.what());
-    }
-  }
-  auto array_of_tables = [&](const char* name) {
-    std::vector<const toml::table*> out;
-    const toml::node* n = root.get(name);
-    if (!n) return out;
-    if (!n->is_array_of_tables()) bad(name, std::string("must be written [[") + name + "]]");
-    for (const auto& e : *n->as_array()) out.push_back(e.as_table());
-    return out;
-  };
-  const int dofs = spec.physics.kind == PhysicsKind::laplace ? 1 : 3;
-  int i = 0;
-  for (const toml::table* t : array_of_tables("dirichlet")) {
-    const std::string where = "dirichlet #" + std::to_string(++i);
-    check_keys(*t, where, {"group", "value", "components"});
-    ProblemSpec::Dirichlet d;
-    d.group = get_string(*t, where, "group", "", true);
-    if (const toml::node* v = t->get("value")) {
-      const auto x = get_numbers(*v, where + ".value");
-      if (x.size() == 1)
-        d.value = {x[0], x[0], x[0]};
-      else if (static_cast<int>(x.size()) <= 3 && dofs > 1)
-        for (size_t j = 0; j < x.size(); ++j) d.value[j] = x[j];
-      else
-        bad(where + ".value", "must be one number or one per displacement component");
-    }
-    if (const toml::node* c = t->get("components")) {
-      if (!c->is_array()) bad(where + ".components", "must be an array");
-      for (const auto& e : *c->as_array()) {
-        int comp = -1;
-        if (e.is_integer()) comp = static_cast<int>(e.value<long long>().value());
-        if (e.is_string()) {
-          const std::string s = e.value<std::string>().value();
-          comp = s == "x" ? 0 : s == "y" ? 1 : s == "z" ? 2 : -1;
+    if (spec.physics.kind == PhysicsKind::laplace) {
+      check_keys(ph, "physics", {"type", "source", "coefficient"});
+      if (const toml::node* s = ph.get("source")) {
+        if (s->is_number()) {
+          std::ostringstream o;
+          o.precision(17);
+          o << s->value<double>().value();
+          spec.source = o.str();
+        } else if (s->is_string()) {
+          spec.source = s->value<std::string>().value();
+        } else {
+          bad("physics.source", "must be a number or an expression string");
         }
-        if (comp < 0 || comp >= dofs) bad(where + ".components", "entries must be 0..2 or \"x\", \"y\", \"z\"");
-        d.components.push_back(comp);
+        try {
+          Expression check(spec.source);
+        } catch (const std::invalid_argument& e) {
+          bad("physics.source", e.what());
+        }
       }
-    }
-    spec.dirichlet.push_back(d);
-  }
-  i = 0;
-  for (const toml::table* t : array_of_tables("load")) {
-    const std::string where = "load #" + std::to_string(++i);
-    check_keys(*t, where, {"group", "traction", "source", "force"});
-    ProblemSpec::Load l;
-    l.group = get_string(*t, where, "group", "", true);
-    const int kinds = t->contains("traction") + t->contains("source") + t->contains("force");
-    if (kinds != 1) bad(where, "give exactly one of traction, source, force");
-    if (t->contains("source")) {
-      l.kind = ProblemSpec::Load::source;
-      l.value[0] = get_double(*t, where, "source", 0);
     } else {
-      l.kind = t->contains("traction") ? ProblemSpec::Load::traction : ProblemSpec::Load::force;
-      const auto x = get_numbers(*t->get(l.kind == ProblemSpec::Load::traction ? "traction" : "force"),
-                                 where);
-      if (x.size() > 3) bad(where, "a vector has at most 3 components");
-      for (size_t j = 0; j < x.size(); ++j) l.value[j] = x[j];
-    }
-    spec.loads.push_back(l);
-  }
-  i = 0;
-  for (const toml::table* t : array_of_tables("contact")) {
-    const std::string where = "contact #" + std::to_string(++i);
-    check_keys(*t, where, {"group", "direction", "gap"});
-    ProblemSpec::Contact c;
-    c.group = get_string(*t, where, "group", "", true);
-    const toml::node* dn = t->get("direction");
-    if (!dn) bad(where + ".direction", "missing");
-    const auto dir = get_numbers(*dn, where + ".direction");
-    if (dir.size() > 3) bad(where + ".direction", "has at most 3 components");
-    double norm = 0;
-    for (size_t j = 0; j < dir.size(); ++j) c.direction[j] = dir[j], norm += dir[j] * dir[j];
-    for (size_t j = dir.size(); j < 3; ++j) c.direction[j] = 0;
-    if (!(norm > 0)) bad(where + ".direction", "must not be zero");
-    for (double& v : c.direction) v /= std::sqrt(norm);
-    if (const toml::node* g = t->get("gap")) {
-      if (g->is_number()) {
-        std::ostringstream o;
-        o.precision(17);
-        o << g->value<double>().value();
-        c.gap = o.str();
-      } else if (g->is_string()) {
-        c.gap = g->value<std::string>().value();
-      } else {
-        bad(where + ".gap", "must be a number or an expression string");
+      check_keys(ph, "physics", {"type", "young", "poisson", "density", "gravity", "coefficient"});
+      spec.physics.material.young = get_double(ph, "physics", "young", 0, true);
+      spec.physics.material.poisson = get_double(ph, "physics", "poisson", 0, true);
+      spec.physics.density = get_double(ph, "physics", "density", 0);
+      if (const toml::node* g = ph.get("gravity")) {
+        const auto gv = get_numbers(*g, "physics.gravity");
+        if (gv.size() < 2 || gv.size() > 3) bad("physics.gravity", "must have 2 or 3 components");
+        for (size_t i = 0; i < gv.size(); ++i) spec.physics.gravity[i] = gv[i];
+      }
+      try {
+        Physics p = spec.physics;
+        p.dim = 3;
+        p.validate();
+      } catch (const std::invalid_argument& e) {
+        bad("[physics]", e.what());
       }
     }
-    try {
-      Expression check(c.gap);
-    } catch (const std::invalid_argument& e) {
-      bad(where + ".gap", e.what());
+    auto array_of_tables = [&](const char* name) {
+      std::vector<const toml::table*> out;
+      const toml::node* n = root.get(name);
+      if (!n) return out;
+      if (!n->is_array_of_tables()) bad(name, std::string("must be written [[") + name + "]]");
+      for (const auto& e : *n->as_array()) out.push_back(e.as_table());
+      return out;
+    };
+    const int dofs = spec.physics.kind == PhysicsKind::laplace ? 1 : 3;
+    int i = 0;
+    for (const toml::table* t : array_of_tables("dirichlet")) {
+      const std::string where = "dirichlet #" + std::to_string(++i);
+      check_keys(*t, where, {"group", "value", "components"});
+      ProblemSpec::Dirichlet d;
+      d.group = get_string(*t, where, "group", "", true);
+      if (const toml::node* v = t->get("value")) {
+        const auto x = get_numbers(*v, where + ".value");
+        if (x.size() == 1)
+          d.value = {x[0], x[0], x[0]};
+        else if (static_cast<int>(x.size()) <= 3 && dofs > 1)
+          for (size_t j = 0; j < x.size(); ++j) d.value[j] = x[j];
+        else
+          bad(where + ".value", "must be one number or one per displacement component");
+      }
+      if (const toml::node* c = t->get("components")) {
+        if (!c->is_array()) bad(where + ".components", "must be an array");
+        for (const auto& e : *c->as_array()) {
+          int comp = -1;
+          if (e.is_integer()) comp = static_cast<int>(e.value<long long>().value());
+          if (e.is_string()) {
+            const std::string s = e.value<std::string>().value();
+            comp = s == "x" ? 0 : s == "y" ? 1 : s == "z" ? 2 : -1;
+          }
+          if (comp < 0 || comp >= dofs)
+            bad(where + ".components", "entries must be 0..2 or \"x\", \"y\", \"z\"");
+          d.components.push_back(comp);
+        }
+      }
+      spec.dirichlet.push_back(d);
     }
-    spec.contact.push_back(c);
-  }
+    i = 0;
+    for (const toml::table* t : array_of_tables("load")) {
+      const std::string where = "load #" + std::to_string(++i);
+      check_keys(*t, where, {"group", "traction", "source", "force"});
+      ProblemSpec::Load l;
+      l.group = get_string(*t, where, "group", "", true);
+      const int kinds = t->contains("traction") + t->contains("source") + t->contains("force");
+      if (kinds != 1) bad(where, "give exactly one of traction, source, force");
+      if (t->contains("source")) {
+        l.kind = ProblemSpec::Load::source;
+        l.value[0] = get_double(*t, where, "source", 0);
+      } else {
+        l.kind = t->contains("traction") ? ProblemSpec::Load::traction : ProblemSpec::Load::force;
+        const auto x = get_numbers(
+            *t->get(l.kind == ProblemSpec::Load::traction ? "traction" : "force"), where);
+        if (x.size() > 3) bad(where, "a vector has at most 3 components");
+        for (size_t j = 0; j < x.size(); ++j) l.value[j] = x[j];
+      }
+      spec.loads.push_back(l);
+    }
+    i = 0;
+    for (const toml::table* t : array_of_tables("contact")) {
+      const std::string where = "contact #" + std::to_string(++i);
+      check_keys(*t, where, {"group", "direction", "gap"});
+      ProblemSpec::Contact c;
+      c.group = get_string(*t, where, "group", "", true);
+      const toml::node* dn = t->get("direction");
+      if (!dn) bad(where + ".direction", "missing");
+      const auto dir = get_numbers(*dn, where + ".direction");
+      if (dir.size() > 3) bad(where + ".direction", "has at most 3 components");
+      double norm = 0;
+      for (size_t j = 0; j < dir.size(); ++j) c.direction[j] = dir[j], norm += dir[j] * dir[j];
+      for (size_t j = dir.size(); j < 3; ++j) c.direction[j] = 0;
+      if (!(norm > 0)) bad(where + ".direction", "must not be zero");
+      for (double& v : c.direction) v /= std::sqrt(norm);
+      if (const toml::node* g = t->get("gap")) {
+        if (g->is_number()) {
+          std::ostringstream o;
+          o.precision(17);
+          o << g->value<double>().value();
+          c.gap = o.str();
+        } else if (g->is_string()) {
+          c.gap = g->value<std::string>().value();
+        } else {
+          bad(where + ".gap", "must be a number or an expression string");
+        }
+      }
+      try {
+        Expression check(c.gap);
+      } catch (const std::invalid_argument& e) {
+        bad(where + ".gap", e.what());
+      }
+      spec.contact.push_back(c);
+    }
   }
   if (const toml::table* dec = table_of(root, "decomposition", false)) {
     check_keys(*dec, "decomposition", {"subdomains", "cluster_size", "glue"});
@@ -409,7 +414,8 @@ ProblemSpec read_problem_file(const std::string& path, RunOptions& run) {
       if (!spec) {
         std::string list;
         for (const auto& o : option_table())
-          if (std::string(o.section) == section) list += (list.empty() ? "" : ", ") + std::string(o.key);
+          if (std::string(o.section) == section)
+            list += (list.empty() ? "" : ", ") + std::string(o.key);
         bad(where, "unknown key (expected one of: " + list + ")");
       }
       set_option(run, *spec, toml_option_value(*spec, node, where), "problem file: " + where);
@@ -474,7 +480,8 @@ class GroupModel final : public Model {
         m->coords = whole.coords;
         m->cells = whole.cells;
         m->node_groups = whole.node_groups;
-        for (const auto& [name, fg] : whole.facet_groups) m->facet_groups[name] = {fg.facet_nodes, fg.nodes};
+        for (const auto& [name, fg] : whole.facet_groups)
+          m->facet_groups[name] = {fg.facet_nodes, fg.nodes};
         mesh_ = m;
       }
       part_ = std::make_shared<MeshPartition>(
@@ -581,14 +588,17 @@ class GroupModel final : public Model {
     j["problem"] = spec_.path;
     nlohmann::json mesh;
     if (!spec_.mesh_file.empty()) {
-      mesh = {{"file", spec_.mesh_file}, {"element", to_string(mesh_->type)},
-              {"nodes", mesh_->num_nodes()}, {"cells", mesh_->num_cells()}};
+      mesh = {{"file", spec_.mesh_file},
+              {"element", to_string(mesh_->type)},
+              {"nodes", mesh_->num_nodes()},
+              {"cells", mesh_->num_cells()}};
     } else {
       mesh = {{"generator", "box"},
               {"element", to_string(spec_.box.cell)},
-              {"size", std::vector<double>(spec_.box.size.begin(), spec_.box.size.begin() + spec_.box.dim)},
-              {"elements",
-               std::vector<int>(spec_.box.elements.begin(), spec_.box.elements.begin() + spec_.box.dim)}};
+              {"size",
+               std::vector<double>(spec_.box.size.begin(), spec_.box.size.begin() + spec_.box.dim)},
+              {"elements", std::vector<int>(spec_.box.elements.begin(),
+                                            spec_.box.elements.begin() + spec_.box.dim)}};
     }
     j["mesh"] = mesh;
     j["element"] = mesh["element"];
@@ -597,7 +607,8 @@ class GroupModel final : public Model {
       ph["young"] = physics_.material.young;
       ph["poisson"] = physics_.material.poisson;
       ph["density"] = physics_.density;
-      ph["gravity"] = std::vector<double>(physics_.gravity.begin(), physics_.gravity.begin() + physics_.dim);
+      ph["gravity"] =
+          std::vector<double>(physics_.gravity.begin(), physics_.gravity.begin() + physics_.dim);
     } else {
       ph["source"] = spec_.source;
     }
@@ -627,20 +638,25 @@ class GroupModel final : public Model {
       for (const auto& [n, v] : mesh_->cell_groups) cells.insert(n);
     }
     const std::string where = spec_.mesh_file.empty() ? "the generated box" : spec_.mesh_file;
-    auto require = [&](const std::string& g, const std::set<std::string>& in, const std::string& what) {
+    auto require = [&](const std::string& g, const std::set<std::string>& in,
+                       const std::string& what) {
       if (!in.count(g))
-        throw std::invalid_argument("problem file: " + what + ": group '" + g + "' does not exist in " +
-                                    where + " (its groups: " + list_groups(in) + ")");
+        throw std::invalid_argument("problem file: " + what + ": group '" + g +
+                                    "' does not exist in " + where +
+                                    " (its groups: " + list_groups(in) + ")");
     };
     int i = 0;
-    for (const auto& d : spec_.dirichlet) require(d.group, nodes, "dirichlet #" + std::to_string(++i));
+    for (const auto& d : spec_.dirichlet)
+      require(d.group, nodes, "dirichlet #" + std::to_string(++i));
     i = 0;
     for (const auto& l : spec_.loads) {
       ++i;
       if (l.kind == ProblemSpec::Load::traction)
-        require(l.group, facets, "load #" + std::to_string(i) + " (a traction needs a boundary group)");
+        require(l.group, facets,
+                "load #" + std::to_string(i) + " (a traction needs a boundary group)");
       else
-        require(l.group, cells, "load #" + std::to_string(i) + " (a source or force needs a volume group)");
+        require(l.group, cells,
+                "load #" + std::to_string(i) + " (a source or force needs a volume group)");
       if (l.kind == ProblemSpec::Load::source && physics_.kind != PhysicsKind::laplace)
         throw std::invalid_argument("problem file: load #" + std::to_string(i) +
                                     ": 'source' is for Laplace; use 'force' for elasticity");
@@ -665,7 +681,8 @@ ProblemSpec cube_obstacle_spec(const std::vector<int>& elements, const std::vect
                                int cluster_size, double amplitude, CellType cell) {
   auto three = [](const std::vector<int>& v, const char* what) {
     if (v.size() == 1) return std::vector<int>{v[0], v[0], v[0]};
-    if (v.size() != 3) throw std::invalid_argument(std::string(what) + " needs 1 or 3 numbers for cube-obstacle");
+    if (v.size() != 3)
+      throw std::invalid_argument(std::string(what) + " needs 1 or 3 numbers for cube-obstacle");
     return v;
   };
   if (!std::isfinite(amplitude) || amplitude < 0)

@@ -34,8 +34,8 @@ struct DualOperators {
         preconditioned(dual.preconditioner() != PreconditionerKind::none) {}
   qp::FunctionOperator F, P, M;
   bool preconditioned;
-  long merged_steps = 0;        // products taken in one coarse step
-  double merged_seconds = 0;    // their time after F v
+  long merged_steps = 0;      // products taken in one coarse step
+  double merged_seconds = 0;  // their time after F v
 };
 
 // What a QP solve gives the report.
@@ -337,10 +337,10 @@ SolveOutput solve(std::shared_ptr<const Model> model_ptr, const SolveOptions& op
   rep["scaling"] = to_string(dual.scaling());
   if (ops.preconditioned)
     // lumped: the sparse K_bb; Dirichlet: S_i dense on every rank, or implicit somewhere.
-    rep["preconditioner_storage"] =
-        dual.preconditioner() == PreconditionerKind::lumped                ? "sparse"
-        : comm.min(dual.preconditioner_dense() ? 1.0 : 0.0) > 0 ? "dense"
-                                                                 : "implicit";
+    rep["preconditioner_storage"] = dual.preconditioner() == PreconditionerKind::lumped ? "sparse"
+                                    : comm.min(dual.preconditioner_dense() ? 1.0 : 0.0) > 0
+                                        ? "dense"
+                                        : "implicit";
   rep["converged"] = qs.converged;
   rep["stop_reason"] = qs.reason;
   rep["outer_iterations"] = qs.outer;
@@ -415,38 +415,42 @@ SolveOutput solve(std::shared_ptr<const Model> model_ptr, const SolveOptions& op
                                         {"coarse_problem", comm.max(st.peak_mb_coarse)},
                                         {"solve", comm.max(peak_mb_solve)},
                                         {"reconstruction", comm.max(peak_rss_mb())}};
-  rep["memory"] = {{"peak_mb_by_phase", peak_by_phase},
-                   {"factor_mb", comm.sum(st.factor_mb)},
-                   {"distinct_factor_mb", comm.sum(st.distinct_factor_mb)},
-                   {"shared_matrices", comm.sum(static_cast<long long>(st.shared_matrices))},
-                   // The estimate made before setup (0 with check_memory off); sums over ranks.
-                   {"estimate_mb",
-                    {{"peak", comm.sum(estimate.peak_mb())},
-                     {"factors", comm.sum(estimate.factors_mb)},
-                     {"matrices", comm.sum(estimate.matrices_mb)},
-                     {"vectors", comm.sum(estimate.vectors_mb)},
-                     {"explicit", comm.sum(estimate.explicit_mb)},
-                     {"factors_held", comm.sum(estimate.factors_held_mb)},
-                     {"sampled", comm.min(estimate.sampled ? 1.0 : 0.0) > 0},
-                     // Factors counted as shared by equal subdomains (a count; 0: one each).
-                     {"shared_factors", comm.sum(estimate.shared_factors)},
-                     // The implicit operator's, when it was estimated not to fit (0 otherwise).
-                     {"implicit_peak", estimate.implicit_peak_mb}}},
-                   {"limit_mb", options.feti.memory_limit_mb},
-                   {"factor_nonzeros", comm.sum(static_cast<long long>(dual.factor_nonzeros()))},
-                   {"coarse_factor_nonzeros", dual.coarse_factor_nonzeros()},
-                   {"explicit_mb", comm.sum(static_cast<double>(dual.explicit_bytes())) / 1048576.0},
-                   {"cluster_dense_mb", comm.sum(8.0 * dual.cluster_dense_doubles()) / 1048576.0},
-                   {"preconditioner_mb",
-                    comm.sum(static_cast<double>(dual.preconditioner_bytes())) / 1048576.0},
-                   {"peak_rss_mb_max_rank", comm.max(rss_mb)},
-                   {"peak_rss_mb_total", comm.sum(rss_mb)}};
+  rep["memory"] = {
+      {"peak_mb_by_phase", peak_by_phase},
+      {"factor_mb", comm.sum(st.factor_mb)},
+      {"distinct_factor_mb", comm.sum(st.distinct_factor_mb)},
+      {"shared_matrices", comm.sum(static_cast<long long>(st.shared_matrices))},
+      // The estimate made before setup (0 with check_memory off); sums over ranks.
+      {"estimate_mb",
+       {{"peak", comm.sum(estimate.peak_mb())},
+        {"factors", comm.sum(estimate.factors_mb)},
+        {"matrices", comm.sum(estimate.matrices_mb)},
+        {"vectors", comm.sum(estimate.vectors_mb)},
+        {"explicit", comm.sum(estimate.explicit_mb)},
+        {"factors_held", comm.sum(estimate.factors_held_mb)},
+        {"sampled", comm.min(estimate.sampled ? 1.0 : 0.0) > 0},
+        // Factors counted as shared by equal subdomains (a count; 0: one each).
+        {"shared_factors", comm.sum(estimate.shared_factors)},
+        // The implicit operator's, when it was estimated not to fit (0 otherwise).
+        {"implicit_peak", estimate.implicit_peak_mb}}},
+      {"limit_mb", options.feti.memory_limit_mb},
+      {"factor_nonzeros", comm.sum(static_cast<long long>(dual.factor_nonzeros()))},
+      {"coarse_factor_nonzeros", dual.coarse_factor_nonzeros()},
+      {"explicit_mb", comm.sum(static_cast<double>(dual.explicit_bytes())) / 1048576.0},
+      {"cluster_dense_mb", comm.sum(8.0 * dual.cluster_dense_doubles()) / 1048576.0},
+      {"preconditioner_mb", comm.sum(static_cast<double>(dual.preconditioner_bytes())) / 1048576.0},
+      {"peak_rss_mb_max_rank", comm.max(rss_mb)},
+      {"peak_rss_mb_total", comm.sum(rss_mb)}};
   if (dual.has_inequalities()) {
     const auto c = dual.contact_data(out.u, lambda);
     // Per contact row: node a's coordinates, n.u_a ("u_left"), n.u_b ("u_right", 0 for a rigid
     // obstacle), the gap and the contact force ("multiplier", nodal force units).
-    nlohmann::json cj = {{"x", c.x},     {"y", c.y},          {"z", c.z},
-                         {"u_left", c.u_a}, {"u_right", c.u_b}, {"gap", c.gap},
+    nlohmann::json cj = {{"x", c.x},
+                         {"y", c.y},
+                         {"z", c.z},
+                         {"u_left", c.u_a},
+                         {"u_right", c.u_b},
+                         {"gap", c.gap},
                          {"multiplier", c.force}};
     // Rank 0 holds the gathered arrays; share them so the report is the same everywhere.
     std::string s = comm.rank() == 0 ? cj.dump() : std::string();

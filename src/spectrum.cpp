@@ -1,16 +1,15 @@
 #include "htfeti/spectrum.hpp"
 
-#include "htfeti/parallel/memory.hpp"
-
 #include <Eigen/Dense>
 #include <Eigen/Sparse>
 #include <algorithm>
 #include <cmath>
 #include <stdexcept>
 
-#include "htfeti/feti/constraints.hpp"
 #include "htfeti/decomposition/decomposition.hpp"
 #include "htfeti/fem/physics.hpp"
+#include "htfeti/feti/constraints.hpp"
+#include "htfeti/parallel/memory.hpp"
 
 extern "C" void dsyevd_(const char* jobz, const char* uplo, const int* n, double* a, const int* lda,
                         double* w, double* work, const int* lwork, int* iwork, const int* liwork,

@@ -22,7 +22,9 @@ inline std::unique_ptr<DualProblem> make_dual(const Model& model, const Comm& co
 }
 
 /// The subdomain s of a model, assembled (not factored).
-inline Subdomain make_subdomain(const Model& model, int s) { return Subdomain(model.input(s).system); }
+inline Subdomain make_subdomain(const Model& model, int s) {
+  return Subdomain(model.input(s).system);
+}
 
 /// max |u - u_ref| over all copies of all nodes, relative to max |u_ref| (collective); u_ref is
 /// indexed by global node (dofs_per_node entries per node).
@@ -98,7 +100,7 @@ inline Eigen::VectorXd pseudo_random(const DualProblem& dual, double seed) {
 struct DenseConstraints {
   Eigen::MatrixXd B, C;
   std::vector<MultiplierKind> kind;
-  Eigen::VectorXd c;  ///< right-hand sides of the rows of B~
+  Eigen::VectorXd c;        ///< right-hand sides of the rows of B~
   std::vector<int> offset;  ///< first column of each subdomain
 };
 

@@ -42,30 +42,14 @@ class Cli : public ::testing::Test {
 }  // namespace
 
 TEST_F(Cli, BadArgumentsExitWithCode2AndWriteNothing) {
-  const char* bad[] = {"--problem plate",
-                       "-n 10 --subdomains 3",
-                       "-n -4",
-                       "--subdomains 0",
-                       "--rtol 1.5",
-                       "--rtol 0",
-                       "-n 16 --subdomains 4 -m 3",
-                       "--glue faces",
-                       "--element q2",
-                       "--no-such-option",
-                       "-n abc",
-                       "--beta 1",
-                       "--gamma 0",
-                       "--rho-factor -1",
-                       "--dual-operator dense",
-                       "--ordering nd",
-                       "--preconditioner jacobi",
-                       "--scaling rho",
-                       "--memory-limit 0",
-                       "--explicit-budget -1",
-                       "--coarse-steps-per-product 3",
+  const char* bad[] = {"--problem plate", "-n 10 --subdomains 3", "-n -4", "--subdomains 0",
+                       "--rtol 1.5", "--rtol 0", "-n 16 --subdomains 4 -m 3", "--glue faces",
+                       "--element q2", "--no-such-option", "-n abc", "--beta 1", "--gamma 0",
+                       "--rho-factor -1", "--dual-operator dense", "--ordering nd",
+                       "--preconditioner jacobi", "--scaling rho", "--memory-limit 0",
+                       "--explicit-budget -1", "--coarse-steps-per-product 3",
                        // cannot fit in memory: refused by the estimate before any work
-                       "-n 20000 --subdomains 100",
-                       "-n 100000 --subdomains 10"};
+                       "-n 20000 --subdomains 100", "-n 100000 --subdomains 10"};
   for (const char* args : bad) {
     EXPECT_EQ(run(bin + " solve " + args + " --report r.json --vtu u.vtu"), 2) << args;
     EXPECT_NE(stderr_text().find("error"), std::string::npos) << args;
@@ -280,7 +264,8 @@ TEST_F(Cli, BadProblemFilesExitWithCode2NamingTheKeyAndWriteNothing) {
       {with("[solver]", "[solver]\npreconditioner = \"jacobi\""), "preconditioner"},
       {with("[solver]", "[solver]\nscaling = 1"), "solver.scaling"},
       {with("[solver]", "[solver]\ndirichlet_storage = \"packed\""), "solver.dirichlet_storage"},
-      {with("type = \"laplace\"", "type = \"laplace\"\ncoefficient = \"q\""), "physics.coefficient"},
+      {with("type = \"laplace\"", "type = \"laplace\"\ncoefficient = \"q\""),
+       "physics.coefficient"},
       {with("type = \"laplace\"", "type = \"laplace\"\ncoefficient = \"x - 0.5\""),
        "physics.coefficient must be positive"},
       {with("[solver]", "[output]\nvtu_io = \"fast\"\n[solver]"), "output.vtu_io"},
@@ -291,7 +276,8 @@ TEST_F(Cli, BadProblemFilesExitWithCode2NamingTheKeyAndWriteNothing) {
   for (const auto& [text, needle] : cases) {
     const std::string name = "bad" + std::to_string(i++) + ".toml";
     write_file(name, text);
-    EXPECT_EQ(run(bin + " solve " + name + " --report r.json --vtu u.vtu"), 2) << name << "\n" << text;
+    EXPECT_EQ(run(bin + " solve " + name + " --report r.json --vtu u.vtu"), 2) << name << "\n"
+                                                                               << text;
     const std::string err = stderr_text();
     EXPECT_NE(err.find(needle), std::string::npos) << name << ": " << err;
     EXPECT_EQ(std::count(err.begin(), err.end(), '\n'), 1) << err;  // one line
@@ -299,9 +285,14 @@ TEST_F(Cli, BadProblemFilesExitWithCode2NamingTheKeyAndWriteNothing) {
   }
   // Strict integers and usable output paths, checked before any work.
   write_file("good.toml", kGood);
-  const char* bad_args[] = {"--subdomains 0x2,2", "--subdomains ' 2,2'", "--subdomains 2,-2",
-                            "--report ''",        "--report nodir/r.json", "--report .",
-                            "--vtu r.json --report r.json", "--vtu-io fast"};
+  const char* bad_args[] = {"--subdomains 0x2,2",
+                            "--subdomains ' 2,2'",
+                            "--subdomains 2,-2",
+                            "--report ''",
+                            "--report nodir/r.json",
+                            "--report .",
+                            "--vtu r.json --report r.json",
+                            "--vtu-io fast"};
   for (const char* a : bad_args) {
     EXPECT_EQ(run(bin + " solve good.toml " + a), 2) << a;
     EXPECT_TRUE(outputs().empty()) << a;
@@ -338,8 +329,8 @@ TEST_F(Cli, ContactResultsAreIdenticalOnOneToFourRanks) {
     }
     for (int r = 2; r <= 4; ++r) {
       const auto &a = reports[0], &b = reports[r - 1];
-      for (const char* key : {"outer_iterations", "inner_iterations", "matvecs", "objective",
-                              "kkt", "contact", "displacement", "dual_dimension"})
+      for (const char* key : {"outer_iterations", "inner_iterations", "matvecs", "objective", "kkt",
+                              "contact", "displacement", "dual_dimension"})
         EXPECT_EQ(a[key], b[key]) << p << ", " << r << " ranks: " << key;
     }
     EXPECT_GT(reports[0]["displacement"]["max_norm"].get<double>(), 0.0);
@@ -365,7 +356,8 @@ TEST_F(Cli, AutomaticOperatorFollowsTheMemoryLimit) {
   EXPECT_EQ(ri["dual_operator"], "implicit");
   EXPECT_EQ(ri["dual_operator_reason"], "automatic");
   EXPECT_EQ(re["dual_operator_reason"], "requested");
-  const double peak_i = ri["memory"]["estimate_mb"]["peak"], peak_e = re["memory"]["estimate_mb"]["peak"];
+  const double peak_i = ri["memory"]["estimate_mb"]["peak"],
+               peak_e = re["memory"]["estimate_mb"]["peak"];
   ASSERT_LT(peak_e, 0.8 * peak_i) << "the explicit operator frees its factors";
   // A limit between the two.
   const double limit_gb = 0.5 * (peak_i + peak_e) / 1024.0;
@@ -418,7 +410,9 @@ TEST_F(Cli, AutomaticOperatorFollowsTheMemoryLimit) {
 // without the numeric cache; with it, equal subdomains share theirs, counted once, and the
 // estimate's shared count is not below the factors built.
 TEST_F(Cli, MemoryEstimateMatchesTheFactorsBuilt) {
-  ASSERT_EQ(run(bin + " solve --problem poisson2d -n 20000 --subdomains 100 --no-vtu --report r.json"), 2);
+  ASSERT_EQ(
+      run(bin + " solve --problem poisson2d -n 20000 --subdomains 100 --no-vtu --report r.json"),
+      2);
   EXPECT_NE(stderr_text().find("does not fit in memory: estimated"), std::string::npos)
       << stderr_text();
   const char* cases[] = {"--problem poisson2d -n 256 --subdomains 8",
@@ -446,7 +440,8 @@ TEST_F(Cli, MemoryEstimateMatchesTheFactorsBuilt) {
     const auto report = nlohmann::json::parse(f);
     const auto& mem = report["memory"];
     const double all = mem["factor_mb"], distinct = mem["distinct_factor_mb"];
-    const double estimated = mem["estimate_mb"]["factors"], copies = mem["estimate_mb"]["shared_factors"];
+    const double estimated = mem["estimate_mb"]["factors"],
+                 copies = mem["estimate_mb"]["shared_factors"];
     EXPECT_GT(report["factorization"]["numeric_reuses"].get<double>(),
               0.8 * report["subdomains"].get<double>())
         << args;
@@ -462,8 +457,10 @@ TEST_F(Cli, MemoryEstimateMatchesTheFactorsBuilt) {
 // time; --keep-factors counts them all. --release-factors frees every cluster's factors.
 TEST_F(Cli, MemoryEstimateModelsExplicitBlocksAndFactorRelease) {
   auto estimate = [&](const std::string& extra) {
-    EXPECT_EQ(run(bin + " solve --problem poisson2d -n 256 --subdomains 8 -m 1 --dual-operator "
-                        "explicit --no-vtu --report r.json " + extra),
+    EXPECT_EQ(run(bin +
+                  " solve --problem poisson2d -n 256 --subdomains 8 -m 1 --dual-operator "
+                  "explicit --no-vtu --report r.json " +
+                  extra),
               0)
         << extra << stderr_text();
     std::ifstream f("r.json");
@@ -476,7 +473,8 @@ TEST_F(Cli, MemoryEstimateModelsExplicitBlocksAndFactorRelease) {
   EXPECT_LT(e["factors_held"].get<double>(), 0.5 * e["factors"].get<double>());
   EXPECT_EQ(released["clusters_released"], released["clusters"]);
   const auto kept = estimate("--keep-factors");
-  EXPECT_EQ(kept["memory"]["estimate_mb"]["factors_held"], kept["memory"]["estimate_mb"]["factors"]);
+  EXPECT_EQ(kept["memory"]["estimate_mb"]["factors_held"],
+            kept["memory"]["estimate_mb"]["factors"]);
   EXPECT_EQ(kept["clusters_released"], 0);
   EXPECT_GT(kept["memory"]["estimate_mb"]["peak"].get<double>(), e["peak"].get<double>());
   // The solution does not depend on it (round-off of the reconstruction's factor).
@@ -510,7 +508,9 @@ TEST_F(Cli, DegenerateFloatingBodies) {
   auto box = [](const std::string& loads) {
     return "[mesh]\ngenerator = \"box\"\nsize = [2.0, 1.0]\nelements = [8, 4]\n"
            "element = \"quad4\"\n[physics]\ntype = \"elasticity\"\nyoung = 100.0\n"
-           "poisson = 0.3\n" + loads + "[decomposition]\nsubdomains = [2, 1]\n"
+           "poisson = 0.3\n" +
+           loads +
+           "[decomposition]\nsubdomains = [2, 1]\n"
            "[solver]\nrtol = 1e-10\n";
   };
   const std::string pull = "[[load]]\ngroup = \"x1\"\ntraction = [1.0, 0.0]\n";
@@ -561,11 +561,11 @@ TEST_F(Cli, OptionsAreEchoedAndDryRunWritesNothing) {
   std::ifstream f("r.json");
   const auto r = nlohmann::json::parse(f);
   const auto& s = r["options"]["solver"];
-  EXPECT_EQ(s["rtol"], 1e-6);            // the file
-  EXPECT_EQ(s["symbolic_cache"], 5);     // the command line over the file
-  EXPECT_EQ(s["beta"], 3.0);             // the command line alone
+  EXPECT_EQ(s["rtol"], 1e-6);         // the file
+  EXPECT_EQ(s["symbolic_cache"], 5);  // the command line over the file
+  EXPECT_EQ(s["beta"], 3.0);          // the command line alone
   EXPECT_EQ(s["numeric_cache_gb"], 0.25);
-  EXPECT_EQ(s["gamma"], 1.0);            // a default
+  EXPECT_EQ(s["gamma"], 1.0);  // a default
   EXPECT_TRUE(s["memory_limit_gb"].is_null());
   EXPECT_EQ(r["options"]["output"]["vtu"], false);
   EXPECT_EQ(r["options"]["output"]["report"], "r.json");
@@ -580,16 +580,16 @@ TEST_F(Cli, OptionsAreEchoedAndDryRunWritesNothing) {
   ASSERT_TRUE(WIFEXITED(code) && WEXITSTATUS(code) == 0) << stderr_text();
   std::ifstream d("dry.txt");
   const std::string text(std::istreambuf_iterator<char>(d), {});
-  for (const char* needle : {"nothing is set up", "\"partitioner\"", "projected CG",
-                             "preconditioner: none", "memory estimate:", "[solver]",
-                             "rtol = 1e-06", "[output]", "report = \"r.json\""})
+  for (const char* needle :
+       {"nothing is set up", "\"partitioner\"", "projected CG", "preconditioner: none",
+        "memory estimate:", "[solver]", "rtol = 1e-06", "[output]", "report = \"r.json\""})
     EXPECT_NE(text.find(needle), std::string::npos) << needle << "\n" << text;
   EXPECT_FALSE(fs::exists("r.json"));
   EXPECT_FALSE(fs::exists("u.vtu"));
 
-  for (const char* bad : {"--memory-limit nan", "--explicit-budget nan", "--numeric-cache nan",
-                          "--rtol inf", "--dirichlet-budget -1", "--symbolic-cache 1e3",
-                          "--max-it 99999999999"}) {
+  for (const char* bad :
+       {"--memory-limit nan", "--explicit-budget nan", "--numeric-cache nan", "--rtol inf",
+        "--dirichlet-budget -1", "--symbolic-cache 1e3", "--max-it 99999999999"}) {
     EXPECT_EQ(run(bin + " solve p.toml --report r.json " + bad), 2) << bad;
     EXPECT_NE(stderr_text().find(std::string(bad).substr(0, std::string(bad).find(' '))),
               std::string::npos)

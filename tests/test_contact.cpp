@@ -27,35 +27,35 @@ TEST_P(ContactAgainstUndecomposed, EnergyAndContactDisplacements) {
   const auto ref = solve_undecomposed(c.problem, ElementKind::q1, c.n);
   // Both forms of SMALBE-M's Hessian product through the same checks.
   for (int steps : {2, 1}) {
-  SCOPED_TRACE("coarse steps per product: " + std::to_string(steps));
-  opt.coarse_steps_per_product = steps;
-  auto out = solve(opt, comm);
-  ASSERT_TRUE(out.converged) << out.report["stop_reason"];
-  EXPECT_EQ(out.report["coarse_steps_per_product"].get<int>(), steps);
-  const double energy = out.report["objective"];
-  EXPECT_NEAR(energy, ref.energy, 1e-6 * std::abs(ref.energy));
-  EXPECT_LT(test::relative_error(*out.model, *out.dual, out.u, ref.u), 1e-5);
-  const auto& contact = out.report["contact"];
-  ASSERT_EQ(contact["y"].size(), ref.contact_y.size());
-  double umax = 0, fmax = 0;
-  for (size_t j = 0; j < ref.contact_y.size(); ++j) {
-    umax = std::max({umax, std::abs(ref.u_left[j]), std::abs(ref.u_right[j])});
-    fmax = std::max(fmax, std::abs(ref.multiplier[j]));
-  }
-  for (size_t j = 0; j < ref.contact_y.size(); ++j) {
-    EXPECT_NEAR(contact["y"][j].get<double>(), ref.contact_y[j], 1e-14);
-    EXPECT_NEAR(contact["u_left"][j].get<double>(), ref.u_left[j], 1e-5 * umax) << "node " << j;
-    EXPECT_NEAR(contact["u_right"][j].get<double>(), ref.u_right[j], 1e-5 * umax) << "node " << j;
-    EXPECT_NEAR(contact["multiplier"][j].get<double>(), ref.multiplier[j], 1e-4 * fmax)
-        << "node " << j;
-  }
-  // KKT conditions of the primal solution, each on its own scale (min_multiplier >= 0 holds by
-  // construction of lambda and is not checked here): feasibility, complementarity
-  // |force x gap| per contact node, and the equality rows B_E u = c_E.
-  const auto& kkt = out.report["kkt"];
-  EXPECT_LT(kkt["max_violation"].get<double>(), 1e-6 * umax);
-  EXPECT_LE(kkt["complementarity"].get<double>(), 1e-6 * umax * fmax);
-  EXPECT_LT(kkt["equality_residual"].get<double>(), 1e-6 * umax);
+    SCOPED_TRACE("coarse steps per product: " + std::to_string(steps));
+    opt.coarse_steps_per_product = steps;
+    auto out = solve(opt, comm);
+    ASSERT_TRUE(out.converged) << out.report["stop_reason"];
+    EXPECT_EQ(out.report["coarse_steps_per_product"].get<int>(), steps);
+    const double energy = out.report["objective"];
+    EXPECT_NEAR(energy, ref.energy, 1e-6 * std::abs(ref.energy));
+    EXPECT_LT(test::relative_error(*out.model, *out.dual, out.u, ref.u), 1e-5);
+    const auto& contact = out.report["contact"];
+    ASSERT_EQ(contact["y"].size(), ref.contact_y.size());
+    double umax = 0, fmax = 0;
+    for (size_t j = 0; j < ref.contact_y.size(); ++j) {
+      umax = std::max({umax, std::abs(ref.u_left[j]), std::abs(ref.u_right[j])});
+      fmax = std::max(fmax, std::abs(ref.multiplier[j]));
+    }
+    for (size_t j = 0; j < ref.contact_y.size(); ++j) {
+      EXPECT_NEAR(contact["y"][j].get<double>(), ref.contact_y[j], 1e-14);
+      EXPECT_NEAR(contact["u_left"][j].get<double>(), ref.u_left[j], 1e-5 * umax) << "node " << j;
+      EXPECT_NEAR(contact["u_right"][j].get<double>(), ref.u_right[j], 1e-5 * umax) << "node " << j;
+      EXPECT_NEAR(contact["multiplier"][j].get<double>(), ref.multiplier[j], 1e-4 * fmax)
+          << "node " << j;
+    }
+    // KKT conditions of the primal solution, each on its own scale (min_multiplier >= 0 holds by
+    // construction of lambda and is not checked here): feasibility, complementarity
+    // |force x gap| per contact node, and the equality rows B_E u = c_E.
+    const auto& kkt = out.report["kkt"];
+    EXPECT_LT(kkt["max_violation"].get<double>(), 1e-6 * umax);
+    EXPECT_LE(kkt["complementarity"].get<double>(), 1e-6 * umax * fmax);
+    EXPECT_LT(kkt["equality_residual"].get<double>(), 1e-6 * umax);
   }
 }
 
@@ -86,7 +86,8 @@ TEST(FactorsReleased, SameSolutionWhenFactorsAreRebuiltForTheReconstruction) {
   // The iterations use only the explicit F_i: the same iterates. The reconstruction factors
   // again without the interface last (a plain factor): the same u to round-off.
   EXPECT_EQ(kept.report["matvecs"], released.report["matvecs"]);
-  EXPECT_EQ(kept.report["solver"]["projected_gradient"], released.report["solver"]["projected_gradient"]);
+  EXPECT_EQ(kept.report["solver"]["projected_gradient"],
+            released.report["solver"]["projected_gradient"]);
   const double e0 = kept.report["objective"], e1 = released.report["objective"];
   EXPECT_NEAR(e1, e0, 1e-13 * std::abs(e0));
   ASSERT_EQ(kept.u.size(), released.u.size());

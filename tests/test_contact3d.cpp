@@ -123,7 +123,8 @@ class CubeObstacle : public ::testing::TestWithParam<Case> {};
 TEST_P(CubeObstacle, MatchesTheActiveSetSolution) {
   const Case c = GetParam();
   Comm comm;
-  const ProblemSpec spec = cube_obstacle_spec({12, 6, 6}, c.subdomains, c.cluster_size, c.amplitude, c.cell);
+  const ProblemSpec spec =
+      cube_obstacle_spec({12, 6, 6}, c.subdomains, c.cluster_size, c.amplitude, c.cell);
   std::shared_ptr<const Model> model = make_model(spec);
   SolveOptions opt;
   // SMALBE-M compares ||G lambda|| (force units, lambda ~ 1e9 here) with rtol ||b||: round-off in
@@ -132,25 +133,25 @@ TEST_P(CubeObstacle, MatchesTheActiveSetSolution) {
   opt.max_iterations = 2000;
   const QpReference ref = solve_contact_directly(spec);
   for (int steps : {2, 1}) {  // both forms of the Hessian product through the same checks
-  SCOPED_TRACE("coarse steps per product: " + std::to_string(steps));
-  opt.coarse_steps_per_product = steps;
-  const auto out = solve(model, opt, comm);
-  ASSERT_TRUE(out.converged) << out.report["stop_reason"];
-  EXPECT_EQ(out.report["coarse_steps_per_product"].get<int>(), steps);
-  ASSERT_GT(ref.active, 0);
-  if (c.partial) {
-    ASSERT_GT(ref.inactive, 0) << "the case should have partial contact";
-  } else {
-    ASSERT_EQ(ref.inactive, 0) << "the case should have full contact";
-  }
-  const double energy = out.report["objective"];
-  EXPECT_NEAR(energy, ref.energy, 1e-8 * std::abs(ref.energy));
-  EXPECT_LT(test::relative_error(*model, *out.dual, out.u, ref.u), 1e-6);
-  const auto& kkt = out.report["kkt"];
-  const double umax = ref.u.cwiseAbs().maxCoeff();
-  EXPECT_LT(kkt["max_violation"].get<double>(), 1e-6 * umax);
-  EXPECT_GE(kkt["min_multiplier"].get<double>(), -1e-8 * std::abs(energy) / umax);
-  EXPECT_EQ(out.report["coarse_dimension"].get<int>(), 6 * model->num_clusters());
+    SCOPED_TRACE("coarse steps per product: " + std::to_string(steps));
+    opt.coarse_steps_per_product = steps;
+    const auto out = solve(model, opt, comm);
+    ASSERT_TRUE(out.converged) << out.report["stop_reason"];
+    EXPECT_EQ(out.report["coarse_steps_per_product"].get<int>(), steps);
+    ASSERT_GT(ref.active, 0);
+    if (c.partial) {
+      ASSERT_GT(ref.inactive, 0) << "the case should have partial contact";
+    } else {
+      ASSERT_EQ(ref.inactive, 0) << "the case should have full contact";
+    }
+    const double energy = out.report["objective"];
+    EXPECT_NEAR(energy, ref.energy, 1e-8 * std::abs(ref.energy));
+    EXPECT_LT(test::relative_error(*model, *out.dual, out.u, ref.u), 1e-6);
+    const auto& kkt = out.report["kkt"];
+    const double umax = ref.u.cwiseAbs().maxCoeff();
+    EXPECT_LT(kkt["max_violation"].get<double>(), 1e-6 * umax);
+    EXPECT_GE(kkt["min_multiplier"].get<double>(), -1e-8 * std::abs(energy) / umax);
+    EXPECT_EQ(out.report["coarse_dimension"].get<int>(), 6 * model->num_clusters());
   }
 }
 
@@ -235,10 +236,10 @@ TEST(Box, SubdomainMatricesAreEqualBitForBit) {
       ASSERT_TRUE(K.isCompressed());
       ASSERT_EQ(K.rows(), K0.rows());
       ASSERT_EQ(K.nonZeros(), K0.nonZeros());
-      EXPECT_TRUE(std::equal(K.outerIndexPtr(), K.outerIndexPtr() + K.outerSize() + 1,
-                             K0.outerIndexPtr()));
-      EXPECT_TRUE(std::equal(K.innerIndexPtr(), K.innerIndexPtr() + K.nonZeros(),
-                             K0.innerIndexPtr()));
+      EXPECT_TRUE(
+          std::equal(K.outerIndexPtr(), K.outerIndexPtr() + K.outerSize() + 1, K0.outerIndexPtr()));
+      EXPECT_TRUE(
+          std::equal(K.innerIndexPtr(), K.innerIndexPtr() + K.nonZeros(), K0.innerIndexPtr()));
       EXPECT_EQ(std::memcmp(K.valuePtr(), K0.valuePtr(), sizeof(double) * K.nonZeros()), 0)
           << "subdomain " << s << " of " << to_string(cell);
     }

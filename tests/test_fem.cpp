@@ -11,9 +11,9 @@
 #include <thread>
 
 #include "helpers.hpp"
+#include "htfeti/fem/physics.hpp"
 #include "htfeti/feti/cluster.hpp"
 #include "htfeti/feti/constraints.hpp"
-#include "htfeti/fem/physics.hpp"
 #include "htfeti/linalg/orthonormal.hpp"
 #include "htfeti/linalg/packed_symmetric.hpp"
 
@@ -44,7 +44,8 @@ TEST(Load, TotalLoadIsTheIntegralOfF) {
     Decomposition dec({ProblemKind::membranes, element, 8, 2, 1, Glue::averages});
     const auto model = make_builtin_model(dec.options());
     double total = 0;
-    for (int s = 0; s < dec.num_subdomains(); ++s) total += test::make_subdomain(*model, s).f().sum();
+    for (int s = 0; s < dec.num_subdomains(); ++s)
+      total += test::make_subdomain(*model, s).f().sum();
     EXPECT_NEAR(total, -3.0 * 0.25 - 1.0 * 0.25, 1e-14);
     Decomposition p({ProblemKind::poisson2d, element, 6, 3, 1, Glue::averages});
     const auto pm = make_builtin_model(p.options());
@@ -72,7 +73,7 @@ TEST(Subdomain, GeneralizedInverseAndKernel) {
     sd.apply_pinv_many(many);
     EXPECT_LT((many - KpK.leftCols(5)).norm(), 1e-13 * KpK.leftCols(5).norm());
     EXPECT_GT(many.norm(), 0.0);
-    EXPECT_LT((K * sd.kernel()).norm(), 1e-13);         // K R = 0
+    EXPECT_LT((K * sd.kernel()).norm(), 1e-13);  // K R = 0
     EXPECT_NEAR(sd.kernel().norm(), 1.0, 1e-14);
     const Eigen::VectorXd u = Eigen::VectorXd::LinSpaced(K.rows(), -1.0, 2.0);
     EXPECT_NEAR(sd.energy(u), 0.5 * u.dot(K * u) - sd.f().dot(u), 1e-12);  // element-wise energy
@@ -158,10 +159,10 @@ TEST(SymbolicCache, SharesAnalysesOnlyBetweenEqualPatterns) {
   {  // numeric factors: kept for a repeated pattern, copied for an equal matrix only
     SymbolicCache cache(64, 1e9);
     SparseCholesky f1, f2, f3, f4, f5, plain;
-    f1.factorize(A1, last, &cache);  // analysed
-    f2.factorize(A1, last, &cache);  // analysis reused; its numeric factor kept
-    f3.factorize(A1, last, &cache);  // copies f2's factor
-    f4.factorize(A2, last, &cache);  // the same pattern, other values: factored
+    f1.factorize(A1, last, &cache);        // analysed
+    f2.factorize(A1, last, &cache);        // analysis reused; its numeric factor kept
+    f3.factorize(A1, last, &cache);        // copies f2's factor
+    f4.factorize(A2, last, &cache);        // the same pattern, other values: factored
     f5.factorize(A1, other_last, &cache);  // another set ordered last: analysed
     plain.factorize(A1, last);
     EXPECT_EQ(cache.analyses(), 2);
@@ -240,8 +241,8 @@ TEST(SymbolicCache, SharesAnalysesOnlyBetweenEqualPatterns) {
 TEST(MatrixPool, EqualMatricesAreHeldOnce) {
   auto make = [](double last) {
     Eigen::SparseMatrix<double> K(3, 3);
-    std::vector<Eigen::Triplet<double>> t{{0, 0, 2.0}, {1, 0, -1.0}, {1, 1, 2.0}, {2, 1, -1.0},
-                                          {2, 2, last}};
+    std::vector<Eigen::Triplet<double>> t{
+        {0, 0, 2.0}, {1, 0, -1.0}, {1, 1, 2.0}, {2, 1, -1.0}, {2, 2, last}};
     K.setFromTriplets(t.begin(), t.end());
     return K;
   };
@@ -300,9 +301,9 @@ TEST(SymbolicCache, SharedNumericFactorOutlivesItsOtherHolders) {
     for (auto& c : f) c.factorize(A, &cache);
     EXPECT_EQ(cache.matrices(), 1);
     EXPECT_EQ(cache.numeric_reuses(), holders - 2);  // the first analyses, the second is kept
-  }  // the cache is gone; its factor lives on in the holders
-  f[1] = SparseCholesky();              // the holder that factored the kept matrix
-  f[2].factorize(A2);                   // another holder refactored with other values
+  }                         // the cache is gone; its factor lives on in the holders
+  f[1] = SparseCholesky();  // the holder that factored the kept matrix
+  f[2].factorize(A2);       // another holder refactored with other values
   const Eigen::VectorXd b = Eigen::VectorXd::LinSpaced(n * n, -1.0, 2.0);
   Eigen::VectorXd x_plain(n * n);
   plain.solve(b.data(), x_plain.data());
@@ -394,7 +395,8 @@ TEST(PackedSymmetric, ProductAndStorage) {
       const PackedSymmetric P(A, p);
       Eigen::VectorXd y = Eigen::VectorXd::Constant(n, 7.0);  // overwritten
       P.multiply(x.data(), y.data());
-      const double tol = (p == Precision::double_ ? 1e-14 : 2e-7) * (S.cwiseAbs() * x.cwiseAbs()).maxCoeff();
+      const double tol =
+          (p == Precision::double_ ? 1e-14 : 2e-7) * (S.cwiseAbs() * x.cwiseAbs()).maxCoeff();
       EXPECT_LT((y - ref).cwiseAbs().maxCoeff(), tol) << n;
       EXPECT_EQ(P.bytes(), (p == Precision::double_ ? 8L : 4L) * n * (n + 1) / 2);
       for (int i = 0; i < n; ++i)
@@ -479,8 +481,8 @@ INSTANTIATE_TEST_SUITE_P(
 // p dpn - rank W of them, O(p log p) nonzeros; Laplace constants on an edge, plane-strain rigid
 // body motions on an edge, 3D rigid body motions on a face, on a curved face and on scattered
 // points with a collinear subset.
-class HierarchicalComplement
-    : public ::testing::TestWithParam<std::tuple<PhysicsKind, int, int>> {};
+class HierarchicalComplement : public ::testing::TestWithParam<std::tuple<PhysicsKind, int, int>> {
+};
 
 TEST_P(HierarchicalComplement, OrthonormalComplementOfTheObjectKernel) {
   const auto [kind, dim, shape] = GetParam();
@@ -521,14 +523,13 @@ TEST_P(HierarchicalComplement, OrthonormalComplementOfTheObjectKernel) {
               rows.size(), nnz, static_cast<long>(rows.size()) * m);
 }
 
-INSTANTIATE_TEST_SUITE_P(
-    Objects, HierarchicalComplement,
-    ::testing::Values(std::make_tuple(PhysicsKind::laplace, 2, 0),
-                      std::make_tuple(PhysicsKind::elasticity, 2, 0),
-                      std::make_tuple(PhysicsKind::laplace, 3, 1),
-                      std::make_tuple(PhysicsKind::elasticity, 3, 1),
-                      std::make_tuple(PhysicsKind::elasticity, 3, 2),
-                      std::make_tuple(PhysicsKind::elasticity, 3, 3)));
+INSTANTIATE_TEST_SUITE_P(Objects, HierarchicalComplement,
+                         ::testing::Values(std::make_tuple(PhysicsKind::laplace, 2, 0),
+                                           std::make_tuple(PhysicsKind::elasticity, 2, 0),
+                                           std::make_tuple(PhysicsKind::laplace, 3, 1),
+                                           std::make_tuple(PhysicsKind::elasticity, 3, 1),
+                                           std::make_tuple(PhysicsKind::elasticity, 3, 2),
+                                           std::make_tuple(PhysicsKind::elasticity, 3, 3)));
 
 class ClusterInverse : public ::testing::TestWithParam<std::tuple<int, int, Glue>> {};
 

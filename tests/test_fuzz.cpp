@@ -78,8 +78,8 @@ std::string join(const std::vector<std::string>& v) {
 // replace a number by a hostile one.
 std::string mutate(const std::string& text, std::mt19937& rng) {
   static const std::vector<std::string> numbers = {
-      "0",    "-1",  "-0",  "1e308", "-1e308", "nan",        "inf", "1e-300",
-      "2147483648", "99999999999", "3.5", "\"x\"", "[]", "true", "", "0x10"};
+      "0",          "-1",          "-0",  "1e308", "-1e308", "nan",  "inf", "1e-300",
+      "2147483648", "99999999999", "3.5", "\"x\"", "[]",     "true", "",    "0x10"};
   static const std::string chars = "=[]\"{},.#\n -$e";
   auto pick = [&](size_t n) { return std::uniform_int_distribution<size_t>(0, n - 1)(rng); };
   std::vector<std::string> L = lines_of(text);
@@ -157,13 +157,15 @@ class Fuzz : public ::testing::Test {
     ++codes[o.code];
     const std::string tag = what + " mutation " + std::to_string(i);
     EXPECT_TRUE(o.code == 0 || o.code == 2 || o.code == 3 || o.code == 4)
-        << tag << ": exit " << o.code << "\n" << o.err << "\ninput kept as " << keep(tag);
+        << tag << ": exit " << o.code << "\n"
+        << o.err << "\ninput kept as " << keep(tag);
     if (o.code != 0) EXPECT_NE(o.err.find("error"), std::string::npos) << tag << ": " << o.err;
     if (o.code == 2) EXPECT_FALSE(fs::exists("r.json")) << tag;
     if (o.code == 3) EXPECT_TRUE(fs::exists("r.json")) << tag;  // not converged: a report
   }
   std::string keep(const std::string& tag) {
-    const fs::path to = fs::temp_directory_path() / ("htfeti-fuzz-failure-" + std::to_string(++kept));
+    const fs::path to =
+        fs::temp_directory_path() / ("htfeti-fuzz-failure-" + std::to_string(++kept));
     fs::create_directories(to);
     fs::copy_file("p.toml", to / "p.toml", fs::copy_options::overwrite_existing);
     fs::copy_file("mesh.msh", to / "mesh.msh", fs::copy_options::overwrite_existing);

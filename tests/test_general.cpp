@@ -4,7 +4,6 @@
 // problem as one subdomain (no decomposition), Dirichlet dofs eliminated, solved by Eigen's sparse
 // LU. Runs under mpiexec -n 1, 2, 3.
 #include <gtest/gtest.h>
-
 #include <omp.h>
 
 #include <Eigen/SparseLU>
@@ -30,7 +29,8 @@ struct Reference {
 
 // The undecomposed problem: the model's spec with one subdomain.
 Reference solve_directly(ProblemSpec spec) {
-  spec.subdomains = std::vector<int>(spec.subdomains.size() > 1 && spec.mesh_file.empty() ? spec.box.dim : 1, 1);
+  spec.subdomains =
+      std::vector<int>(spec.subdomains.size() > 1 && spec.mesh_file.empty() ? spec.box.dim : 1, 1);
   spec.cluster_size = 1;
   const auto model = make_model(spec);
   const SubdomainInput in = model->input(0);
@@ -150,7 +150,8 @@ TEST(Assembly, StiffnessIsTheTripletsSummedInElementOrder) {
         ASSERT_EQ(K.rows(), n);
         ASSERT_TRUE(K.isCompressed());
         ASSERT_EQ(K.nonZeros(), ref.nonZeros()) << spec.mesh_file << " subdomain " << s;
-        EXPECT_TRUE(std::equal(ref.outerIndexPtr(), ref.outerIndexPtr() + n + 1, K.outerIndexPtr()));
+        EXPECT_TRUE(
+            std::equal(ref.outerIndexPtr(), ref.outerIndexPtr() + n + 1, K.outerIndexPtr()));
         EXPECT_TRUE(std::equal(ref.innerIndexPtr(), ref.innerIndexPtr() + ref.nonZeros(),
                                K.innerIndexPtr()));
         long differ = 0;  // bit for bit: the same sums in the same order
@@ -178,7 +179,8 @@ TEST(Model, MeshCountsAreTheSizesOfTheMesh) {
     }
   }
   for (auto& spec : specs) {
-    spec.subdomains = spec.mesh_file.empty() ? std::vector<int>(spec.box.dim, 2) : std::vector<int>{3};
+    spec.subdomains =
+        spec.mesh_file.empty() ? std::vector<int>(spec.box.dim, 2) : std::vector<int>{3};
     const auto model = make_model(spec);
     for (int s = 0; s < model->num_subdomains(); ++s) {
       const SubdomainMesh mesh = model->mesh(s);
@@ -310,7 +312,8 @@ TEST(GmshReader, FormatsAgree) {
     EXPECT_LT(std::abs(Eigen::Map<const Eigen::VectorXd>(a.coords.data(), a.coords.size()).sum() -
                        Eigen::Map<const Eigen::VectorXd>(b.coords.data(), b.coords.size()).sum()),
               1e-9);
-    for (const auto& [name, nodes] : a.node_groups) EXPECT_EQ(nodes, b.node_groups.at(name)) << name;
+    for (const auto& [name, nodes] : a.node_groups)
+      EXPECT_EQ(nodes, b.node_groups.at(name)) << name;
   }
   EXPECT_EQ(a.dim, 2);
   EXPECT_EQ(a.type, CellType::tri3);

@@ -115,12 +115,11 @@ TEST_P(HotPath, OperatorsAllocateNothing) {
 
 INSTANTIATE_TEST_SUITE_P(
     Membranes, HotPath,
-    ::testing::Values(Case{"tfeti_explicit", 1, DualOperator::explicit_, PreconditionerKind::none},
-                      Case{"tfeti_implicit_dirichlet", 1, DualOperator::implicit,
-                           PreconditionerKind::dirichlet},
-                      Case{"htfeti_explicit_lumped", 2, DualOperator::explicit_,
-                           PreconditionerKind::lumped},
-                      Case{"htfeti_implicit", 2, DualOperator::implicit, PreconditionerKind::none}),
+    ::testing::Values(
+        Case{"tfeti_explicit", 1, DualOperator::explicit_, PreconditionerKind::none},
+        Case{"tfeti_implicit_dirichlet", 1, DualOperator::implicit, PreconditionerKind::dirichlet},
+        Case{"htfeti_explicit_lumped", 2, DualOperator::explicit_, PreconditionerKind::lumped},
+        Case{"htfeti_implicit", 2, DualOperator::implicit, PreconditionerKind::none}),
     [](const auto& info) { return std::string(info.param.name); });
 
 // SMALBE-M on the membranes: allocations of a solve capped at k inner iterations and at 2k are
@@ -138,16 +137,18 @@ TEST(HotPath, SmalbeAllocatesNothingPerIteration) {
       if (steps == 1) dual->build_coarse_image();
       const int n = dual->n_owned();
       Eigen::VectorXd px(n), fv(n), tmp(n), b(n), x = Eigen::VectorXd::Zero(n);
-      qp::FunctionOperator F([&](const Eigen::VectorXd& u, Eigen::VectorXd& v) { dual->apply_F(u, v); });
-      qp::FunctionOperator P([&](const Eigen::VectorXd& u, Eigen::VectorXd& v) { dual->project(u, v); });
+      qp::FunctionOperator F(
+          [&](const Eigen::VectorXd& u, Eigen::VectorXd& v) { dual->apply_F(u, v); });
+      qp::FunctionOperator P(
+          [&](const Eigen::VectorXd& u, Eigen::VectorXd& v) { dual->project(u, v); });
       qp::FunctionOperator A([&](const Eigen::VectorXd& u, Eigen::VectorXd& v) {
         P.apply(u, tmp);
         F.apply(tmp, v);
         P.apply(v, v);
       });
       qp::SmalbeHooks hooks;
-      hooks.fused_hessian = [&](const Eigen::VectorXd& v, double rho,
-                                         Eigen::VectorXd& y, Eigen::VectorXd& qv) {
+      hooks.fused_hessian = [&](const Eigen::VectorXd& v, double rho, Eigen::VectorXd& y,
+                                Eigen::VectorXd& qv) {
         if (steps == 1) {
           F.apply(v, fv);
           dual->hessian_from_Fv(v, fv, rho, y, qv);
@@ -186,8 +187,10 @@ TEST(HotPath, ProjectedCgAllocatesNothingPerIteration) {
       make_builtin_model({ProblemKind::poisson2d, ElementKind::q1, 32, 4, 1, Glue::averages});
   auto dual = test::make_dual(*model, comm);
   const DualReducer red(comm, *dual);
-  qp::FunctionOperator F([&](const Eigen::VectorXd& u, Eigen::VectorXd& v) { dual->apply_F(u, v); });
-  qp::FunctionOperator P([&](const Eigen::VectorXd& u, Eigen::VectorXd& v) { dual->project(u, v); });
+  qp::FunctionOperator F(
+      [&](const Eigen::VectorXd& u, Eigen::VectorXd& v) { dual->apply_F(u, v); });
+  qp::FunctionOperator P(
+      [&](const Eigen::VectorXd& u, Eigen::VectorXd& v) { dual->project(u, v); });
   long counts[2];
   for (int run = 0; run < 2; ++run) {
     Eigen::VectorXd x = dual->lambda_tilde();

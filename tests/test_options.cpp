@@ -21,8 +21,8 @@ const char* kBox =
     "[decomposition]\nsubdomains = [2, 2]\n";
 
 RunOptions read_with(const std::string& tables) {
-  const fs::path p = fs::temp_directory_path() / ("htfeti_options_" + std::to_string(::getpid()) +
-                                                  ".toml");
+  const fs::path p =
+      fs::temp_directory_path() / ("htfeti_options_" + std::to_string(::getpid()) + ".toml");
   std::ofstream(p) << kBox << tables;
   RunOptions run;
   try {
@@ -123,11 +123,11 @@ TEST(Options, CommandLineAndFileAgree) {
                  std::invalid_argument)
         << bad;
   }
-  for (const char* bad : {"rtol = 1.5", "rtol = nan", "rtol = \"1e-4\"", "max_iterations = -1",
-                          "max_iterations = 4294967296", "coarse_steps_per_product = 3",
-                          "memory_limit_gb = 0.0", "numeric_cache_gb = -1.0",
-                          "dual_operator = \"dense\"", "keep_factors = 1", "no_such = 1",
-                          "keep_factors = true\nrelease_factors = true"})
+  for (const char* bad :
+       {"rtol = 1.5", "rtol = nan", "rtol = \"1e-4\"", "max_iterations = -1",
+        "max_iterations = 4294967296", "coarse_steps_per_product = 3", "memory_limit_gb = 0.0",
+        "numeric_cache_gb = -1.0", "dual_operator = \"dense\"", "keep_factors = 1", "no_such = 1",
+        "keep_factors = true\nrelease_factors = true"})
     EXPECT_THROW(read_with(std::string("[solver]\n") + bad + "\n"), std::invalid_argument) << bad;
   for (const char* bad : {"report = true", "vtu = 3", "vtu_io = \"fast\"", "report = \"\""})
     EXPECT_THROW(read_with(std::string("[output]\n") + bad + "\n"), std::invalid_argument) << bad;

@@ -42,7 +42,8 @@ std::shared_ptr<const Model> builtin(ProblemKind p, int n, int ns, int m, Glue g
 TEST(LocalPreconditioner, MatchesTheDenseSchurComplement) {
   Comm comm;
   if (comm.rank() != 0) return;
-  for (const auto& model : {builtin(ProblemKind::poisson2d, 8, 2, 1, Glue::averages), cube(1, true)}) {
+  for (const auto& model :
+       {builtin(ProblemKind::poisson2d, 8, 2, 1, Glue::averages), cube(1, true)}) {
     const SubdomainInput in = model->input(0);
     const Eigen::SparseMatrix<double>& K = in.system.K;
     const int dpn = in.system.dofs_per_node;
@@ -155,7 +156,8 @@ TEST_P(Preconditioners, SymmetricPositiveDefiniteOnKerG) {
     }
     EXPECT_LT((Zd - Zd.transpose()).norm(), 1e-12 * Zd.norm()) << c.name;
     const double s = Zd.norm();
-    const Eigen::MatrixXd A = 0.5 * (Zd + Zd.transpose()) + s * (Eigen::MatrixXd::Identity(n, n) - Pd);
+    const Eigen::MatrixXd A =
+        0.5 * (Zd + Zd.transpose()) + s * (Eigen::MatrixXd::Identity(n, n) - Pd);
     Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(A);
     EXPECT_GT(eig.eigenvalues().minCoeff(), 1e-10 * eig.eigenvalues().maxCoeff()) << c.name;
   }

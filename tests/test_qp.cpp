@@ -43,8 +43,8 @@ QuadraticProgram qp_of(Operator& A, const Qp& q, bool bounds = true) {
   out.linear = q.b;
   if (bounds) out.constraints = std::make_shared<LowerBounds>(q.l);
   const Eigen::Index n = q.b.size();
-  out.equality_projector = std::make_shared<DenseOperator>(
-      Eigen::MatrixXd::Identity(n, n) - q.G.transpose() * q.G);
+  out.equality_projector =
+      std::make_shared<DenseOperator>(Eigen::MatrixXd::Identity(n, n) - q.G.transpose() * q.G);
   return out;
 }
 
@@ -395,7 +395,8 @@ TEST(Mprgp, TrackedImageEqualsAppliedImage) {
     MprgpOptions plain = opt;
     plain.image = nullptr;
     Vec x2 = Vec::Zero(n), g2(n);
-    mprgp(A0, q.b, q.l, x2, g2, red, plain, [&](const Vec&, const Vec&, double gp) { return gp <= tol; });
+    mprgp(A0, q.b, q.l, x2, g2, red, plain,
+          [&](const Vec&, const Vec&, double gp) { return gp <= tol; });
     EXPECT_EQ(x2, x);
   }
   EXPECT_GT(expansions, 0);

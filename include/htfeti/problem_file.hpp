@@ -35,7 +35,7 @@
 namespace htfeti {
 
 struct ProblemSpec {
-  std::string path;       ///< the problem file
+  std::string path;  ///< the problem file
   /// [mesh] builtin = "poisson2d" | "membranes" | "membranes-coercive": a built-in problem, with
   /// elements = n and element = "q1" | "p1"; [decomposition] subdomains = N_s per side.
   std::string builtin;

@@ -39,7 +39,7 @@ struct SolveOptions {
   /// one machine no time per product (docs/performance.md); its gain is one synchronization per
   /// product over many ranks. Projected CG (no contact) always takes 2.
   int coarse_steps_per_product = 2;
-  bool progress = false;     ///< print one line per (outer) iteration on rank 0 (stderr)
+  bool progress = false;  ///< print one line per (outer) iteration on rank 0 (stderr)
   /// Estimate the memory before setup and refuse (std::invalid_argument) what cannot fit
   /// (memory_estimate.hpp).
   bool check_memory = true;

@@ -20,7 +20,8 @@ Decomposition::Decomposition(const DecompositionOptions& o) : opt_(o) {
                                 std::to_string(o.cluster_size));
   if (nodes_per_subdomain() > 500000000LL)
     throw std::invalid_argument("a subdomain of " + std::to_string(H()) + " x " +
-                                std::to_string(H()) + " elements is too large (use more subdomains)");
+                                std::to_string(H()) +
+                                " elements is too large (use more subdomains)");
   if (glue_averages() && H() < 2)
     throw std::invalid_argument(
         "gluing by edge averages needs at least 2 elements per subdomain side (edge interiors "

@@ -6,7 +6,6 @@
 
 namespace htfeti {
 
-
 namespace {
 
 // Reference node coordinates of quad4 ([0,1]^2, the 2D built-ins' convention) and hex8 ([-1,1]^3).
@@ -213,9 +212,9 @@ double von_mises(int dim, const Eigen::VectorXd& s, double nu) {
   } else {
     sxx = s[0], syy = s[1], szz = s[2], sxy = s[3], syz = s[4], szx = s[5];
   }
-  return std::sqrt(0.5 * ((sxx - syy) * (sxx - syy) + (syy - szz) * (syy - szz) +
-                          (szz - sxx) * (szz - sxx)) +
-                   3 * (sxy * sxy + syz * syz + szx * szx));
+  return std::sqrt(
+      0.5 * ((sxx - syy) * (sxx - syy) + (syy - szz) * (syy - szz) + (szz - sxx) * (szz - sxx)) +
+      3 * (sxy * sxy + syz * syz + szx * szx));
 }
 
 double facet_measure(int dim, int n, const double* x) {

@@ -1,19 +1,20 @@
 #include "htfeti/fem/physics.hpp"
 
+#include <algorithm>
+#include <cmath>
 #include <memory>
+#include <numeric>
+#include <stdexcept>
 #include <string>
 
 #include "htfeti/expression.hpp"
 #include "htfeti/linalg/grid_offsets.hpp"
 
-#include <algorithm>
-#include <cmath>
-#include <numeric>
-#include <stdexcept>
-
 namespace htfeti {
 
-PhysicsKind parse_physics(const std::string& name) { return parse_name(kPhysicsNames, name, "physics"); }
+PhysicsKind parse_physics(const std::string& name) {
+  return parse_name(kPhysicsNames, name, "physics");
+}
 
 std::string to_string(PhysicsKind value) { return name_of(kPhysicsNames, value); }
 
@@ -84,7 +85,8 @@ Eigen::MatrixXd element_matrix(const SubdomainMesh& mesh, const Physics& ph, int
     if (mesh.dim == 2) {
       const double dx = x[3] - x[0], dy = x[4] - x[1], s = std::sqrt(dx * dx + dy * dy);
       const double x0 = x[0], y0 = x[1];
-      for (int a = 0; a < nc; ++a) x[3 * a] = (x[3 * a] - x0) / s, x[3 * a + 1] = (x[3 * a + 1] - y0) / s;
+      for (int a = 0; a < nc; ++a)
+        x[3 * a] = (x[3 * a] - x0) / s, x[3 * a + 1] = (x[3 * a + 1] - y0) / s;
     }
     return laplace_stiffness(mesh.type, x);
   }
@@ -102,7 +104,8 @@ void for_each_element_matrix(const SubdomainMesh& mesh, const Physics& ph, Visit
   const int nc = cell_nodes(mesh.type), ne = mesh.num_cells();
   const int period = mesh.uniform_period;
   std::vector<Eigen::MatrixXd> cache(period > 0 ? std::min(period, ne) : 0);
-  for (size_t e = 0; e < cache.size(); ++e) cache[e] = element_matrix(mesh, ph, static_cast<int>(e));
+  for (size_t e = 0; e < cache.size(); ++e)
+    cache[e] = element_matrix(mesh, ph, static_cast<int>(e));
   Eigen::MatrixXd local;
   std::unique_ptr<Expression> coefficient;  // one per call: Expression is not thread-safe
   if (!ph.coefficient.empty()) coefficient = std::make_unique<Expression>(ph.coefficient);
@@ -160,8 +163,7 @@ struct StiffnessWork {
   void trim() {
     const size_t bytes = trip.capacity() * sizeof(trip[0]) + start.capacity() * sizeof(int) +
                          row.capacity() * sizeof(int) + value.capacity() * sizeof(double) +
-                         count.capacity() * sizeof(int) +
-                         pairs.capacity() * sizeof(pairs[0]);
+                         count.capacity() * sizeof(int) + pairs.capacity() * sizeof(pairs[0]);
     if (bytes > kKeepBytes) *this = StiffnessWork();
   }
 };
@@ -284,7 +286,8 @@ AssembledSubdomain assemble_subdomain(const SubdomainMesh& mesh, const Physics& 
       for (int a = 0; a < nc; ++a) out.f[cn[a]] += share;
     } else if (ph.density != 0) {
       for (int a = 0; a < nc; ++a)
-        for (int d = 0; d < dpn; ++d) out.f[cn[a] * dpn + d] += ph.density * ph.gravity[d] * measure / nc;
+        for (int d = 0; d < dpn; ++d)
+          out.f[cn[a] * dpn + d] += ph.density * ph.gravity[d] * measure / nc;
     }
   }
 
@@ -317,7 +320,8 @@ AssembledSubdomain assemble_subdomain(const SubdomainMesh& mesh, const Physics& 
   // coordinates round (ties between equally distant nodes); else the coordinates.
   std::vector<double> geo(mesh.coords.begin(), mesh.coords.end());
   if (nn > 0) grid_offsets(mesh, geo.data(), nn, mesh.coords.data());
-  out.R = Eigen::MatrixXd::Zero(static_cast<Eigen::Index>(nn) * dpn, static_cast<Eigen::Index>(parts) * kd);
+  out.R = Eigen::MatrixXd::Zero(static_cast<Eigen::Index>(nn) * dpn,
+                                static_cast<Eigen::Index>(parts) * kd);
   for (int p = 0; p < parts; ++p) {
     std::vector<int> nodes;
     for (int k = 0; k < nn; ++k)
@@ -401,17 +405,19 @@ AssembledSubdomain assemble_subdomain(const SubdomainMesh& mesh, const Physics& 
   return out;
 }
 
-void add_traction(const SubdomainMesh& mesh, const SubdomainMesh::FacetGroup& g,
-                  const Physics& ph, const std::array<double, 3>& t, Eigen::VectorXd& f) {
+void add_traction(const SubdomainMesh& mesh, const SubdomainMesh::FacetGroup& g, const Physics& ph,
+                  const std::array<double, 3>& t, Eigen::VectorXd& f) {
   const int fn = g.facet_nodes, dpn = ph.dofs_per_node();
   if (fn == 0) return;
   double x[12];
   for (size_t i = 0; i + fn <= g.nodes.size(); i += fn) {
     for (int a = 0; a < fn; ++a)
-      for (int d = 0; d < 3; ++d) x[3 * a + d] = mesh.coords[3 * static_cast<size_t>(g.nodes[i + a]) + d];
+      for (int d = 0; d < 3; ++d)
+        x[3 * a + d] = mesh.coords[3 * static_cast<size_t>(g.nodes[i + a]) + d];
     const double share = facet_measure(mesh.dim, fn, x) / fn;
     for (int a = 0; a < fn; ++a)
-      for (int d = 0; d < dpn; ++d) f[static_cast<Eigen::Index>(g.nodes[i + a]) * dpn + d] += t[d] * share;
+      for (int d = 0; d < dpn; ++d)
+        f[static_cast<Eigen::Index>(g.nodes[i + a]) * dpn + d] += t[d] * share;
   }
 }
 

@@ -12,7 +12,9 @@
 
 namespace htfeti {
 
-DualOperator parse_dual_operator(const std::string& name) { return parse_name(kDualOperatorNames, name, "dual operator"); }
+DualOperator parse_dual_operator(const std::string& name) {
+  return parse_name(kDualOperatorNames, name, "dual operator");
+}
 
 std::string to_string(DualOperator value) { return name_of(kDualOperatorNames, value); }
 
@@ -37,8 +39,7 @@ Eigen::MatrixXd null_space(const Eigen::MatrixXd& A) {
 
 Cluster::Cluster(int id, std::vector<Subdomain*> subs, std::vector<std::vector<ConstraintEntry>> C,
                  Ordering ordering, std::vector<std::vector<Subdomain::BEntry>> b,
-                 std::vector<int> nmult, bool explicit_F, SymbolicCache* cache,
-                 Precision precision)
+                 std::vector<int> nmult, bool explicit_F, SymbolicCache* cache, Precision precision)
     : id_(id), subs_(std::move(subs)), b_(std::move(b)), explicit_(explicit_F) {
   const int s = static_cast<int>(subs_.size());
   if (explicit_)
@@ -107,7 +108,8 @@ Cluster::Cluster(int id, std::vector<Subdomain*> subs, std::vector<std::vector<C
       basis.col(r++) = v.normalized();
       J.push_back(g);
     }
-    if (r < dk) throw std::runtime_error("cluster " + std::to_string(id) + ": kernel selection failed");
+    if (r < dk)
+      throw std::runtime_error("cluster " + std::to_string(id) + ": kernel selection failed");
   }
   if (dk > 0) {
     Eigen::MatrixXd NJ(dk, dk);
@@ -264,8 +266,7 @@ void Cluster::apply_dual(const std::vector<Eigen::VectorXd>& lam,
     return;
   }
 #pragma omp parallel for schedule(static) if (!omp_in_parallel() && s > 1)
-  for (int i = 0; i < s; ++i)
-    F_[i].multiply(lam[i].data(), out[i].data());  // the bottleneck
+  for (int i = 0; i < s; ++i) F_[i].multiply(lam[i].data(), out[i].data());  // the bottleneck
   if (rhs_.size() == 0) return;
   rhs_.setZero();
   for (int i = 0; i < s; ++i) {  // fixed order

@@ -29,8 +29,8 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
-#include <string>
 #include <stdexcept>
+#include <string>
 
 #include "htfeti/clock.hpp"
 #include "htfeti/feti/dual_problem.hpp"
@@ -104,8 +104,8 @@ void DualProblem::build_coarse_image(double memory_limit_mb) {
   std::vector<long long> sbuf(sdisp[P]), rbuf(rdisp[P]);
   for (int r = 0; r < P; ++r) std::copy(out[r].begin(), out[r].end(), sbuf.begin() + sdisp[r]);
   out = {};
-  MPI_Alltoallv(sbuf.data(), scount.data(), sdisp.data(), MPI_LONG_LONG, rbuf.data(),
-                rcount.data(), rdisp.data(), MPI_LONG_LONG, mc);
+  MPI_Alltoallv(sbuf.data(), scount.data(), sdisp.data(), MPI_LONG_LONG, rbuf.data(), rcount.data(),
+                rdisp.data(), MPI_LONG_LONG, mc);
   sbuf = {};
   std::vector<std::vector<int>> touching(n_own);
   for (size_t i = 0; i < rbuf.size(); i += 2) {
@@ -129,8 +129,8 @@ void DualProblem::build_coarse_image(double memory_limit_mb) {
   MPI_Allgather(&nedges, 1, MPI_INT, counts.data(), 1, MPI_INT, mc);
   for (int r = 0; r < P; ++r) disp[r + 1] = disp[r] + counts[r];
   std::vector<long long> all_edges(disp[P]);
-  MPI_Allgatherv(edges.data(), nedges, MPI_LONG_LONG, all_edges.data(), counts.data(),
-                 disp.data(), MPI_LONG_LONG, mc);
+  MPI_Allgatherv(edges.data(), nedges, MPI_LONG_LONG, all_edges.data(), counts.data(), disp.data(),
+                 MPI_LONG_LONG, mc);
   edges = {};
   std::vector<std::vector<int>> adj(ncl);
   for (long long e : all_edges) {
@@ -179,9 +179,9 @@ void DualProblem::build_coarse_image(double memory_limit_mb) {
     const double usable = usable_memory_mb(memory_limit_mb, machine_ranks);
     std::string error;
     if (available_memory_mb() > 0 && need_mb > usable)  // (0: /proc unreadable, unknown)
-      error = "one coarse step per product needs E = F G~^T, " + std::to_string(std::lround(need_mb)) +
-              " MB on rank " + std::to_string(comm_.rank()) + ", more than the " +
-              std::to_string(std::lround(std::max(0.0, usable))) +
+      error = "one coarse step per product needs E = F G~^T, " +
+              std::to_string(std::lround(need_mb)) + " MB on rank " + std::to_string(comm_.rank()) +
+              ", more than the " + std::to_string(std::lround(std::max(0.0, usable))) +
               " MB usable there; take two coarse steps per product (the default)";
     comm_.agree(error, true);
   }
@@ -232,8 +232,8 @@ void DualProblem::build_coarse_image(double memory_limit_mb) {
   //    cluster in multiplier order, then in cluster order (as the coarse matrix G~ G~^T).
   {
     const std::vector<GItem> gcol = g_columns_at_owners();
-    const std::vector<CoarseTriplet> mine = owner_cluster_sums(
-        gcol, [&](size_t i, size_t j, std::vector<CoarseTriplet>& products) {
+    const std::vector<CoarseTriplet> mine =
+        owner_cluster_sums(gcol, [&](size_t i, size_t j, std::vector<CoarseTriplet>& products) {
           const int e = layout_dual_.ext_index(gcol[i].k);
           for (size_t a = i; a < j; ++a)
             for (int q = im.e_ptr[e]; q < im.e_ptr[e + 1]; ++q)
@@ -320,7 +320,8 @@ void DualProblem::hessian_from_Fv(const Vec& v, const Vec& fv, double rho, Vec& 
   qv = ext_out_.head(n);
   y.resize(n);
 #pragma omp parallel for schedule(static) if (n > 50000 && !omp_in_parallel())
-  for (int e = 0; e < n; ++e) y[e] = fv[e] - image_row(e, im.z1) - im.ext_out_second[e] + rho * qv[e];
+  for (int e = 0; e < n; ++e)
+    y[e] = fv[e] - image_row(e, im.z1) - im.ext_out_second[e] + rho * qv[e];
 }
 
 }  // namespace htfeti

@@ -133,7 +133,6 @@ void DualProblem::finish_setup(Setup& st) {
   setup_.peak_mb_coarse = peak_rss_mb();
 }
 
-
 // G~ and G~^T: every cluster has its own rows of the coarse vector and its own pairs of gflat_,
 // so threads take clusters and each value is formed in the same order as by one thread.
 void DualProblem::apply_G(const Vec& lambda, Vec& coarse) {
@@ -181,7 +180,8 @@ void DualProblem::project(const Vec& x, Vec& y) {
 namespace {
 // MPI datatypes for arrays of a struct of (long long, int..., double) fields.
 template <class T, size_t N>
-MPI_Datatype struct_type(const std::array<MPI_Aint, N>& disp, const std::array<MPI_Datatype, N>& types) {
+MPI_Datatype struct_type(const std::array<MPI_Aint, N>& disp,
+                         const std::array<MPI_Datatype, N>& types) {
   int bl[N];
   for (size_t i = 0; i < N; ++i) bl[i] = 1;
   MPI_Datatype tmp, out;
@@ -196,9 +196,9 @@ MPI_Datatype struct_type(const std::array<MPI_Aint, N>& disp, const std::array<M
 std::vector<DualProblem::GItem> DualProblem::g_columns_at_owners() const {
   // Every cluster sends (k, coarse row, g) for its nonzeros of G~ to the owner of k. Counts are
   // in items (MPI datatypes), not bytes.
-  MPI_Datatype item_type = struct_type<GItem, 3>(
-      {offsetof(GItem, k), offsetof(GItem, row), offsetof(GItem, g)},
-      {MPI_LONG_LONG, MPI_INT, MPI_DOUBLE});
+  MPI_Datatype item_type =
+      struct_type<GItem, 3>({offsetof(GItem, k), offsetof(GItem, row), offsetof(GItem, g)},
+                            {MPI_LONG_LONG, MPI_INT, MPI_DOUBLE});
   const int P = comm_.size();
   std::vector<std::vector<GItem>> out(P);
   for (size_t c = 0; c < clusters_.size(); ++c) {
@@ -227,10 +227,10 @@ std::vector<DualProblem::GItem> DualProblem::g_columns_at_owners() const {
 
 std::vector<DualProblem::CoarseTriplet> DualProblem::allgather_sorted(
     const std::vector<CoarseTriplet>& mine) const {
-  MPI_Datatype trip_type = struct_type<CoarseTriplet, 4>(
-      {offsetof(CoarseTriplet, k), offsetof(CoarseTriplet, a), offsetof(CoarseTriplet, b),
-       offsetof(CoarseTriplet, v)},
-      {MPI_LONG_LONG, MPI_INT, MPI_INT, MPI_DOUBLE});
+  MPI_Datatype trip_type =
+      struct_type<CoarseTriplet, 4>({offsetof(CoarseTriplet, k), offsetof(CoarseTriplet, a),
+                                     offsetof(CoarseTriplet, b), offsetof(CoarseTriplet, v)},
+                                    {MPI_LONG_LONG, MPI_INT, MPI_INT, MPI_DOUBLE});
   const int P = comm_.size();
   int nmine = static_cast<int>(mine.size());
   std::vector<int> counts(P), disp(P + 1, 0);
@@ -278,8 +278,8 @@ std::vector<DualProblem::CoarseTriplet> DualProblem::owner_cluster_sums(
     for (size_t p = 0; p < products.size();) {
       size_t q = p;
       double v = 0;
-      for (; q < products.size() && products[q].a == products[p].a &&
-             products[q].b == products[p].b;
+      for (;
+           q < products.size() && products[q].a == products[p].a && products[q].b == products[p].b;
            ++q)
         v += products[q].v;
       mine.push_back({groups[g0].first, products[p].a, products[p].b, v});
@@ -295,8 +295,8 @@ void DualProblem::assemble_coarse(const std::vector<double>& weight, CoarseFacto
   // sum equal entries; the summed triplets are shared (every rank factors the coarse matrix).
   using Triplet = CoarseTriplet;
   std::vector<GItem> rbuf = g_columns_at_owners();
-  std::vector<Triplet> mine = owner_cluster_sums(
-      rbuf, [&](size_t i, size_t j, std::vector<Triplet>& products) {
+  std::vector<Triplet> mine =
+      owner_cluster_sums(rbuf, [&](size_t i, size_t j, std::vector<Triplet>& products) {
         const double w = weight[layout_dual_.ext_index(rbuf[i].k)];
         if (w != 0.0)
           for (size_t a = i; a < j; ++a)
@@ -370,7 +370,8 @@ std::string DualProblem::describe_null(const Eigen::MatrixXd& Z) const {
     s += (i ? ", " : "") + std::to_string(clusters[i]);
   if (clusters.size() > 8) s += ", ... (" + std::to_string(clusters.size()) + " in all)";
   const bool one = layout_.num_clusters == layout_.num_subdomains;
-  return std::to_string(Z.cols()) + " rigid motion(s) of " + (one ? "subdomain(s) " : "cluster(s) ") + s;
+  return std::to_string(Z.cols()) + " rigid motion(s) of " +
+         (one ? "subdomain(s) " : "cluster(s) ") + s;
 }
 
 }  // namespace htfeti

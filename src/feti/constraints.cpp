@@ -1,14 +1,14 @@
 #include "htfeti/feti/constraints.hpp"
 
-#include "htfeti/linalg/grid_offsets.hpp"
-#include "htfeti/linalg/orthonormal.hpp"
-
 #include <Eigen/Dense>
 #include <algorithm>
 #include <cmath>
 #include <map>
 #include <numeric>
 #include <stdexcept>
+
+#include "htfeti/linalg/grid_offsets.hpp"
+#include "htfeti/linalg/orthonormal.hpp"
 
 namespace htfeti {
 
@@ -121,9 +121,8 @@ void complement_group(const Eigen::MatrixXd& W, const double* xyz, int dpn, std:
       for (int t : idx) lo = std::min(lo, xyz[3 * t + d]), hi = std::max(hi, xyz[3 * t + d]);
       if (hi - lo > best) best = hi - lo, axis = d;
     }
-    std::stable_sort(idx.begin(), idx.end(), [&](int a, int b) {
-      return xyz[3 * a + axis] < xyz[3 * b + axis];
-    });
+    std::stable_sort(idx.begin(), idx.end(),
+                     [&](int a, int b) { return xyz[3 * a + axis] < xyz[3 * b + axis]; });
     std::vector<int> left(idx.begin(), idx.begin() + g / 2), right(idx.begin() + g / 2, idx.end());
     std::vector<int> d1, d2;
     Eigen::MatrixXd E1, E2;
@@ -166,8 +165,7 @@ SparseRows hierarchical_complement(const Eigen::MatrixXd& W, const double* xyz, 
   return rows;
 }
 
-namespace {
-}  // namespace
+namespace {}  // namespace
 
 void subdomain_rows(const FetiLayout& L, const SubdomainInput& in, std::vector<LocalRow>& out) {
   const DofSharing& sh = in.sharing;
@@ -256,15 +254,16 @@ void subdomain_rows(const FetiLayout& L, const SubdomainInput& in, std::vector<L
   std::vector<double> xyz;
   for (const auto& [pair, nodes] : averaged_objects(sh, cls)) {
     const Eigen::MatrixXd W = object_kernel(L, sh, nodes, xyz);
-    const SparseRows Wc = hierarchical_complement(W, xyz.data(), static_cast<int>(nodes.size()), dpn);
+    const SparseRows Wc =
+        hierarchical_complement(W, xyz.data(), static_cast<int>(nodes.size()), dpn);
     // Sign: + on the first copy in the canonical order.
     const int* cp = sh.copies(nodes[0]);
     const double sign = cp[0] == me ? 1.0 : -1.0;
     long long min_node = sh.global_node[nodes[0]];
     for (size_t l = 0; l < Wc.size(); ++l) {
       row = LocalRow{};
-      row.key = {1, my_cluster, pair.second - pair.first, pair.first, min_node,
-                 static_cast<long long>(l)};
+      row.key = {1,          my_cluster, pair.second - pair.first,
+                 pair.first, min_node,   static_cast<long long>(l)};
       row.kind = MultiplierKind::gluing;
       row.owner_subdomain = pair.first;
       for (const auto& [j, v] : Wc[l])  // j = t * dpn + i: component i of the object's node t
@@ -294,12 +293,12 @@ std::vector<std::vector<ConstraintEntry>> cluster_primal_constraints(
         const Eigen::MatrixXd W = object_kernel(L, sh, nodes, xyz);
         const double sign = sh.copies(nodes[0])[0] == me ? 1.0 : -1.0;
         for (int l = 0; l < W.cols(); ++l) {
-          auto& r = keyed[{0, pair.second - pair.first, pair.first, sh.global_node[nodes[0]], l, 0}];
+          auto& r =
+              keyed[{0, pair.second - pair.first, pair.first, sh.global_node[nodes[0]], l, 0}];
           for (size_t t = 0; t < nodes.size(); ++t)
             for (int i = 0; i < dpn; ++i) {
               const double v = W(static_cast<int>(t) * dpn + i, l);
-              if (v != 0.0)
-                r.push_back({static_cast<int>(mi), nodes[t] * dpn + i, sign * v * r2});
+              if (v != 0.0) r.push_back({static_cast<int>(mi), nodes[t] * dpn + i, sign * v * r2});
             }
         }
       }

@@ -52,7 +52,8 @@ void DualProblem::build_scaling(const std::vector<std::vector<double>>& rho) {
       const double w = W[r.k];
       double v = r.value;
       if (w > 0 && r.cls == RowClass::node && !exact_node_scaling_) v = r.value - V[r.k] / w;
-      if (w > 0 && r.cls == RowClass::object) v = 2.0 * r.value * (1.0 - rs[flat_off_[s] + r.j] / w);
+      if (w > 0 && r.cls == RowClass::object)
+        v = 2.0 * r.value * (1.0 - rs[flat_off_[s] + r.j] / w);
       bd_[s][e] = v;
     }
   }
@@ -80,7 +81,9 @@ void DualProblem::build_scaling(const std::vector<std::vector<double>>& rho) {
     // unique positions (a node dof carries several rows); copies follow their positions
     std::vector<size_t> idx(node_row_positions_[s].size());
     std::iota(idx.begin(), idx.end(), 0);
-    std::sort(idx.begin(), idx.end(), [&](size_t a, size_t b) { return node_row_positions_[s][a] < node_row_positions_[s][b]; });
+    std::sort(idx.begin(), idx.end(), [&](size_t a, size_t b) {
+      return node_row_positions_[s][a] < node_row_positions_[s][b];
+    });
     std::vector<int> pos, cop;
     for (size_t i : idx)
       if (pos.empty() || pos.back() != node_row_positions_[s][i])
@@ -176,7 +179,8 @@ void DualProblem::apply_preconditioner(const Vec& x, Vec& y) {
       else
         pin_[s][pos[e]] += v;
     }
-    for (size_t i = 0; i < node_row_positions_[s].size(); ++i) {  // u_g kept in pout_, w = delta u_g
+    for (size_t i = 0; i < node_row_positions_[s].size();
+         ++i) {  // u_g kept in pout_, w = delta u_g
       const int p = node_row_positions_[s][i];
       pout_[s][p] = scaling_w_[s][p];
       scaling_w_[s][p] *= node_row_delta_[s][i];
@@ -191,7 +195,8 @@ void DualProblem::apply_preconditioner(const Vec& x, Vec& y) {
     }
     precond_[s]->apply(pin_[s].data(), pout_[s].data());
     scaling_w_[s].setZero();
-    for (size_t i = 0; i < node_row_positions_[s].size(); ++i) scaling_w_[s][node_row_positions_[s][i]] = pout_[s][node_row_positions_[s][i]];
+    for (size_t i = 0; i < node_row_positions_[s].size(); ++i)
+      scaling_w_[s][node_row_positions_[s][i]] = pout_[s][node_row_positions_[s][i]];
   }
   copy_sums(scaling_w_, scaling_sums_);  // 1^T v over each node's copies
 #pragma omp parallel for schedule(dynamic)
@@ -200,11 +205,13 @@ void DualProblem::apply_preconditioner(const Vec& x, Vec& y) {
     const int* pos = ipos_[s].data();
     scaling_w_[s] = pout_[s];
     for (size_t i = 0; i < node_row_positions_[s].size(); ++i)
-      scaling_w_[s][node_row_positions_[s][i]] -= node_row_delta_[s][i] * scaling_sums_[s][node_row_positions_[s][i]];
+      scaling_w_[s][node_row_positions_[s][i]] -=
+          node_row_delta_[s][i] * scaling_sums_[s][node_row_positions_[s][i]];
     double* f = flat_.data() + flat_off_[s];
     for (int j = flat_off_[s]; j < flat_off_[s + 1]; ++j) flat_[j] = 0.0;
     for (size_t e = 0; e < rows.size(); ++e)
-      f[rows[e].j] += value(s, e) * (rows[e].cls == RowClass::node ? scaling_w_[s][pos[e]] : pout_[s][pos[e]]);
+      f[rows[e].j] +=
+          value(s, e) * (rows[e].cls == RowClass::node ? scaling_w_[s][pos[e]] : pout_[s][pos[e]]);
   }
   combine_subdomains();
   y = ext_out_.head(layout_dual_.n_owned());

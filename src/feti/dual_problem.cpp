@@ -1,28 +1,25 @@
 #include "htfeti/feti/dual_problem.hpp"
 
-#include "dual_setup.hpp"
-
-#include "htfeti/clock.hpp"
-#include "htfeti/parallel/memory.hpp"
-
 #include <omp.h>
 
 #include <algorithm>
 #include <array>
 #include <chrono>
 #include <cmath>
-#include <limits>
-#include <stdexcept>
 #include <cstddef>
+#include <limits>
 #include <numeric>
+#include <stdexcept>
 #include <string>
 #include <tuple>
 #include <unordered_set>
 
+#include "dual_setup.hpp"
+#include "htfeti/clock.hpp"
 #include "htfeti/parallel/key_numbering.hpp"
+#include "htfeti/parallel/memory.hpp"
 
 namespace htfeti {
-
 
 namespace {
 
@@ -76,8 +73,7 @@ class FactorRelease {
 
 }  // namespace
 
-namespace {
-}  // namespace
+namespace {}  // namespace
 
 DualProblem::DualProblem(const FetiLayout& layout,
                          const std::function<SubdomainInput(int)>& make_input, const Comm& comm,
@@ -90,14 +86,15 @@ DualProblem::DualProblem(const FetiLayout& layout,
   st.s0 = layout_.cluster_first[first_cluster_];
   st.nsub = layout_.cluster_first[end_cluster_] - st.s0;
   sub_first_.resize(st.ncl + 1);
-  for (int c = 0; c <= st.ncl; ++c) sub_first_[c] = layout_.cluster_first[first_cluster_ + c] - st.s0;
+  for (int c = 0; c <= st.ncl; ++c)
+    sub_first_[c] = layout_.cluster_first[first_cluster_ + c] - st.s0;
   assemble_subdomains(make_input, st);  // 1.
   number_multipliers(st);               // 2.
   number_local_rows(st);
   choose_operator(st);
   plan_preconditioner(st);
-  set_up_clusters(st);                  // 3.
-  set_up_coarse_space(st);              // 4.
+  set_up_clusters(st);      // 3.
+  set_up_coarse_space(st);  // 4.
   finish_setup(st);
 }
 
@@ -222,7 +219,8 @@ void DualProblem::number_multipliers(Setup& st) {
     std::vector<size_t> perm(index.size());
     std::iota(perm.begin(), perm.end(), 0);
     std::sort(perm.begin(), perm.end(), [&](size_t a, size_t b) { return index[a] < index[b]; });
-    for (size_t i = 0; i < perm.size(); ++i) touched[i] = index[perm[i]], owner[i] = key_owner[perm[i]];
+    for (size_t i = 0; i < perm.size(); ++i)
+      touched[i] = index[perm[i]], owner[i] = key_owner[perm[i]];
     layout_dual_ = DualLayout(comm_, touched, owner);
   }
   const int n_ext = layout_dual_.n_ext(), n_own = layout_dual_.n_owned();
@@ -289,9 +287,8 @@ void DualProblem::number_local_rows(Setup& st) {
       for (const auto& r : rows_[s]) mult_[s].push_back(r.k);
       // By global index (not extended index, whose owned/ghost split depends on the ranks): the
       // local numbering fixes the summation order of the dense blocks F_i.
-      std::sort(mult_[s].begin(), mult_[s].end(), [&](int a, int b) {
-        return layout_dual_.global(a) < layout_dual_.global(b);
-      });
+      std::sort(mult_[s].begin(), mult_[s].end(),
+                [&](int a, int b) { return layout_dual_.global(a) < layout_dual_.global(b); });
       mult_[s].erase(std::unique(mult_[s].begin(), mult_[s].end()), mult_[s].end());
       for (size_t j = 0; j < mult_[s].size(); ++j) local_of[mult_[s][j]] = static_cast<int>(j);
       for (auto& r : rows_[s]) {
@@ -365,7 +362,8 @@ void DualProblem::plan_preconditioner(Setup& st) {
   precond_kind_ = options.preconditioner;
   scaling_ = options.scaling;
   interface.resize(precond_kind_ != PreconditionerKind::none ? nsub : 0);
-  rho.resize(precond_kind_ != PreconditionerKind::none && scaling_ == Scaling::stiffness ? nsub : 0);
+  rho.resize(precond_kind_ != PreconditionerKind::none && scaling_ == Scaling::stiffness ? nsub
+                                                                                         : 0);
   if (precond_kind_ != PreconditionerKind::none) {
     double dense_bytes = 0;
     ipos_.resize(nsub);
@@ -380,8 +378,8 @@ void DualProblem::plan_preconditioner(Setup& st) {
       dense_bytes += 8.0 * in.size() * in.size();
     }
     const bool fits = comm_.max(dense_bytes) <= options.dirichlet_dense_budget_bytes;
-    if (precond_kind_ == PreconditionerKind::dirichlet && options.dirichlet_storage == 0 &&
-        !fits && options.dirichlet_fallback != PreconditionerKind::dirichlet) {
+    if (precond_kind_ == PreconditionerKind::dirichlet && options.dirichlet_storage == 0 && !fits &&
+        options.dirichlet_fallback != PreconditionerKind::dirichlet) {
       precond_kind_ = options.dirichlet_fallback;
       if (precond_kind_ == PreconditionerKind::none) {
         interface.clear(), rho.clear(), ipos_.clear();
@@ -436,10 +434,9 @@ void DualProblem::set_up_clusters(Setup& st) {
       nmult.push_back(static_cast<int>(mult_[s].size()));
     }
     try {
-      clusters_[c] = std::make_unique<Cluster>(first_cluster_ + c, std::move(ptrs), std::move(primal[c]),
-                                               ordering_, std::move(b), std::move(nmult),
-                                               explicit_, symbolic_.get(),
-                                               options.explicit_precision);
+      clusters_[c] = std::make_unique<Cluster>(
+          first_cluster_ + c, std::move(ptrs), std::move(primal[c]), ordering_, std::move(b),
+          std::move(nmult), explicit_, symbolic_.get(), options.explicit_precision);
       // The cluster's part of d = B~ K~^+ f, while its factors are at hand.
       cluster_rhs_from_ext(c, true, 0.0);
       clusters_[c]->solve(x_[c]);
@@ -598,7 +595,7 @@ void DualProblem::apply_F(const Vec& lambda, Vec& y) {
       for (size_t j = 0; j < mult.size(); ++j) l[j] = ext_in_[mult[j]];
     }
     clusters_[c]->apply_dual(lam_[c], out_[c]);  // the bottleneck
-    for (int i = 0; i < members(c); ++i)          // each subdomain's own segment of flat_
+    for (int i = 0; i < members(c); ++i)         // each subdomain's own segment of flat_
       flat_.segment(flat_off_[sub_of(c, i)], out_[c][i].size()) = out_[c][i];
   }
   combine_subdomains();  // F lambda, summed over subdomains in a fixed order

@@ -5,11 +5,15 @@
 
 namespace htfeti {
 
-PreconditionerKind parse_preconditioner(const std::string& name) { return parse_name(kPreconditionerNames, name, "preconditioner"); }
+PreconditionerKind parse_preconditioner(const std::string& name) {
+  return parse_name(kPreconditionerNames, name, "preconditioner");
+}
 
 std::string to_string(PreconditionerKind value) { return name_of(kPreconditionerNames, value); }
 
-Scaling parse_scaling(const std::string& name) { return parse_name(kScalingNames, name, "scaling"); }
+Scaling parse_scaling(const std::string& name) {
+  return parse_name(kScalingNames, name, "scaling");
+}
 
 std::string to_string(Scaling value) { return name_of(kScalingNames, value); }
 
@@ -123,8 +127,8 @@ long LocalPreconditioner::bytes() const {
   auto sparse = [](const Eigen::SparseMatrix<double>& A) {
     return static_cast<long>(A.nonZeros()) * 12 + 4 * static_cast<long>(A.outerSize() + 1);
   };
-  long b = 8 * static_cast<long>(S_.size() + Q_.size()) + sparse(Kbb_) + sparse(Kib_) +
-           8 * work_.size();
+  long b =
+      8 * static_cast<long>(S_.size() + Q_.size()) + sparse(Kbb_) + sparse(Kib_) + 8 * work_.size();
   if (!dense_ && work_.size() > 0) b += Kii_.factor_bytes();
   return b;
 }

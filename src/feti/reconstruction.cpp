@@ -101,7 +101,8 @@ double DualProblem::energy(const std::vector<Vec>& u) const {
 #pragma omp parallel for schedule(dynamic)
   for (int s = 0; s < n; ++s) e[subs_[s]->id()] = subs_[s]->energy(u[s]);
   if (comm_.size() > 1)
-    MPI_Allreduce(MPI_IN_PLACE, e.data(), static_cast<int>(e.size()), MPI_DOUBLE, MPI_SUM, comm_.raw());
+    MPI_Allreduce(MPI_IN_PLACE, e.data(), static_cast<int>(e.size()), MPI_DOUBLE, MPI_SUM,
+                  comm_.raw());
   double q = 0;
   for (double v : e) q += v;
   return q;

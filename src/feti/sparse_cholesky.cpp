@@ -13,7 +13,9 @@ extern "C" void dpotri_(const char* uplo, const int* n, double* a, const int* ld
 
 namespace htfeti {
 
-Ordering parse_ordering(const std::string& name) { return parse_name(kOrderingNames, name, "ordering"); }
+Ordering parse_ordering(const std::string& name) {
+  return parse_name(kOrderingNames, name, "ordering");
+}
 
 std::string to_string(Ordering value) { return name_of(kOrderingNames, value); }
 
@@ -97,10 +99,10 @@ struct SymbolicCache::Entry {
   std::uint64_t value_hash = 0;  // numeric entries: the values and their hash
   std::vector<double> x;
   double bytes = 0;
-  long factor_bytes = 0;  // numeric entries: the factor's part of `bytes`
+  long factor_bytes = 0;               // numeric entries: the factor's part of `bytes`
   std::shared_ptr<SharedFactor> slot;  // numeric entries: what their holders share
   cholmod_common common;
-  cholmod_factor* L = nullptr;  // symbolic entries: the analysis (copied by its users)
+  cholmod_factor* L = nullptr;              // symbolic entries: the analysis (copied by its users)
   std::shared_ptr<cholmod_factor> numeric;  // numeric entries: the factor, shared by its users
   Entry() { cholmod_start(&common), common.print = 0, common.error_handler = nullptr; }
   ~Entry() {
@@ -177,11 +179,11 @@ struct SparseCholesky::Impl {
   cholmod_dense* y = nullptr;
   cholmod_dense* e = nullptr;
   int n = 0;
-  int nlast = 0;  // rows ordered last by factorize(A, last)
+  int nlast = 0;   // rows ordered last by factorize(A, last)
   int method = 0;  // 0 AMD, 1 METIS (the constructor's ordering)
   double symbolic_seconds = 0, numeric_seconds = 0;
   std::shared_ptr<SharedFactor> slot;  // shared with a numeric cache entry, if any
-  bool memo_solves = false;  // solve() through solve_many's memo (interface-last factors)
+  bool memo_solves = false;            // solve() through solve_many's memo (interface-last factors)
   std::shared_ptr<cholmod_factor> shared;  // set when `factor` is a numeric cache entry's
 
   explicit Impl(Ordering ordering) : method(ordering == Ordering::amd ? 0 : 1) {
@@ -415,8 +417,8 @@ void SparseCholesky::factorize_impl(const Eigen::SparseMatrix<double>& A,
   const auto t2 = clock::now();
   // A repeated pattern (its analysis was reused): keep this numeric factor for equal matrices.
   if (cache && reused && cache->numeric_bytes_ > 0) {
-    const double bytes = static_cast<double>(factor_bytes()) + 8.0 * nnz +
-                         8.0 * impl_->nlast * impl_->nlast;
+    const double bytes =
+        static_cast<double>(factor_bytes()) + 8.0 * nnz + 8.0 * impl_->nlast * impl_->nlast;
     std::lock_guard<std::mutex> lock(cache->mutex_);
     bool known = false;
     for (const auto& e : cache->numeric_) known = known || same_values(*e);
@@ -469,7 +471,8 @@ void SparseCholesky::solve_many(double* X, int ncols) {
     {
       std::lock_guard<std::mutex> lock(slot->mutex);
       for (const auto& e : slot->solves)
-        if (e->hash == mine->hash && e->ncols == ncols && e->at == mine->at && e->value == mine->value) {
+        if (e->hash == mine->hash && e->ncols == ncols && e->at == mine->at &&
+            e->value == mine->value) {
           found = e;
           ++slot->solve_reuses;
           break;

@@ -8,7 +8,6 @@
 
 #include "htfeti/clock.hpp"
 
-
 namespace htfeti {
 
 namespace {
@@ -28,8 +27,7 @@ Subdomain::Subdomain(SubdomainSystem system,
   const int n = size();
   if (shared_K_ && (shared_K_->rows() != n || sys_.K.size() != 0))
     throw std::logic_error("Subdomain: the pooled K and f sizes differ, or K was given twice");
-  if (K().rows() != n && !sys_.assemble)
-    throw std::logic_error("Subdomain: K and f sizes differ");
+  if (K().rows() != n && !sys_.assemble) throw std::logic_error("Subdomain: K and f sizes differ");
   if (sys_.R.rows() != n) throw std::logic_error("Subdomain: R and f sizes differ");
   if (static_cast<int>(sys_.fixed_dofs.size()) != sys_.R.cols())
     throw std::logic_error("Subdomain " + std::to_string(sys_.id) +
@@ -161,7 +159,8 @@ PackedSymmetric Subdomain::dual_block(const std::vector<BEntry>& b, int nmult,
     while (first < entries.size() && entries[first].mult < col) ++first;
     const double* w = W.col(col).data();
     double* f = F.col(col).data();
-    for (size_t k = first; k < entries.size(); ++k) f[entries[k].mult] += entries[k].value * w[entries[k].p];
+    for (size_t k = first; k < entries.size(); ++k)
+      f[entries[k].mult] += entries[k].value * w[entries[k].p];
   }
   return PackedSymmetric(F, precision);  // the lower half
 }
@@ -210,8 +209,7 @@ void Subdomain::factorize_impl(Ordering ordering, const std::vector<int>* interf
                                SymbolicCache* cache) {
   const double t0 = seconds_now();
   const Eigen::SparseMatrix<double> Krr = reduced_matrix();
-  const double t_reduce =
-      seconds_now() - t0;
+  const double t_reduce = seconds_now() - t0;
   chol_ = SparseCholesky(ordering);
   if (interface_dofs) {
     std::vector<int> last;

@@ -320,7 +320,9 @@ std::vector<std::string> vtu_files(const std::string& path, int ranks) {
   return f;
 }
 
-VtuIo parse_vtu_io(const std::string& name) { return parse_name(kVtuIoNames, name, "VTU output mode"); }
+VtuIo parse_vtu_io(const std::string& name) {
+  return parse_name(kVtuIoNames, name, "VTU output mode");
+}
 
 std::string to_string(VtuIo value) { return name_of(kVtuIoNames, value); }
 

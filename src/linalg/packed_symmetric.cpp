@@ -9,7 +9,9 @@
 
 namespace htfeti {
 
-Precision parse_precision(const std::string& name) { return parse_name(kPrecisionNames, name, "precision"); }
+Precision parse_precision(const std::string& name) {
+  return parse_name(kPrecisionNames, name, "precision");
+}
 
 std::string to_string(Precision value) { return name_of(kPrecisionNames, value); }
 
@@ -42,7 +44,8 @@ void pack(const Eigen::Ref<const Eigen::MatrixXd>& A, std::vector<T>& out) {
   const int n = static_cast<int>(A.rows());
   out.resize(static_cast<size_t>(n) * (n + 1) / 2);
   for (int j = 0; j < n; ++j)
-    for (int i = j; i < n; ++i) out[static_cast<size_t>(position(i, j, n))] = static_cast<T>(A(i, j));
+    for (int i = j; i < n; ++i)
+      out[static_cast<size_t>(position(i, j, n))] = static_cast<T>(A(i, j));
 }
 
 // y = A x, a panel at a time: the diagonal block, then every tile, which adds its four columns
@@ -59,8 +62,8 @@ void pack(const Eigen::Ref<const Eigen::MatrixXd>& A, std::vector<T>& out) {
 struct GenericTiles {
   template <class T>
   HTFETI_INLINE static int run(const T*& t, int k, int n, const double* x, double* y, double x0,
-                               double x1, double x2, double x3, double* a0, double* a1,
-                               double* a2, double* a3) {
+                               double x1, double x2, double x3, double* a0, double* a1, double* a2,
+                               double* a3) {
     for (; k + kTile <= n; k += kTile, t += 4 * kTile) {
       double* yk = y + k;
       const double* xk = x + k;
@@ -86,7 +89,8 @@ struct GenericTiles {
 // them and the baseline x86-64 code elsewhere. Results differ between them only by the rounding
 // of fused multiply-adds; on one machine every rank and thread runs the same.
 #if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__)
-#define HTFETI_ISA_CLONES __attribute__((target_clones("arch=x86-64-v4", "arch=x86-64-v3", "default")))
+#define HTFETI_ISA_CLONES \
+  __attribute__((target_clones("arch=x86-64-v4", "arch=x86-64-v3", "default")))
 #define HTFETI_AVX2_SINGLE 1
 #else
 #define HTFETI_ISA_CLONES
@@ -116,9 +120,9 @@ namespace avx2 {
 // fused multiply-add per accumulator; tests/test_fem.cpp compares the two).
 struct Avx2SingleTiles {
   // Half a tile: four rows of the four columns.
-  HTFETI_INLINE static void half(
-      const float* tt, double* yk, const double* xk, __m256d b0, __m256d b1, __m256d b2,
-      __m256d b3, __m256d& c0, __m256d& c1, __m256d& c2, __m256d& c3) {
+  HTFETI_INLINE static void half(const float* tt, double* yk, const double* xk, __m256d b0,
+                                 __m256d b1, __m256d b2, __m256d b3, __m256d& c0, __m256d& c1,
+                                 __m256d& c2, __m256d& c3) {
     const __m256d xv = _mm256_loadu_pd(xk);
     const __m256d v0 = _mm256_cvtps_pd(_mm_loadu_ps(tt));
     const __m256d v1 = _mm256_cvtps_pd(_mm_loadu_ps(tt + kTile));
@@ -134,9 +138,9 @@ struct Avx2SingleTiles {
     c2 = _mm256_fmadd_pd(v2, xv, c2);
     c3 = _mm256_fmadd_pd(v3, xv, c3);
   }
-  HTFETI_INLINE static int run(
-      const float*& t, int k, int n, const double* x, double* y, double x0, double x1, double x2,
-      double x3, double* a0, double* a1, double* a2, double* a3) {
+  HTFETI_INLINE static int run(const float*& t, int k, int n, const double* x, double* y, double x0,
+                               double x1, double x2, double x3, double* a0, double* a1, double* a2,
+                               double* a3) {
     const __m256d b0 = _mm256_set1_pd(x0), b1 = _mm256_set1_pd(x1), b2 = _mm256_set1_pd(x2),
                   b3 = _mm256_set1_pd(x3);
     __m256d c0l = _mm256_setzero_pd(), c0h = c0l, c1l = c0l, c1h = c0l, c2l = c0l, c2h = c0l,

@@ -92,8 +92,8 @@ long long BoxGrid::subdomain_id(int q, std::array<int, 3> s) const {
   const long long ncx = clusters_along(0), ncy = clusters_along(1),
                   ncz = o_.dim == 3 ? clusters_along(2) : 1;
   const long long c = ((q * ncz + s[2] / m) * ncy + s[1] / m) * ncx + s[0] / m;
-  const int local = o_.dim == 3 ? ((s[2] % m) * m + s[1] % m) * m + s[0] % m
-                                : (s[1] % m) * m + s[0] % m;
+  const int local =
+      o_.dim == 3 ? ((s[2] % m) * m + s[1] % m) * m + s[0] % m : (s[1] % m) * m + s[0] % m;
   return c * subdomains_per_cluster() + local;
 }
 
@@ -200,10 +200,14 @@ SubdomainMesh BoxGrid::mesh(int sub) const {
             m.cells.insert(m.cells.end(), {n0, n1, n2, n0, n2, n3});
           continue;
         }
-        const int v[8] = {node(a, b, c),         node(a + 1, b, c),
-                          node(a + 1, b + 1, c), node(a, b + 1, c),
-                          node(a, b, c + 1),     node(a + 1, b, c + 1),
-                          node(a + 1, b + 1, c + 1), node(a, b + 1, c + 1)};
+        const int v[8] = {node(a, b, c),
+                          node(a + 1, b, c),
+                          node(a + 1, b + 1, c),
+                          node(a, b + 1, c),
+                          node(a, b, c + 1),
+                          node(a + 1, b, c + 1),
+                          node(a + 1, b + 1, c + 1),
+                          node(a, b + 1, c + 1)};
         if (o_.cell == CellType::hex8) {
           m.cells.insert(m.cells.end(), v, v + 8);
         } else {

@@ -3,7 +3,9 @@
 
 namespace htfeti {
 
-CellType parse_cell_type(const std::string& name) { return parse_name(kCellTypeNames, name, "element"); }
+CellType parse_cell_type(const std::string& name) {
+  return parse_name(kCellTypeNames, name, "element");
+}
 
 std::string to_string(CellType value) { return name_of(kCellTypeNames, value); }
 

@@ -50,9 +50,9 @@ CellType cell_type_of(int gmsh_type) {
 // Names of Gmsh element types for messages. (Not gmsh::model::mesh::getElementProperties: it runs
 // Gmsh's own Eigen code, whose template instances clash with ours in sanitizer builds.)
 std::string gmsh_type_name(int type) {
-  static const char* names[] = {"?",      "line2",  "tri3",   "quad4",  "tet4",   "hex8",
-                                "prism6", "pyr5",   "line3",  "tri6",   "quad9",  "tet10",
-                                "hex27",  "prism18", "pyr14", "point",  "quad8",  "hex20"};
+  static const char* names[] = {"?",      "line2",   "tri3",  "quad4", "tet4",  "hex8",
+                                "prism6", "pyr5",    "line3", "tri6",  "quad9", "tet10",
+                                "hex27",  "prism18", "pyr14", "point", "quad8", "hex20"};
   if (type >= 0 && type < static_cast<int>(sizeof(names) / sizeof(names[0]))) return names[type];
   return "type " + std::to_string(type);
 }
@@ -98,13 +98,13 @@ Mesh read_gmsh(const std::string& path) {
       for (size_t i = 0; i < types.size(); ++i)
         if (!tags[i].empty()) dim = d;
     }
-    if (dim < 0)
-      throw std::invalid_argument("mesh file '" + path + "' has no 2D or 3D cells");
+    if (dim < 0) throw std::invalid_argument("mesh file '" + path + "' has no 2D or 3D cells");
     int type = -1;
     size_t cell_count = 0;
     for (size_t i = 0; i < types.size(); ++i) {
       if (tags[i].empty()) continue;
-      const bool ok = dim == 2 ? (types[i] == 2 || types[i] == 3) : (types[i] == 4 || types[i] == 5);
+      const bool ok =
+          dim == 2 ? (types[i] == 2 || types[i] == 3) : (types[i] == 4 || types[i] == 5);
       const std::string name = gmsh_type_name(types[i]);
       if (!ok)
         throw std::invalid_argument("mesh file '" + path + "' has cells of type '" + name +
@@ -148,7 +148,8 @@ Mesh read_gmsh(const std::string& path) {
     if (std::find(seen.begin(), seen.end(), 0) != seen.end())
       throw std::invalid_argument("mesh file '" + path + "' has cells with undefined nodes");
     mesh.cells.resize(cell_nodes_tags.size());
-    for (size_t i = 0; i < cell_nodes_tags.size(); ++i) mesh.cells[i] = index.at(cell_nodes_tags[i]);
+    for (size_t i = 0; i < cell_nodes_tags.size(); ++i)
+      mesh.cells[i] = index.at(cell_nodes_tags[i]);
     std::unordered_map<std::size_t, int> cell_index;
     for (size_t i = 0; i < cell_tags.size(); ++i) cell_index[cell_tags[i]] = static_cast<int>(i);
     (void)nc;

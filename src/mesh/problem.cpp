@@ -5,11 +5,15 @@
 
 namespace htfeti {
 
-ProblemKind parse_problem(const std::string& name) { return parse_name(kProblemNames, name, "problem"); }
+ProblemKind parse_problem(const std::string& name) {
+  return parse_name(kProblemNames, name, "problem");
+}
 
 std::string to_string(ProblemKind value) { return name_of(kProblemNames, value); }
 
-ElementKind parse_element(const std::string& name) { return parse_name(kElementNames, name, "element"); }
+ElementKind parse_element(const std::string& name) {
+  return parse_name(kElementNames, name, "element");
+}
 
 std::string to_string(ElementKind value) { return name_of(kElementNames, value); }
 

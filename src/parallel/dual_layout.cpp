@@ -136,7 +136,8 @@ OrderedSum::OrderedSum(const Comm& comm, const DualLayout& layout, const std::ve
     Neighbour nb{r, ghost[r], {}};
     for (int i = rd[r]; i < rd[r + 1]; ++i) {
       const int e = layout.ext_index(rg[i]);
-      if (e < 0 || e >= n_owned_) throw std::logic_error("OrderedSum: a value for an unowned entry");
+      if (e < 0 || e >= n_owned_)
+        throw std::logic_error("OrderedSum: a value for an unowned entry");
       nb.recv.push_back(e);
     }
     neighbours_.push_back(std::move(nb));
@@ -168,7 +169,8 @@ void OrderedSum::combine(const double* values, double* ext) {
   }
   MPI_Waitall(2 * nn, req_.data(), MPI_STATUSES_IGNORE);
   for (int i = 0; i < nn; ++i)  // neighbours in rank order: their contributors come later
-    for (size_t j = 0; j < neighbours_[i].recv.size(); ++j) ext[neighbours_[i].recv[j]] += rbuf_[i][j];
+    for (size_t j = 0; j < neighbours_[i].recv.size(); ++j)
+      ext[neighbours_[i].recv[j]] += rbuf_[i][j];
 }
 
 }  // namespace htfeti

@@ -27,13 +27,15 @@ std::vector<long long> number_keys(const Comm& comm, const std::vector<Numbering
   std::vector<int> sc(P), rc(P), sd(P + 1, 0), rd(P + 1, 0);
   MPI_Alltoall(scount.data(), 1, MPI_INT, rcount.data(), 1, MPI_INT, comm.raw());
   for (int r = 0; r < P; ++r) {
-    if (scount[r] > std::numeric_limits<int>::max() / K || rcount[r] > std::numeric_limits<int>::max() / K)
+    if (scount[r] > std::numeric_limits<int>::max() / K ||
+        rcount[r] > std::numeric_limits<int>::max() / K)
       throw std::runtime_error("key numbering: too many keys between two ranks");
     sc[r] = scount[r] * K, rc[r] = rcount[r] * K;
     sd[r + 1] = sd[r] + sc[r], rd[r + 1] = rd[r] + rc[r];
   }
   std::vector<long long> sbuf(static_cast<size_t>(sd[P])), rbuf(static_cast<size_t>(rd[P]));
-  for (size_t j = 0; j < n; ++j) std::copy(keys[order[j]].begin(), keys[order[j]].end(), &sbuf[K * j]);
+  for (size_t j = 0; j < n; ++j)
+    std::copy(keys[order[j]].begin(), keys[order[j]].end(), &sbuf[K * j]);
   MPI_Alltoallv(sbuf.data(), sc.data(), sd.data(), MPI_LONG_LONG, rbuf.data(), rc.data(), rd.data(),
                 MPI_LONG_LONG, comm.raw());
   // Bucket: sort the received keys, count the distinct ones.

@@ -108,10 +108,10 @@ MeshPartition partition_mesh(const Mesh& mesh, int subdomains, int cluster_size)
     idx_t options[METIS_NOPTIONS];
     METIS_SetDefaultOptions(options);
     options[METIS_OPTION_SEED] = 1;
-    metis_check(METIS_PartGraphKway(&nv, &ncon, xadj.data(), adjncy.data(), nullptr, nullptr,
-                                    adjwgt.data(), &nparts, nullptr, nullptr, options, &objval,
-                                    cpart.data()),
-                "subdomain graph into clusters");
+    metis_check(
+        METIS_PartGraphKway(&nv, &ncon, xadj.data(), adjncy.data(), nullptr, nullptr, adjwgt.data(),
+                            &nparts, nullptr, nullptr, options, &objval, cpart.data()),
+        "subdomain graph into clusters");
   }
   // Drop empty clusters; number subdomains cluster-major.
   std::vector<int> cl_count(std::max(nclusters_target, subdomains), 0), cl_new(cl_count.size(), -1);
@@ -152,7 +152,8 @@ MeshPartition partition_mesh(const Mesh& mesh, int subdomains, int cluster_size)
   {
     std::vector<int> pos(p.node_cell_offset.begin(), p.node_cell_offset.end() - 1);
     for (int e = 0; e < ne; ++e)
-      for (int a = 0; a < nc; ++a) p.node_cell_list[pos[mesh.cells[static_cast<size_t>(e) * nc + a]]++] = e;
+      for (int a = 0; a < nc; ++a)
+        p.node_cell_list[pos[mesh.cells[static_cast<size_t>(e) * nc + a]]++] = e;
   }
   // Domain boundary: nodes of facets that belong to one cell only.
   p.on_boundary.assign(nn, 0);
@@ -173,7 +174,8 @@ SubdomainMesh extract_subdomain(const Mesh& mesh, const MeshPartition& p, int s)
   const int nc = cell_nodes(mesh.type);
   m.id = s;
   m.cluster = static_cast<int>(std::upper_bound(p.cluster_first.begin(), p.cluster_first.end(), s) -
-                               p.cluster_first.begin()) - 1;
+                               p.cluster_first.begin()) -
+              1;
   m.dim = mesh.dim;
   m.type = mesh.type;
   const auto& cells = p.subdomain_cells[s];
@@ -202,7 +204,8 @@ SubdomainMesh extract_subdomain(const Mesh& mesh, const MeshPartition& p, int s)
   m.cells.reserve(cells.size() * nc);
   std::vector<int> cell_local(0);
   for (int e : cells)
-    for (int a = 0; a < nc; ++a) m.cells.push_back(local(mesh.cells[static_cast<size_t>(e) * nc + a]));
+    for (int a = 0; a < nc; ++a)
+      m.cells.push_back(local(mesh.cells[static_cast<size_t>(e) * nc + a]));
   for (const auto& [name, gn] : mesh.node_groups) {
     std::vector<int> l;
     for (int g : gn) {
@@ -215,7 +218,8 @@ SubdomainMesh extract_subdomain(const Mesh& mesh, const MeshPartition& p, int s)
     std::vector<int> l;
     for (int e : cg)
       if (p.cell_subdomain[e] == s)
-        l.push_back(static_cast<int>(std::lower_bound(cells.begin(), cells.end(), e) - cells.begin()));
+        l.push_back(
+            static_cast<int>(std::lower_bound(cells.begin(), cells.end(), e) - cells.begin()));
     if (!l.empty()) m.cell_groups[name] = std::move(l);
   }
   // A boundary facet belongs to the subdomain of the cell it bounds: all its nodes are local and
@@ -239,7 +243,8 @@ SubdomainMesh extract_subdomain(const Mesh& mesh, const MeshPartition& p, int s)
         const int e = p.node_cell_list[c];
         int hits = 0;
         for (int a = 0; a < nc; ++a)
-          for (int b = 0; b < fn; ++b) hits += mesh.cells[static_cast<size_t>(e) * nc + a] == fg.nodes[i + b];
+          for (int b = 0; b < fn; ++b)
+            hits += mesh.cells[static_cast<size_t>(e) * nc + a] == fg.nodes[i + b];
         if (hits == fn && (owner < 0 || p.cell_subdomain[e] < owner)) owner = p.cell_subdomain[e];
       }
       if (owner != s) continue;

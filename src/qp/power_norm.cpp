@@ -6,7 +6,9 @@
 
 namespace htfeti::qp {
 
-NormEstimate parse_norm_estimate(const std::string& name) { return parse_name(kNormEstimateNames, name, "norm estimate"); }
+NormEstimate parse_norm_estimate(const std::string& name) {
+  return parse_name(kNormEstimateNames, name, "norm estimate");
+}
 
 std::string to_string(NormEstimate value) { return name_of(kNormEstimateNames, value); }
 
@@ -28,8 +30,8 @@ double estimate_norm(Operator& A, const Vec& start, const Reducer& red, int max_
   return estimate;
 }
 
-double estimate_norm_lanczos(Operator& A, const Vec& start, const Reducer& red,
-                             int max_iterations, double rtol) {
+double estimate_norm_lanczos(Operator& A, const Vec& start, const Reducer& red, int max_iterations,
+                             double rtol) {
   const double n0 = red.norm(start);
   if (n0 == 0) return 0;
   Vec q = start / n0, q_prev = Vec::Zero(start.size()), w(start.size());

@@ -35,8 +35,7 @@ QuadraticProgram enforce_by_projector(const QuadraticProgram& qp) {
   if (!qp.equality_projector)
     throw std::invalid_argument("enforce_by_projector: the QP has no equality projector");
   QuadraticProgram out = qp;
-  out.hessian =
-      std::make_shared<ProjectedOperator>(qp.hessian, qp.equality_projector, qp.size());
+  out.hessian = std::make_shared<ProjectedOperator>(qp.hessian, qp.equality_projector, qp.size());
   out.linear.resize(qp.size());
   qp.equality_projector->apply(qp.linear, out.linear);
   return out;

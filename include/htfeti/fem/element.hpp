@@ -11,6 +11,7 @@
 #include <Eigen/Dense>
 #include <array>
 #include <string>
+
 #include "htfeti/mesh/cell.hpp"
 
 namespace htfeti {

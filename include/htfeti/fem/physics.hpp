@@ -20,15 +20,16 @@
 #include <string>
 #include <vector>
 
+#include "htfeti/enum_names.hpp"
 #include "htfeti/fem/element.hpp"
 #include "htfeti/linalg/orthonormal.hpp"
 #include "htfeti/mesh/subdomain_mesh.hpp"
-#include "htfeti/enum_names.hpp"
 
 namespace htfeti {
 
 enum class PhysicsKind { laplace, elasticity };
-inline constexpr std::array<EnumName<PhysicsKind>, 2> kPhysicsNames{{{PhysicsKind::laplace, "laplace"}, {PhysicsKind::elasticity, "elasticity"}}};
+inline constexpr std::array<EnumName<PhysicsKind>, 2> kPhysicsNames{
+    {{PhysicsKind::laplace, "laplace"}, {PhysicsKind::elasticity, "elasticity"}}};
 PhysicsKind parse_physics(const std::string& name);  // throws std::invalid_argument
 std::string to_string(PhysicsKind kind);
 
@@ -43,9 +44,7 @@ struct Physics {
   /// problem, a factor on Young's modulus in elasticity (coefficient jumps between materials).
   std::string coefficient;
   int dofs_per_node() const { return kind == PhysicsKind::laplace ? 1 : dim; }
-  int kernel_dimension() const {
-    return kind == PhysicsKind::laplace ? 1 : (dim == 2 ? 3 : 6);
-  }
+  int kernel_dimension() const { return kind == PhysicsKind::laplace ? 1 : (dim == 2 ? 3 : 6); }
   /// Throws std::invalid_argument for non-physical values (E <= 0, nu outside (-1, 0.5), ...).
   void validate() const;
 };

@@ -33,10 +33,10 @@
 #include <unordered_set>
 #include <vector>
 
+#include "htfeti/enum_names.hpp"
 #include "htfeti/feti/constraints.hpp"
 #include "htfeti/feti/subdomain.hpp"
 #include "htfeti/linalg/packed_symmetric.hpp"
-#include "htfeti/enum_names.hpp"
 
 namespace htfeti {
 
@@ -45,7 +45,10 @@ namespace htfeti {
 /// of each subdomain onto its interface (explicit), plus the low-rank cluster correction
 /// B_i K_i^+ C_i^T and B_i R_i (see apply_dual).
 enum class DualOperator { implicit, explicit_, automatic };
-inline constexpr std::array<EnumName<DualOperator>, 3> kDualOperatorNames{{{DualOperator::implicit, "implicit"}, {DualOperator::explicit_, "explicit"}, {DualOperator::automatic, "auto"}}};
+inline constexpr std::array<EnumName<DualOperator>, 3> kDualOperatorNames{
+    {{DualOperator::implicit, "implicit"},
+     {DualOperator::explicit_, "explicit"},
+     {DualOperator::automatic, "auto"}}};
 DualOperator parse_dual_operator(const std::string& name);
 std::string to_string(DualOperator kind);
 
@@ -55,8 +58,8 @@ class Cluster {
   /// (cluster_primal_constraints); b[i]: the rows of B~ on subdomain i, numbered 0..nmult[i]-1
   /// locally. Factors the subdomains. explicit_F: build the dense local blocks.
   Cluster(int id, std::vector<Subdomain*> subs, std::vector<std::vector<ConstraintEntry>> C,
-          Ordering ordering, std::vector<std::vector<Subdomain::BEntry>> b,
-          std::vector<int> nmult, bool explicit_F, SymbolicCache* cache = nullptr,
+          Ordering ordering, std::vector<std::vector<Subdomain::BEntry>> b, std::vector<int> nmult,
+          bool explicit_F, SymbolicCache* cache = nullptr,
           Precision precision = Precision::double_);
   /// Without dual rows: for tests of the generalized inverse alone.
   Cluster(int id, std::vector<Subdomain*> subs, std::vector<std::vector<ConstraintEntry>> C,
@@ -127,10 +130,10 @@ class Cluster {
   std::vector<std::vector<Subdomain::BEntry>> b_;  // rows of B~ per subdomain (local numbering)
   std::vector<Eigen::VectorXd> xw_;                // implicit apply_dual: physical work vectors
   bool explicit_ = false;
-  std::vector<PackedSymmetric> F_;      // explicit: F_i (lower triangle, packed)
+  std::vector<PackedSymmetric> F_;           // explicit: F_i (lower triangle, packed)
   std::vector<std::vector<int>> interface_;  // explicit: the dofs ordered last (refactor())
-  std::vector<Eigen::MatrixXd> U_;      // explicit: B_i K_i^+ C_i^T
-  std::vector<Eigen::MatrixXd> V_;      // explicit: B_i R_i
+  std::vector<Eigen::MatrixXd> U_;           // explicit: B_i K_i^+ C_i^T
+  std::vector<Eigen::MatrixXd> V_;           // explicit: B_i R_i
   double setup_seconds_ = 0;
 };
 

@@ -31,12 +31,11 @@
 // (key = cluster, the object's subdomain pair, its lowest node, the row number).
 #pragma once
 
+#include <Eigen/Dense>
 #include <array>
 #include <cstdint>
 #include <utility>
 #include <vector>
-
-#include <Eigen/Dense>
 
 #include "htfeti/feti/input.hpp"
 
@@ -55,8 +54,8 @@ struct LocalRow {
   double scale = 1;         ///< contact: scale * lambda is the nodal force
   double gap = 0;           ///< contact: the gap in length units
   int side = 0;             ///< contact: +1 for the part on node a, -1 on node b
-  std::array<double, 3> point{0, 0, 0};      ///< contact: node a
-  std::array<double, 3> direction{0, 0, 0};  ///< contact: n
+  std::array<double, 3> point{0, 0, 0};         ///< contact: node a
+  std::array<double, 3> direction{0, 0, 0};     ///< contact: n
   std::vector<std::pair<int, double>> entries;  ///< (local dof, value)
 };
 

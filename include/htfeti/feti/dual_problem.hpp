@@ -187,11 +187,11 @@ class DualProblem {
   void build_coarse_image(double memory_limit_mb = 0);
   bool has_coarse_image() const { return image_.built; }
   struct CoarseImageStats {
-    int colours = 0;             ///< of the distance-3 colouring
-    int F_applications = 0;      ///< spent forming E
-    long long E_nonzeros = 0;    ///< summed over ranks
+    int colours = 0;           ///< of the distance-3 colouring
+    int F_applications = 0;    ///< spent forming E
+    long long E_nonzeros = 0;  ///< summed over ranks
     long long C_nonzeros = 0;
-    double seconds = 0;          ///< wall clock on this rank
+    double seconds = 0;  ///< wall clock on this rank
   };
   const CoarseImageStats& coarse_image_stats() const { return image_.stats; }
   /// y = E z (the owned rows of F G~^T z); requires build_coarse_image().
@@ -253,9 +253,9 @@ class DualProblem {
   /// The ordering of the subdomain factors in effect (automatic resolved). The explicit operator
   /// orders the interface last, the rest by constrained AMD (amd) or by METIS nested dissection.
   std::string ordering_in_effect() const {
-    return explicit_ ? (ordering_ == Ordering::amd ? "camd (interface last)"
-                                                   : "metis (interface last)")
-                     : to_string(ordering_);
+    return explicit_
+               ? (ordering_ == Ordering::amd ? "camd (interface last)" : "metis (interface last)")
+               : to_string(ordering_);
   }
   /// Whether the subdomain factors of some cluster were freed after setup and are rebuilt for the
   /// reconstruction (on any rank), and how many clusters of this rank freed them.
@@ -302,10 +302,10 @@ class DualProblem {
   void set_up_coarse_space(Setup& st);
   // The coarse factor, d, e~, lambda~, the bounds and the scaling.
   void finish_setup(Setup& st);
-  void gather_to_ext(const Vec& owned);                        // ext_in_ = [owned, ghosts]
-  void cluster_rhs_from_ext(int c, bool add_f, double sign);   // x_i = (f_i) + sign B_i^T ext_in_
-  void b_of_x(int c);                                          // contrib_ = B_i x_i, per row entry
-  void scatter_contrib();                                      // ext_out_ += contrib_, fixed order
+  void gather_to_ext(const Vec& owned);                       // ext_in_ = [owned, ghosts]
+  void cluster_rhs_from_ext(int c, bool add_f, double sign);  // x_i = (f_i) + sign B_i^T ext_in_
+  void b_of_x(int c);                                         // contrib_ = B_i x_i, per row entry
+  void scatter_contrib();                                     // ext_out_ += contrib_, fixed order
   template <class Body>
   void for_each_cluster(Body body);     // OpenMP over local clusters
   void gt_into_ext(const Vec& coarse);  // ext_out_ = G~^T coarse (owners summed)
@@ -343,24 +343,24 @@ class DualProblem {
   const Comm& comm_;
   SetupTimings setup_;
   long long n_dual_ = 0, n_inequalities_ = 0;
-  int first_cluster_ = 0, end_cluster_ = 0;            // local clusters
-  std::vector<int> sub_first_;     // per local cluster: first local subdomain index
+  int first_cluster_ = 0, end_cluster_ = 0;  // local clusters
+  std::vector<int> sub_first_;               // per local cluster: first local subdomain index
   std::vector<int> coarse_first_;  // per global cluster: first coarse index (num_clusters + 1)
   std::vector<std::unique_ptr<Subdomain>> subs_;
   std::vector<std::unique_ptr<Cluster>> clusters_;
   std::unique_ptr<SymbolicCache> symbolic_;  // shared symbolic analyses (null: off)
-  std::vector<std::vector<Row>> rows_;  // B~ rows per local subdomain
+  std::vector<std::vector<Row>> rows_;       // B~ rows per local subdomain
   DualLayout layout_dual_;
-  OrderedSum sub_sum_, clu_sum_;       // contributions by subdomain / by cluster (G~^T)
-  std::vector<int> flat_off_;          // per local subdomain: its first pair in flat_
-  Vec flat_, gflat_;                   // work: one value per pair
+  OrderedSum sub_sum_, clu_sum_;  // contributions by subdomain / by cluster (G~^T)
+  std::vector<int> flat_off_;     // per local subdomain: its first pair in flat_
+  Vec flat_, gflat_;              // work: one value per pair
   std::vector<std::vector<std::vector<std::pair<int, double>>>> g_pairs_;  // G~ rows by pair
   std::vector<int> g_first_;  // cluster c's pairs in gflat_: [g_first_[c], g_first_[c + 1])
-  std::vector<int> block_;             // per owned entry: its owner cluster
+  std::vector<int> block_;    // per owned entry: its owner cluster
   mutable std::vector<double> partial_;  // per cluster partial sums
-  std::vector<int> owner_;                // owner rank of each extended entry
-  std::vector<MultiplierKind> kind_;      // per owned entry
-  Vec c_;                                 // per owned entry: right-hand side of B~ u (<)= c
+  std::vector<int> owner_;               // owner rank of each extended entry
+  std::vector<MultiplierKind> kind_;     // per owned entry
+  Vec c_;                                // per owned entry: right-hand side of B~ u (<)= c
   std::vector<double> contact_scale_, contact_gap_;  // per owned entry (contact rows)
   std::vector<std::array<double, 3>> contact_point_;
   // G~ rows of each local cluster: per kernel vector, (extended index, value)
@@ -372,7 +372,8 @@ class DualProblem {
     std::vector<int> e_ptr, e_col, c_ptr, c_col;
     std::vector<double> e_val, c_val;
     Vec ab, z1, z2;  // work: [G~ v; G~ F v], the two coarse solutions
-    Vec ext_in_second, gflat_second, ext_out_second;  // work: the second vector of the fused G~ and G~^T passes
+    Vec ext_in_second, gflat_second,
+        ext_out_second;  // work: the second vector of the fused G~ and G~^T passes
     CoarseImageStats stats;
   } image_;
   double image_row(int e, const Vec& z) const {  // (E z)_e, E's columns in increasing order
@@ -418,10 +419,12 @@ class DualProblem {
   void gluing_BtB(const std::vector<Vec>& w, std::vector<Vec>& q);
   void copy_sums(std::vector<Vec>& v, std::vector<Vec>& sums);  // sums_e = sum_c v_c (node dofs)
   bool exact_node_scaling_ = false;
-  std::vector<std::vector<int>> node_copies_;   // per local subdomain: copies of each node
-  std::vector<std::vector<int>> node_row_positions_;          // interface positions with per-node gluing rows
-  std::vector<std::vector<double>> node_row_copies_, node_row_delta_;  // their copy count and weight delta
-  std::vector<Vec> scaling_w_, scaling_q_, scaling_sums_;                   // interface work vectors
+  std::vector<std::vector<int>> node_copies_;  // per local subdomain: copies of each node
+  std::vector<std::vector<int>>
+      node_row_positions_;  // interface positions with per-node gluing rows
+  std::vector<std::vector<double>> node_row_copies_,
+      node_row_delta_;                                     // their copy count and weight delta
+  std::vector<Vec> scaling_w_, scaling_q_, scaling_sums_;  // interface work vectors
   PreconditionerKind precond_kind_ = PreconditionerKind::none;
   Scaling scaling_ = Scaling::multiplicity;
   bool precond_dense_ = true;
@@ -431,7 +434,7 @@ class DualProblem {
   std::vector<Vec> pin_, pout_;
   bool explicit_ = false;
   bool factors_released_ = false;
-  std::vector<char> released_;  // per local cluster: factors freed after setup
+  std::vector<char> released_;   // per local cluster: factors freed after setup
   bool outer_parallel_ = false;  // threads over clusters (true) or inside each cluster
   Ordering ordering_ = Ordering::amd;
 };

@@ -16,6 +16,7 @@
 #include <functional>
 #include <string>
 #include <vector>
+
 #include "htfeti/enum_names.hpp"
 
 namespace htfeti {
@@ -23,7 +24,10 @@ namespace htfeti {
 /// Which primal constraints join the subdomains of a cluster (paper, Section 5): corners
 /// (vertices), averages of the kernel over shared edges (2D) or faces (3D), or both.
 enum class Glue { corners, averages, corners_averages };
-inline constexpr std::array<EnumName<Glue>, 3> kGlueNames{{{Glue::corners, "corners"}, {Glue::averages, "averages"}, {Glue::corners_averages, "corners+averages"}}};
+inline constexpr std::array<EnumName<Glue>, 3> kGlueNames{
+    {{Glue::corners, "corners"},
+     {Glue::averages, "averages"},
+     {Glue::corners_averages, "corners+averages"}}};
 Glue parse_glue(const std::string& name);  // throws std::invalid_argument
 std::string to_string(Glue glue);
 
@@ -68,7 +72,7 @@ struct ContactRow {
   int side = 1;
   long long node_a = 0;  ///< global id of a (the key that orders the row)
   int copies_a = 1, copies_b = 0;
-  int owner_subdomain = 0;  ///< lowest subdomain holding a copy of a or b
+  int owner_subdomain = 0;                   ///< lowest subdomain holding a copy of a or b
   std::array<double, 3> direction{1, 0, 0};  ///< unit normal n (dofs_per_node components used)
   double gap = 0;
   std::array<double, 3> point{0, 0, 0};  ///< coordinates of a (for the report)

@@ -28,15 +28,19 @@
 #include <string>
 #include <vector>
 
-#include "htfeti/feti/sparse_cholesky.hpp"
 #include "htfeti/enum_names.hpp"
+#include "htfeti/feti/sparse_cholesky.hpp"
 
 namespace htfeti {
 
 /// automatic: chosen by solve() from the problem class (resolve_preconditioner in solver.hpp);
 /// DualProblem needs it resolved.
 enum class PreconditionerKind { none, lumped, dirichlet, automatic };
-inline constexpr std::array<EnumName<PreconditionerKind>, 4> kPreconditionerNames{{{PreconditionerKind::none, "none"}, {PreconditionerKind::lumped, "lumped"}, {PreconditionerKind::dirichlet, "dirichlet"}, {PreconditionerKind::automatic, "auto"}}};
+inline constexpr std::array<EnumName<PreconditionerKind>, 4> kPreconditionerNames{
+    {{PreconditionerKind::none, "none"},
+     {PreconditionerKind::lumped, "lumped"},
+     {PreconditionerKind::dirichlet, "dirichlet"},
+     {PreconditionerKind::automatic, "auto"}}};
 PreconditionerKind parse_preconditioner(const std::string& name);  // throws std::invalid_argument
 std::string to_string(PreconditionerKind kind);
 
@@ -47,7 +51,10 @@ std::string to_string(PreconditionerKind kind);
 ///    side of an interface is trusted more (the rho-scaling of Klawonn and Widlund).
 ///  - automatic: stiffness when the problem has a coefficient field, else multiplicity (solve()).
 enum class Scaling { multiplicity, stiffness, automatic };
-inline constexpr std::array<EnumName<Scaling>, 3> kScalingNames{{{Scaling::multiplicity, "multiplicity"}, {Scaling::stiffness, "stiffness"}, {Scaling::automatic, "auto"}}};
+inline constexpr std::array<EnumName<Scaling>, 3> kScalingNames{
+    {{Scaling::multiplicity, "multiplicity"},
+     {Scaling::stiffness, "stiffness"},
+     {Scaling::automatic, "auto"}}};
 Scaling parse_scaling(const std::string& name);  // throws std::invalid_argument
 std::string to_string(Scaling scaling);
 
@@ -72,7 +79,7 @@ class LocalPreconditioner {
   std::vector<int> interface_;
   PreconditionerKind kind_;
   bool dense_ = false;
-  Eigen::MatrixXd S_;                     // dense Schur complement
+  Eigen::MatrixXd S_;                      // dense Schur complement
   Eigen::SparseMatrix<double> Kbb_, Kib_;  // interface block; interior x interface block
   SparseCholesky Kii_;                     // implicit Dirichlet
   Eigen::VectorXd work_;                   // interior vector

@@ -8,6 +8,7 @@
 #include <mutex>
 #include <string>
 #include <vector>
+
 #include "htfeti/enum_names.hpp"
 
 namespace htfeti {
@@ -16,7 +17,8 @@ namespace htfeti {
 /// measured with it), METIS nested dissection in 3D (27% fewer factor nonzeros on the
 /// cube-obstacle subdomains, docs/performance.md); resolved by the FETI stage.
 enum class Ordering { amd, metis, automatic };
-inline constexpr std::array<EnumName<Ordering>, 3> kOrderingNames{{{Ordering::amd, "amd"}, {Ordering::metis, "metis"}, {Ordering::automatic, "auto"}}};
+inline constexpr std::array<EnumName<Ordering>, 3> kOrderingNames{
+    {{Ordering::amd, "amd"}, {Ordering::metis, "metis"}, {Ordering::automatic, "auto"}}};
 Ordering parse_ordering(const std::string& name);
 std::string to_string(Ordering ordering);
 
@@ -42,13 +44,13 @@ class SymbolicCache {
   ~SymbolicCache();
   SymbolicCache(const SymbolicCache&) = delete;
   SymbolicCache& operator=(const SymbolicCache&) = delete;
-  long analyses() const;  ///< symbolic analyses done (cache misses)
-  long reuses() const;    ///< factorizations that reused a cached analysis
-  int patterns() const;   ///< patterns held
+  long analyses() const;        ///< symbolic analyses done (cache misses)
+  long reuses() const;          ///< factorizations that reused a cached analysis
+  int patterns() const;         ///< patterns held
   long numeric_reuses() const;  ///< factorizations that share a cached numeric factor
   /// Multi-column solves (SparseCholesky::solve_many) answered from an earlier equal one.
   long solve_reuses() const;
-  int matrices() const;         ///< numeric factors held
+  int matrices() const;              ///< numeric factors held
   double kept_factor_bytes() const;  ///< their bytes (factor_bytes() of each, once)
 
  private:

@@ -14,9 +14,9 @@
 #include <string>
 #include <vector>
 
+#include "htfeti/enum_names.hpp"
 #include "htfeti/feti/dual_problem.hpp"
 #include "htfeti/model.hpp"
-#include "htfeti/enum_names.hpp"
 
 namespace htfeti {
 
@@ -26,7 +26,8 @@ namespace htfeti {
 /// where two subdomains' values meet through the page cache; a file system that refuses direct
 /// I/O gets buffered writes. automatic: direct for pieces of kDirectMinBytes and more.
 enum class VtuIo { automatic, buffered, direct };
-inline constexpr std::array<EnumName<VtuIo>, 3> kVtuIoNames{{{VtuIo::automatic, "auto"}, {VtuIo::buffered, "buffered"}, {VtuIo::direct, "direct"}}};
+inline constexpr std::array<EnumName<VtuIo>, 3> kVtuIoNames{
+    {{VtuIo::automatic, "auto"}, {VtuIo::buffered, "buffered"}, {VtuIo::direct, "direct"}}};
 VtuIo parse_vtu_io(const std::string& name);  // auto | buffered | direct; std::invalid_argument
 std::string to_string(VtuIo io);
 
@@ -46,7 +47,7 @@ std::vector<std::string> vtu_files(const std::string& path, int ranks);
 
 /// Writes the solution; returns the path of the main file (.vtu or .pvtu). Collective.
 VtuWritten write_vtu(const std::string& path, const Model& model, DualProblem& dual,
-                      const std::vector<Eigen::VectorXd>& u, const Eigen::VectorXd& lambda,
-                      const VtuOptions& options = {});
+                     const std::vector<Eigen::VectorXd>& u, const Eigen::VectorXd& lambda,
+                     const VtuOptions& options = {});
 
 }  // namespace htfeti

@@ -12,6 +12,7 @@
 #include <Eigen/Dense>
 #include <string>
 #include <vector>
+
 #include "htfeti/enum_names.hpp"
 
 namespace htfeti {
@@ -19,7 +20,8 @@ namespace htfeti {
 /// Storage precision of the explicit F_i: double, or single (half the memory and the bytes
 /// streamed per product; the values are rounded to 24 bits, the sums stay in double).
 enum class Precision { double_, single };
-inline constexpr std::array<EnumName<Precision>, 2> kPrecisionNames{{{Precision::double_, "double"}, {Precision::single, "single"}}};
+inline constexpr std::array<EnumName<Precision>, 2> kPrecisionNames{
+    {{Precision::double_, "double"}, {Precision::single, "single"}}};
 Precision parse_precision(const std::string& name);  // throws std::invalid_argument
 std::string to_string(Precision precision);
 
@@ -31,9 +33,7 @@ class PackedSymmetric {
   int size() const { return n_; }
   Precision precision() const { return single_ ? Precision::single : Precision::double_; }
   /// Bytes of the stored values.
-  long bytes() const {
-    return static_cast<long>(d_.size()) * 8 + static_cast<long>(s_.size()) * 4;
-  }
+  long bytes() const { return static_cast<long>(d_.size()) * 8 + static_cast<long>(s_.size()) * 4; }
   /// y = A x (length size(); x and y must not alias). Allocates nothing.
   void multiply(const double* x, double* y) const;
   /// The same product by the code that every instruction set compiles (multiply() may take a

@@ -12,9 +12,9 @@ namespace htfeti {
 
 enum class CellType : int { tri3, quad4, tet4, hex8 };
 inline constexpr std::array<EnumName<CellType>, 4> kCellTypeNames{{{CellType::quad4, "quad4"},
-                                                                    {CellType::tri3, "tri3"},
-                                                                    {CellType::hex8, "hex8"},
-                                                                    {CellType::tet4, "tet4"}}};
+                                                                   {CellType::tri3, "tri3"},
+                                                                   {CellType::hex8, "hex8"},
+                                                                   {CellType::tet4, "tet4"}}};
 CellType parse_cell_type(const std::string& name);  // throws std::invalid_argument
 std::string to_string(CellType type);
 int cell_dimension(CellType type);

@@ -16,8 +16,8 @@ namespace htfeti {
 struct Mesh {
   int dim = 2;
   CellType type = CellType::tri3;
-  std::vector<double> coords;  ///< 3 per node
-  std::vector<int> cells;      ///< cell_nodes(type) node indices per cell
+  std::vector<double> coords;                           ///< 3 per node
+  std::vector<int> cells;                               ///< cell_nodes(type) node indices per cell
   std::map<std::string, std::vector<int>> node_groups;  ///< sorted node indices
   struct FacetGroup {
     int facet_nodes = 0;

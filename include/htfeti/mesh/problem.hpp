@@ -10,6 +10,7 @@
 #include <array>
 #include <string>
 #include <vector>
+
 #include "htfeti/enum_names.hpp"
 
 namespace htfeti {
@@ -17,10 +18,14 @@ namespace htfeti {
 enum class ProblemKind { poisson2d, membranes, membranes_coercive };
 enum class ElementKind { q1, p1 };
 
-inline constexpr std::array<EnumName<ProblemKind>, 3> kProblemNames{{{ProblemKind::poisson2d, "poisson2d"}, {ProblemKind::membranes, "membranes"}, {ProblemKind::membranes_coercive, "membranes-coercive"}}};
+inline constexpr std::array<EnumName<ProblemKind>, 3> kProblemNames{
+    {{ProblemKind::poisson2d, "poisson2d"},
+     {ProblemKind::membranes, "membranes"},
+     {ProblemKind::membranes_coercive, "membranes-coercive"}}};
 ProblemKind parse_problem(const std::string& name);  // throws std::invalid_argument
 std::string to_string(ProblemKind kind);
-inline constexpr std::array<EnumName<ElementKind>, 2> kElementNames{{{ElementKind::q1, "q1"}, {ElementKind::p1, "p1"}}};
+inline constexpr std::array<EnumName<ElementKind>, 2> kElementNames{
+    {{ElementKind::q1, "q1"}, {ElementKind::p1, "p1"}}};
 ElementKind parse_element(const std::string& name);  // throws std::invalid_argument
 std::string to_string(ElementKind kind);
 

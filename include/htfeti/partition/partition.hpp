@@ -20,8 +20,8 @@ struct MeshPartition {
   std::vector<int> cluster_first;   ///< num_clusters + 1
   std::vector<int> cell_subdomain;  ///< per cell
   std::vector<std::vector<int>> subdomain_cells;
-  std::vector<int> copy_offset, copy_list;  ///< per global node: subdomains holding it
-  std::vector<char> on_boundary;            ///< per global node
+  std::vector<int> copy_offset, copy_list;            ///< per global node: subdomains holding it
+  std::vector<char> on_boundary;                      ///< per global node
   std::vector<int> node_cell_offset, node_cell_list;  ///< per global node: its cells
 };
 

@@ -1,7 +1,7 @@
 // Projected conjugate gradients for the equality-constrained dual problem (paper, (11) without
 // inequalities): min 1/2 x'Ax - b'x subject to G x = e, started from a feasible x0 (G x0 = e), with
-// P the orthogonal projector onto Ker G (the QP's equality projector, qp.hpp). Every iterate stays feasible because every direction is
-// a P-image. Stops when ||P(b - A x)|| <= rtol ||P b||.
+// P the orthogonal projector onto Ker G (the QP's equality projector, qp.hpp). Every iterate stays
+// feasible because every direction is a P-image. Stops when ||P(b - A x)|| <= rtol ||P b||.
 //
 // With a preconditioner Z (the caller's P M^{-1} P, symmetric positive definite on Ker G) the
 // directions are built from z = Z w, w = P r (FETI's preconditioned conjugate projected

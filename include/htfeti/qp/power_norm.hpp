@@ -12,13 +12,14 @@
 
 #include <string>
 
-#include "htfeti/qp/operator.hpp"
 #include "htfeti/enum_names.hpp"
+#include "htfeti/qp/operator.hpp"
 
 namespace htfeti::qp {
 
 enum class NormEstimate { lanczos, power };
-inline constexpr std::array<EnumName<NormEstimate>, 2> kNormEstimateNames{{{NormEstimate::lanczos, "lanczos"}, {NormEstimate::power, "power"}}};
+inline constexpr std::array<EnumName<NormEstimate>, 2> kNormEstimateNames{
+    {{NormEstimate::lanczos, "lanczos"}, {NormEstimate::power, "power"}}};
 NormEstimate parse_norm_estimate(const std::string& name);  // throws std::invalid_argument
 std::string to_string(NormEstimate method);
 

@@ -52,8 +52,8 @@ inline std::shared_ptr<Operator> borrow(Operator& op) {
 }
 
 struct QuadraticProgram {
-  std::shared_ptr<Operator> hessian;  ///< A
-  Vec linear;                         ///< b
+  std::shared_ptr<Operator> hessian;                 ///< A
+  Vec linear;                                        ///< b
   std::shared_ptr<const ConstraintSet> constraints;  ///< Omega; null: none
   std::shared_ptr<Operator> equality_projector;      ///< P onto Ker G; null: no equalities
   /// The solution of the original QP is shift + the solution of this one (homogenize); empty:

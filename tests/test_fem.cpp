@@ -589,6 +589,14 @@ TEST_P(ClusterInverse, IsAGeneralizedInverseOfTheClusterStiffness) {
   Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(Kt);
   EXPECT_LT(std::abs(eig.eigenvalues()[0]), 1e-10);
   EXPECT_GT(eig.eigenvalues()[1], 1e-6);
+  // The cluster's dual operator knows its sizes (no rows of B~ here: 0 multipliers each) and
+  // refuses vectors of other sizes.
+  std::vector<Eigen::VectorXd> lam(m * m, Eigen::VectorXd(0)), out(m * m, Eigen::VectorXd(0));
+  EXPECT_NO_THROW(cluster.apply_dual(lam, out));
+  lam[0] = Eigen::VectorXd::Zero(1);
+  EXPECT_THROW(cluster.apply_dual(lam, out), std::logic_error);
+  lam.pop_back();
+  EXPECT_THROW(cluster.apply_dual(lam, out), std::logic_error);
 }
 
 INSTANTIATE_TEST_SUITE_P(AllGlues, ClusterInverse,

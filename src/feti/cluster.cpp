@@ -40,12 +40,19 @@ Eigen::MatrixXd null_space(const Eigen::MatrixXd& A) {
 Cluster::Cluster(int id, std::vector<Subdomain*> subs, std::vector<std::vector<ConstraintEntry>> C,
                  Ordering ordering, std::vector<std::vector<Subdomain::BEntry>> b,
                  std::vector<int> nmult, bool explicit_F, SymbolicCache* cache, Precision precision)
-    : id_(id), subs_(std::move(subs)), b_(std::move(b)), explicit_(explicit_F) {
+    : id_(id), subs_(std::move(subs)), explicit_(explicit_F) {
   const int s = static_cast<int>(subs_.size());
-  if (explicit_)
-    F_.resize(s), V_.resize(s), interface_.resize(s);
-  else
-    xw_.resize(s);
+  // The cluster's dual operator (ClusterDualOperator): the explicit one's blocks are formed
+  // below, while the factors are at hand; the implicit one keeps the rows of B~.
+  ExplicitClusterOperator* ex = nullptr;
+  if (explicit_) {
+    auto op = std::make_unique<ExplicitClusterOperator>(*this, nmult, precision);
+    ex = op.get();
+    dual_ = std::move(op);
+    ex->F_.resize(s), ex->V_.resize(s), interface_.resize(s);
+  } else {
+    dual_ = std::make_unique<ImplicitClusterOperator>(*this, std::move(b), nmult);
+  }
   std::string error;
   // Parallel over the cluster's subdomains when the caller is not already parallel (few large
   // clusters per rank); nested inside a parallel loop over clusters this runs serially.
@@ -54,16 +61,16 @@ Cluster::Cluster(int id, std::vector<Subdomain*> subs, std::vector<std::vector<C
     try {
       if (explicit_) {
         std::vector<int>& dofs = interface_[i];
-        for (const auto& e : b_[i]) dofs.push_back(e.dof);
+        for (const auto& e : b[i]) dofs.push_back(e.dof);
         std::sort(dofs.begin(), dofs.end());
         dofs.erase(std::unique(dofs.begin(), dofs.end()), dofs.end());
         subs_[i]->factorize_with_interface_last(dofs, cache, ordering);
-        F_[i] = subs_[i]->dual_block(b_[i], nmult[i], precision);
-        V_[i] = Eigen::MatrixXd::Zero(nmult[i], subs_[i]->kernel_dimension());
-        for (const auto& e : b_[i]) V_[i].row(e.mult) += e.value * subs_[i]->kernel().row(e.dof);
+        ex->F_[i] = subs_[i]->dual_block(b[i], nmult[i], precision);
+        ex->V_[i] = Eigen::MatrixXd::Zero(nmult[i], subs_[i]->kernel_dimension());
+        for (const auto& e : b[i])
+          ex->V_[i].row(e.mult) += e.value * subs_[i]->kernel().row(e.dof);
       } else {
         subs_[i]->factorize(ordering, cache);
-        xw_[i] = Eigen::VectorXd::Zero(subs_[i]->size());
       }
     } catch (const std::exception& e) {
 #pragma omp critical
@@ -131,7 +138,6 @@ Cluster::Cluster(int id, std::vector<Subdomain*> subs, std::vector<std::vector<C
   if (dim == 0) {
     rhs_.resize(0);
     sol_.resize(0);
-    if (explicit_) b_ = {};  // the explicit blocks replace the rows of B~ here
     return;
   }
 
@@ -174,12 +180,11 @@ Cluster::Cluster(int id, std::vector<Subdomain*> subs, std::vector<std::vector<C
   const Eigen::MatrixXd Ss = dscale_.asDiagonal() * S * dscale_.asDiagonal();
   if (explicit_) {  // U_i = B_i W_i
     for (int i = 0; i < s; ++i) {
-      U_.push_back(Eigen::MatrixXd::Zero(nmult[i], W_[i]->cols()));
-      for (const auto& e : b_[i]) U_[i].row(e.mult) += e.value * W_[i]->row(e.dof);
+      ex->U_.push_back(Eigen::MatrixXd::Zero(nmult[i], W_[i]->cols()));
+      for (const auto& e : b[i]) ex->U_[i].row(e.mult) += e.value * W_[i]->row(e.dof);
     }
   }
   lu_.compute(Ss);
-  if (explicit_) b_ = {};  // the explicit blocks replace the rows of B~ here
   setup_seconds_ = seconds_now() - t0;
   const double rcond = lu_.rcond();
   if (!(rcond > 1e-13))
@@ -240,7 +245,53 @@ void Cluster::refactor(Ordering ordering, SymbolicCache* cache, bool as_setup) {
   if (!error.empty()) throw std::runtime_error(error);
 }
 
-long Cluster::explicit_bytes() const {
+long Cluster::explicit_bytes() const { return dual_->bytes(); }
+
+void Cluster::apply_dual(const std::vector<Eigen::VectorXd>& lam,
+                         std::vector<Eigen::VectorXd>& out) {
+  dual_->apply(lam, out);
+}
+
+void ClusterDualOperator::apply(const std::vector<Eigen::VectorXd>& lam,
+                                std::vector<Eigen::VectorXd>& out) {
+  const size_t s = sizes_.size();
+  if (lam.size() != s || out.size() != s)
+    throw std::logic_error("cluster dual operator: " + std::to_string(lam.size()) + " and " +
+                           std::to_string(out.size()) + " vectors for " + std::to_string(s) +
+                           " subdomains");
+  for (size_t i = 0; i < s; ++i)
+    if (lam[i].size() != sizes_[i] || out[i].size() != sizes_[i])
+      throw std::logic_error("cluster dual operator: subdomain " + std::to_string(i) + " has " +
+                             std::to_string(sizes_[i]) + " multipliers, the vectors " +
+                             std::to_string(lam[i].size()) + " and " +
+                             std::to_string(out[i].size()));
+  do_apply(lam, out);
+}
+
+ImplicitClusterOperator::ImplicitClusterOperator(Cluster& cluster,
+                                                 std::vector<std::vector<Subdomain::BEntry>> b,
+                                                 std::vector<int> nmult)
+    : ClusterDualOperator(std::move(nmult)), cluster_(cluster), b_(std::move(b)) {
+  for (const Subdomain* sd : cluster_.subdomains()) xw_.push_back(Eigen::VectorXd::Zero(sd->size()));
+}
+
+void ImplicitClusterOperator::do_apply(const std::vector<Eigen::VectorXd>& lam,
+                                       std::vector<Eigen::VectorXd>& out) {
+  const int s = static_cast<int>(xw_.size());
+#pragma omp parallel for schedule(static) if (!omp_in_parallel() && s > 1)
+  for (int i = 0; i < s; ++i) {
+    xw_[i].setZero();
+    for (const auto& e : b_[i]) xw_[i][e.dof] += e.value * lam[i][e.mult];  // B_i^T lam_i
+  }
+  cluster_.solve(xw_);  // K~^+ B~^T lam
+#pragma omp parallel for schedule(static) if (!omp_in_parallel() && s > 1)
+  for (int i = 0; i < s; ++i) {
+    out[i].setZero();
+    for (const auto& e : b_[i]) out[i][e.mult] += e.value * xw_[i][e.dof];  // B_i x_i
+  }
+}
+
+long ExplicitClusterOperator::bytes() const {
   long n = 0;
   for (const auto& f : F_) n += f.bytes();
   for (const auto& u : U_) n += 8 * u.size();
@@ -248,45 +299,32 @@ long Cluster::explicit_bytes() const {
   return n;
 }
 
-void Cluster::apply_dual(const std::vector<Eigen::VectorXd>& lam,
-                         std::vector<Eigen::VectorXd>& out) {
-  const int s = static_cast<int>(subs_.size());
-  if (!explicit_) {
-#pragma omp parallel for schedule(static) if (!omp_in_parallel() && s > 1)
-    for (int i = 0; i < s; ++i) {
-      xw_[i].setZero();
-      for (const auto& e : b_[i]) xw_[i][e.dof] += e.value * lam[i][e.mult];  // B_i^T lam_i
-    }
-    solve(xw_);  // K~^+ B~^T lam
-#pragma omp parallel for schedule(static) if (!omp_in_parallel() && s > 1)
-    for (int i = 0; i < s; ++i) {
-      out[i].setZero();
-      for (const auto& e : b_[i]) out[i][e.mult] += e.value * xw_[i][e.dof];  // B_i x_i
-    }
-    return;
-  }
+void ExplicitClusterOperator::do_apply(const std::vector<Eigen::VectorXd>& lam,
+                                       std::vector<Eigen::VectorXd>& out) {
+  Cluster& cl = cluster_;
+  const int s = static_cast<int>(F_.size());
 #pragma omp parallel for schedule(static) if (!omp_in_parallel() && s > 1)
   for (int i = 0; i < s; ++i) F_[i].multiply(lam[i].data(), out[i].data());  // the bottleneck
-  if (rhs_.size() == 0) return;
-  rhs_.setZero();
+  if (cl.rhs_.size() == 0) return;
+  cl.rhs_.setZero();
   for (int i = 0; i < s; ++i) {  // fixed order
-    const auto& cols = cols_of_sub_[i];
+    const auto& cols = cl.cols_of_sub_[i];
     for (int col = 0; col < static_cast<int>(cols.size()); ++col)
-      rhs_[cols[col]] += U_[i].col(col).dot(lam[i]);  // C K^+ B^T lam
+      cl.rhs_[cols[col]] += U_[i].col(col).dot(lam[i]);  // C K^+ B^T lam
     for (int q = 0; q < V_[i].cols(); ++q) {
-      const int bi = beta_index_[beta_offset_[i] + q];
-      if (bi >= 0) rhs_[bi] = -V_[i].col(q).dot(lam[i]);  // -R_F^T B^T lam
+      const int bi = cl.beta_index_[cl.beta_offset_[i] + q];
+      if (bi >= 0) cl.rhs_[bi] = -V_[i].col(q).dot(lam[i]);  // -R_F^T B^T lam
     }
   }
-  solve_saddle();
+  cl.solve_saddle();
 #pragma omp parallel for schedule(static) if (!omp_in_parallel() && s > 1)
   for (int i = 0; i < s; ++i) {
-    const auto& cols = cols_of_sub_[i];
+    const auto& cols = cl.cols_of_sub_[i];
     for (int col = 0; col < static_cast<int>(cols.size()); ++col)
-      out[i].noalias() -= sol_[cols[col]] * U_[i].col(col);
+      out[i].noalias() -= cl.sol_[cols[col]] * U_[i].col(col);
     for (int q = 0; q < V_[i].cols(); ++q) {
-      const int bi = beta_index_[beta_offset_[i] + q];
-      if (bi >= 0) out[i].noalias() += sol_[bi] * V_[i].col(q);
+      const int bi = cl.beta_index_[cl.beta_offset_[i] + q];
+      if (bi >= 0) out[i].noalias() += cl.sol_[bi] * V_[i].col(q);
     }
   }
 }

@@ -29,6 +29,7 @@
 #pragma once
 
 #include <Eigen/Dense>
+#include <memory>
 #include <string>
 #include <unordered_set>
 #include <vector>
@@ -51,6 +52,77 @@ inline constexpr std::array<EnumName<DualOperator>, 3> kDualOperatorNames{
      {DualOperator::automatic, "auto"}}};
 DualOperator parse_dual_operator(const std::string& name);
 std::string to_string(DualOperator kind);
+
+class Cluster;
+
+/// The dual operator on one cluster, F_c: out_i = (B~ K~^+ B~^T lam)_i for each subdomain i of
+/// the cluster, on its local rows (lam[i] and out[i] have sizes()[i] entries; apply() checks
+/// them). Implementations: implicit (sparse solves with the cluster's K~^+ every time) and
+/// explicit (dense local blocks in double or single precision, with the cluster's saddle-point
+/// correction). A new way to apply F (on a GPU, or by a Schur-complement solver) derives from
+/// this class and is created by Cluster's constructor (docs/architecture.md).
+class ClusterDualOperator {
+ public:
+  virtual ~ClusterDualOperator() = default;
+  virtual std::string name() const = 0;
+  /// Bytes held beyond the factors (the explicit blocks).
+  virtual long bytes() const = 0;
+  const std::vector<int>& sizes() const { return sizes_; }
+  /// Checks the sizes, then applies the operator. Allocates nothing.
+  void apply(const std::vector<Eigen::VectorXd>& lam, std::vector<Eigen::VectorXd>& out);
+
+ protected:
+  explicit ClusterDualOperator(std::vector<int> sizes) : sizes_(std::move(sizes)) {}
+  virtual void do_apply(const std::vector<Eigen::VectorXd>& lam,
+                        std::vector<Eigen::VectorXd>& out) = 0;
+
+ private:
+  std::vector<int> sizes_;
+};
+
+/// x = B_i^T lam_i, x <- K~^+ x (Cluster::solve), out_i = B_i x_i. Cost: one K_i^+ per
+/// subdomain, plus the cluster's saddle-point solve.
+class ImplicitClusterOperator final : public ClusterDualOperator {
+ public:
+  ImplicitClusterOperator(Cluster& cluster, std::vector<std::vector<Subdomain::BEntry>> b,
+                          std::vector<int> nmult);
+  std::string name() const override { return "implicit"; }
+  long bytes() const override { return 0; }
+
+ protected:
+  void do_apply(const std::vector<Eigen::VectorXd>& lam,
+                std::vector<Eigen::VectorXd>& out) override;
+
+ private:
+  Cluster& cluster_;
+  std::vector<std::vector<Subdomain::BEntry>> b_;  // rows of B~ per subdomain (local numbering)
+  std::vector<Eigen::VectorXd> xw_;                // physical work vectors
+};
+
+/// out_i = F_i lam_i - U_i mu + V_i beta_i with U_i = B_i K_i^+ C_i^T, V_i = B_i R_i and
+/// [mu; beta_F] = S^{-1} [sum_i U_i^T lam_i; -V_i,F^T lam_i] (the cluster's saddle-point
+/// system). Cost: one dense n_i x n_i symmetric matrix-vector product per subdomain
+/// (memory-bound: 8 n_i^2 bytes in double, 4 in single precision). The blocks are formed by
+/// Cluster's constructor while the factors are at hand.
+class ExplicitClusterOperator final : public ClusterDualOperator {
+ public:
+  ExplicitClusterOperator(Cluster& cluster, std::vector<int> nmult, Precision precision)
+      : ClusterDualOperator(std::move(nmult)), cluster_(cluster), precision_(precision) {}
+  std::string name() const override { return "explicit (" + to_string(precision_) + ")"; }
+  long bytes() const override;
+
+ protected:
+  void do_apply(const std::vector<Eigen::VectorXd>& lam,
+                std::vector<Eigen::VectorXd>& out) override;
+
+ private:
+  friend class Cluster;  // forms the blocks
+  Cluster& cluster_;
+  Precision precision_;
+  std::vector<PackedSymmetric> F_;  // F_i (lower triangle, packed)
+  std::vector<Eigen::MatrixXd> U_;  // B_i K_i^+ C_i^T
+  std::vector<Eigen::MatrixXd> V_;  // B_i R_i
+};
 
 class Cluster {
  public:
@@ -127,13 +199,10 @@ class Cluster {
   std::vector<std::shared_ptr<const Eigen::MatrixXd>> W_;
   Eigen::PartialPivLU<Eigen::MatrixXd> lu_;
   Eigen::VectorXd rhs_, sol_, dscale_;
-  std::vector<std::vector<Subdomain::BEntry>> b_;  // rows of B~ per subdomain (local numbering)
-  std::vector<Eigen::VectorXd> xw_;                // implicit apply_dual: physical work vectors
+  friend class ExplicitClusterOperator;  // uses the saddle-point system
   bool explicit_ = false;
-  std::vector<PackedSymmetric> F_;           // explicit: F_i (lower triangle, packed)
-  std::vector<std::vector<int>> interface_;  // explicit: the dofs ordered last (refactor())
-  std::vector<Eigen::MatrixXd> U_;           // explicit: B_i K_i^+ C_i^T
-  std::vector<Eigen::MatrixXd> V_;           // explicit: B_i R_i
+  std::unique_ptr<ClusterDualOperator> dual_;  // F on this cluster
+  std::vector<std::vector<int>> interface_;    // explicit: the dofs ordered last (refactor())
   double setup_seconds_ = 0;
 };
 

@@ -6,7 +6,7 @@
 #include <cmath>
 #include <stdexcept>
 
-#include "htfeti/decomposition/decomposition.hpp"
+#include "htfeti/model/decomposition.hpp"
 #include "htfeti/fem/physics.hpp"
 #include "htfeti/feti/constraints.hpp"
 #include "htfeti/parallel/memory.hpp"

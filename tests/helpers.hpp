@@ -9,7 +9,7 @@
 #include <vector>
 
 #include "htfeti/feti/dual_problem.hpp"
-#include "htfeti/model.hpp"
+#include "htfeti/model/model.hpp"
 #include "htfeti/reference.hpp"
 
 namespace htfeti::test {

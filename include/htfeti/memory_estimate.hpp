@@ -38,7 +38,7 @@
 #include <string>
 
 #include "htfeti/feti/dual_problem.hpp"
-#include "htfeti/model.hpp"
+#include "htfeti/model/model.hpp"
 #include "htfeti/parallel/comm.hpp"
 
 namespace htfeti {

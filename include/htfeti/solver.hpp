@@ -7,7 +7,7 @@
 #include <nlohmann/json.hpp>
 
 #include "htfeti/feti/dual_problem.hpp"
-#include "htfeti/model.hpp"
+#include "htfeti/model/model.hpp"
 #include "htfeti/qp/power_norm.hpp"
 #include "htfeti/qp/smalbe.hpp"
 

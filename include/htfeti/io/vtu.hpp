@@ -16,7 +16,7 @@
 
 #include "htfeti/enum_names.hpp"
 #include "htfeti/feti/dual_problem.hpp"
-#include "htfeti/model.hpp"
+#include "htfeti/model/model.hpp"
 
 namespace htfeti {
 

@@ -1,4 +1,4 @@
-#include "htfeti/decomposition/decomposition.hpp"
+#include "htfeti/model/decomposition.hpp"
 
 #include <stdexcept>
 

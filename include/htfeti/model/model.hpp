@@ -14,7 +14,7 @@
 #include <string>
 #include <vector>
 
-#include "htfeti/decomposition/decomposition.hpp"
+#include "htfeti/model/decomposition.hpp"
 #include "htfeti/fem/physics.hpp"
 #include "htfeti/feti/input.hpp"
 #include "htfeti/mesh/subdomain_mesh.hpp"

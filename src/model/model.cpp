@@ -1,4 +1,4 @@
-#include "htfeti/model.hpp"
+#include "htfeti/model/model.hpp"
 
 #include <algorithm>
 #include <cmath>

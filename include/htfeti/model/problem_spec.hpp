@@ -1,0 +1,67 @@
+// A problem as a user states it (DESIGN.md, "Problem files"), independent of how it was written
+// down: the mesh source (a Gmsh file, or a generated box split into boxes of subdomains or by
+// METIS), the physics, conditions on named groups and the decomposition. The problem-file
+// reader (problem_file.hpp) fills one from TOML; the built-in cube-obstacle is one made in code;
+// make_model() turns it into the Model the solver takes.
+#pragma once
+
+#include <array>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "htfeti/fem/physics.hpp"
+#include "htfeti/feti/input.hpp"
+#include "htfeti/mesh/box.hpp"
+#include "htfeti/model/decomposition.hpp"
+#include "htfeti/model/model.hpp"
+
+namespace htfeti {
+
+struct ProblemSpec {
+  std::string path;  ///< the problem file
+  /// [mesh] builtin = "poisson2d" | "membranes" | "membranes-coercive": a built-in problem, with
+  /// elements = n and element = "q1" | "p1"; [decomposition] subdomains = N_s per side.
+  std::string builtin;
+  DecompositionOptions builtin_options;
+  std::string mesh_file;  ///< resolved; empty for a generated box
+  BoxGridOptions box;     ///< generator = "box" (subdomains/cluster_size filled from below)
+  Physics physics;
+  std::string source = "0";  ///< Laplace source: a number or an expression in x, y, z
+  struct Dirichlet {
+    std::string group;
+    std::array<double, 3> value{0, 0, 0};
+    std::vector<int> components;  ///< empty: all
+  };
+  struct Load {
+    std::string group;
+    enum Kind { traction, source, force } kind = traction;
+    std::array<double, 3> value{0, 0, 0};
+  };
+  struct Contact {
+    std::string group;
+    std::array<double, 3> direction{0, 0, -1};
+    std::string gap = "0";
+  };
+  std::vector<Dirichlet> dirichlet;
+  std::vector<Load> loads;
+  std::vector<Contact> contact;
+  std::vector<int> subdomains{1};  ///< one number (METIS) or one per axis (generated box)
+  int cluster_size = 1;
+  Glue glue = Glue::averages;
+};
+
+/// The cube-obstacle benchmark (DESIGN.md; the paper's Table 4, ESPRESO's former obstacle
+/// benchmark): the cube [0,100]^3 of hex8 elements (nx, ny, nz), clamped on x = 0, under its own
+/// weight (density 7850, gravity -9.8066 in z), E = 2.1e7, nu = 0.3, in frictionless contact on
+/// z = 0 with a rigid obstacle u_z >= -amplitude sin(pi x / 50) (direction (0,0,-1), gap
+/// amplitude sin(pi x / 50)); subdomains (sx, sy, sz), clusters of m x m x m.
+ProblemSpec cube_obstacle_spec(const std::vector<int>& elements, const std::vector<int>& subdomains,
+                               int cluster_size, double amplitude = 1.0,
+                               CellType cell = CellType::hex8);
+
+/// Builds the model (reads and partitions the mesh). Throws std::invalid_argument for input
+/// that does not fit (missing groups, sizes).
+std::unique_ptr<Model> make_model(const ProblemSpec& spec);
+
+}  // namespace htfeti

@@ -1,0 +1,384 @@
+// The model of a ProblemSpec (problem_spec.hpp): conditions on named groups, on a mesh source.
+#include <algorithm>
+#include <cmath>
+#include <set>
+#include <sstream>
+#include <stdexcept>
+
+#include "htfeti/expression.hpp"
+#include "htfeti/mesh/mesh.hpp"
+#include "htfeti/model/problem_spec.hpp"
+#include "htfeti/partition/partition.hpp"
+
+namespace htfeti {
+
+namespace {
+
+std::string list_groups(const std::set<std::string>& names) {
+  std::string s;
+  for (const auto& n : names) s += (s.empty() ? "" : ", ") + n;
+  return s.empty() ? "(none)" : s;
+}
+
+// Where a GroupModel's subdomain meshes come from. GroupModel asks its source alone and never
+// branches on the kind: a generated box split into boxes of subdomains (every rank generates its
+// own, and equal subdomains are equal bit for bit), or a whole mesh (read from a file, or a
+// generated box made whole) split by METIS.
+class MeshSource {
+ public:
+  virtual ~MeshSource() = default;
+  virtual int dim() const = 0;
+  virtual int num_subdomains() const = 0;
+  virtual int num_clusters() const = 0;
+  virtual int cluster_first(int c) const = 0;
+  virtual long long num_nodes() const = 0;
+  /// Nodes summed over the subdomains (a node once per subdomain holding a copy).
+  virtual long long subdomain_nodes() const = 0;
+  virtual SubdomainMesh mesh(int s) const = 0;
+  /// The sizes of mesh(s) without building it, where the source knows them (false: build it).
+  virtual bool mesh_counts(int s, Model::MeshCounts& counts) const = 0;
+  /// The names of the groups of nodes, of boundary facets and of cells.
+  virtual void groups(std::set<std::string>& nodes, std::set<std::string>& facets,
+                      std::set<std::string>& cells) const = 0;
+  /// The report's description of the mesh and of its split.
+  virtual void describe(const ProblemSpec& spec, nlohmann::json& j) const = 0;
+};
+
+// A generated box split into boxes of subdomains: decomposition.subdomains = [sx, sy(, sz)].
+class BoxSplit final : public MeshSource {
+ public:
+  explicit BoxSplit(const ProblemSpec& spec) {
+    if (static_cast<int>(spec.subdomains.size()) != spec.box.dim)
+      throw std::invalid_argument("decomposition.subdomains must have " +
+                                  std::to_string(spec.box.dim) + " numbers for a " +
+                                  std::to_string(spec.box.dim) + "D box (or one for METIS)");
+    BoxGridOptions o = spec.box;
+    for (int d = 0; d < o.dim; ++d) o.subdomains[d] = spec.subdomains[d];
+    o.cluster_size = spec.cluster_size;
+    grid_ = std::make_unique<BoxGrid>(o);
+    if (spec.glue != Glue::corners && spec.cluster_size > 1)
+      for (int d = 0; d < o.dim; ++d)
+        if (grid_->H(d) < 2)
+          throw std::invalid_argument(
+              "gluing by averages needs at least 2 elements per subdomain side; use glue = "
+              "\"corners\" or fewer subdomains");
+  }
+  int dim() const override { return grid_->dim(); }
+  int num_subdomains() const override { return static_cast<int>(grid_->num_subdomains()); }
+  int num_clusters() const override { return static_cast<int>(grid_->num_clusters()); }
+  int cluster_first(int c) const override { return c * grid_->subdomains_per_cluster(); }
+  long long num_nodes() const override { return grid_->num_nodes(); }
+  long long subdomain_nodes() const override {
+    return grid_->num_subdomains() * grid_->nodes_per_subdomain();
+  }
+  SubdomainMesh mesh(int s) const override { return grid_->mesh(s); }
+  bool mesh_counts(int, Model::MeshCounts& counts) const override {
+    counts = box_mesh_counts(*grid_);
+    return true;
+  }
+  void groups(std::set<std::string>& nodes, std::set<std::string>& facets,
+              std::set<std::string>&) const override {
+    static const char* faces[6] = {"x0", "x1", "y0", "y1", "z0", "z1"};
+    for (int i = 0; i < 2 * grid_->dim(); ++i) nodes.insert(faces[i]), facets.insert(faces[i]);
+  }
+  void describe(const ProblemSpec& spec, nlohmann::json& j) const override {
+    j["mesh"] = box_description(spec);
+    j["partitioner"] = "box";
+    j["subdomains_per_axis"] = std::vector<int>(spec.subdomains.begin(), spec.subdomains.end());
+    j["H_over_h"] = grid_->H(0);
+  }
+  static nlohmann::json box_description(const ProblemSpec& spec) {
+    const auto& b = spec.box;
+    return {{"generator", "box"},
+            {"element", to_string(b.cell)},
+            {"size", std::vector<double>(b.size.begin(), b.size.begin() + b.dim)},
+            {"elements", std::vector<int>(b.elements.begin(), b.elements.begin() + b.dim)}};
+  }
+
+ private:
+  std::unique_ptr<BoxGrid> grid_;
+};
+
+// A whole mesh split by METIS: decomposition.subdomains = N. The mesh is the file's, or a
+// generated box made whole.
+class MetisSplit final : public MeshSource {
+ public:
+  explicit MetisSplit(const ProblemSpec& spec) {
+    if (!spec.mesh_file.empty()) {
+      mesh_ = std::make_unique<Mesh>(read_gmsh(spec.mesh_file));
+    } else {  // a generated box split by METIS: generate it whole
+      BoxGridOptions o = spec.box;
+      o.subdomains = {1, 1, 1};
+      o.cluster_size = 1;
+      const SubdomainMesh whole = BoxGrid(o).mesh(0);
+      mesh_ = std::make_unique<Mesh>();
+      mesh_->dim = whole.dim;
+      mesh_->type = whole.type;
+      mesh_->coords = whole.coords;
+      mesh_->cells = whole.cells;
+      mesh_->node_groups = whole.node_groups;
+      for (const auto& [name, fg] : whole.facet_groups)
+        mesh_->facet_groups[name] = {fg.facet_nodes, fg.nodes};
+    }
+  }
+  // Split after the physics was checked (the dimension comes from the mesh).
+  void split(const ProblemSpec& spec) {
+    part_ = std::make_unique<MeshPartition>(
+        partition_mesh(*mesh_, spec.subdomains.at(0), spec.cluster_size));
+  }
+  int dim() const override { return mesh_->dim; }
+  int num_subdomains() const override { return part_->num_subdomains; }
+  int num_clusters() const override { return part_->num_clusters; }
+  int cluster_first(int c) const override { return part_->cluster_first[c]; }
+  long long num_nodes() const override { return mesh_->num_nodes(); }
+  long long subdomain_nodes() const override {
+    return static_cast<long long>(part_->copy_list.size());
+  }
+  SubdomainMesh mesh(int s) const override { return extract_subdomain(*mesh_, *part_, s); }
+  bool mesh_counts(int, Model::MeshCounts&) const override { return false; }
+  void groups(std::set<std::string>& nodes, std::set<std::string>& facets,
+              std::set<std::string>& cells) const override {
+    for (const auto& [n, v] : mesh_->node_groups) nodes.insert(n);
+    for (const auto& [n, v] : mesh_->facet_groups) facets.insert(n);
+    for (const auto& [n, v] : mesh_->cell_groups) cells.insert(n);
+  }
+  void describe(const ProblemSpec& spec, nlohmann::json& j) const override {
+    j["mesh"] = spec.mesh_file.empty() ? BoxSplit::box_description(spec)
+                                       : nlohmann::json{{"file", spec.mesh_file},
+                                                        {"element", to_string(mesh_->type)},
+                                                        {"nodes", mesh_->num_nodes()},
+                                                        {"cells", mesh_->num_cells()}};
+    j["partitioner"] = "metis";
+  }
+
+ private:
+  std::unique_ptr<Mesh> mesh_;
+  std::unique_ptr<MeshPartition> part_;
+};
+
+// Laplace or elasticity with conditions on named groups, on a mesh source.
+class GroupModel final : public Model {
+ public:
+  bool has_contact() const override { return !spec_.contact.empty(); }
+  explicit GroupModel(const ProblemSpec& spec) : spec_(spec), source_(spec.source) {
+    physics_ = spec.physics;
+    glue_ = spec.glue;
+    const bool box_split = spec.mesh_file.empty() && spec.subdomains.size() > 1;
+    if (box_split) {
+      physics_.dim = spec.box.dim;
+      physics_.validate();
+      mesh_source_ = std::make_unique<BoxSplit>(spec);
+    } else {
+      if (spec.mesh_file.empty()) {  // checked before the box is generated whole
+        physics_.dim = spec.box.dim;
+        physics_.validate();
+      }
+      auto metis = std::make_unique<MetisSplit>(spec);
+      if (!spec.mesh_file.empty()) {  // the dimension is the mesh's
+        physics_.dim = metis->dim();
+        physics_.validate();
+      }
+      metis->split(spec);
+      mesh_source_ = std::move(metis);
+    }
+    check_groups();
+  }
+
+  int num_subdomains() const override { return mesh_source_->num_subdomains(); }
+  int num_clusters() const override { return mesh_source_->num_clusters(); }
+  int cluster_first(int c) const override { return mesh_source_->cluster_first(c); }
+  long long num_nodes() const override { return mesh_source_->num_nodes(); }
+  long long primal_dimension() const override {
+    return mesh_source_->subdomain_nodes() * physics_.dofs_per_node();
+  }
+  SubdomainMesh mesh(int s) const override { return mesh_source_->mesh(s); }
+  MeshCounts mesh_counts(int s) const override {
+    MeshCounts counts;
+    return mesh_source_->mesh_counts(s, counts) ? counts : Model::mesh_counts(s);
+  }
+  SourceFunction source() const override {
+    if (physics_.kind != PhysicsKind::laplace || spec_.source == "0") return {};
+    const Expression e = source_;
+    return [e](const std::array<double, 3>& p) mutable { return e(p); };
+  }
+  void apply_conditions(const SubdomainMesh& m, SubdomainInput& in) const override {
+    const int dpn = physics_.dofs_per_node();
+    auto point = [&](int k) {
+      return std::array<double, 3>{m.coords[3 * k], m.coords[3 * k + 1], m.coords[3 * k + 2]};
+    };
+    // Loads.
+    for (const auto& l : spec_.loads) {
+      if (l.kind == ProblemSpec::Load::traction) {
+        auto it = m.facet_groups.find(l.group);
+        if (it != m.facet_groups.end()) add_traction(m, it->second, physics_, l.value, in.system.f);
+        continue;
+      }
+      auto it = m.cell_groups.find(l.group);
+      if (it == m.cell_groups.end()) continue;
+      const int nc = cell_nodes(m.type);
+      double x[24];
+      for (int e : it->second) {
+        const int* cn = m.cells.data() + static_cast<size_t>(e) * nc;
+        for (int a = 0; a < nc; ++a)
+          for (int d = 0; d < 3; ++d) x[3 * a + d] = m.coords[3 * static_cast<size_t>(cn[a]) + d];
+        const double share = cell_measure(m.type, x) / nc;
+        for (int a = 0; a < nc; ++a)
+          for (int d = 0; d < dpn; ++d)
+            in.system.f[cn[a] * dpn + d] +=
+                (l.kind == ProblemSpec::Load::source ? l.value[0] : l.value[d]) * share;
+      }
+    }
+    // Dirichlet dofs (the first condition on a dof wins).
+    std::set<std::pair<int, int>> fixed;
+    for (const auto& d : spec_.dirichlet) {
+      auto it = m.node_groups.find(d.group);
+      if (it == m.node_groups.end()) continue;
+      std::vector<int> comps = d.components;
+      if (comps.empty())
+        for (int c = 0; c < dpn; ++c) comps.push_back(c);
+      for (int k : it->second)
+        for (int c : comps)
+          if (c < dpn && fixed.insert({k, c}).second) in.dirichlet.push_back({k, c, d.value[c]});
+    }
+    // Contact rows on the nodes of the contact groups, one per node (the first condition wins);
+    // dropped where a Dirichlet condition fixes every component the direction involves.
+    std::set<int> done;
+    for (const auto& c : spec_.contact) {
+      auto it = m.node_groups.find(c.group);
+      if (it == m.node_groups.end()) continue;
+      const Expression gap(c.gap);
+      for (int k : it->second) {
+        if (!done.insert(k).second) continue;
+        bool all_fixed = true;
+        for (int d = 0; d < dpn; ++d)
+          if (c.direction[d] != 0 && !fixed.count({k, d})) all_fixed = false;
+        if (all_fixed) continue;
+        ContactRow r;
+        r.node = k;
+        r.side = 1;
+        r.node_a = m.global_node[k];
+        r.copies_a = m.num_copies(k);
+        r.copies_b = 0;
+        r.owner_subdomain = *std::min_element(m.copies(k), m.copies(k) + m.num_copies(k));
+        r.direction = c.direction;
+        if (dpn == 1) r.direction = {1, 0, 0};
+        r.point = point(k);
+        r.gap = gap(r.point);
+        in.contact.push_back(r);
+      }
+    }
+  }
+  nlohmann::json describe() const override {
+    nlohmann::json j;
+    j["problem"] = spec_.path;
+    mesh_source_->describe(spec_, j);
+    j["element"] = j["mesh"]["element"];
+    nlohmann::json ph = {{"type", to_string(physics_.kind)}, {"dim", physics_.dim}};
+    if (physics_.kind == PhysicsKind::elasticity) {
+      ph["young"] = physics_.material.young;
+      ph["poisson"] = physics_.material.poisson;
+      ph["density"] = physics_.density;
+      ph["gravity"] =
+          std::vector<double>(physics_.gravity.begin(), physics_.gravity.begin() + physics_.dim);
+    } else {
+      ph["source"] = spec_.source;
+    }
+    if (!physics_.coefficient.empty()) ph["coefficient"] = physics_.coefficient;
+    j["physics"] = ph;
+    j["subdomains"] = num_subdomains();
+    j["clusters"] = num_clusters();
+    j["cluster_size"] = spec_.cluster_size;
+    j["glue"] = spec_.cluster_size > 1 ? to_string(glue_) : "none";
+    return j;
+  }
+
+ private:
+  void check_groups() const {
+    std::set<std::string> nodes, facets, cells;
+    mesh_source_->groups(nodes, facets, cells);
+    const std::string where = spec_.mesh_file.empty() ? "the generated box" : spec_.mesh_file;
+    auto require = [&](const std::string& g, const std::set<std::string>& in,
+                       const std::string& what) {
+      if (!in.count(g))
+        throw std::invalid_argument("problem file: " + what + ": group '" + g +
+                                    "' does not exist in " + where +
+                                    " (its groups: " + list_groups(in) + ")");
+    };
+    int i = 0;
+    for (const auto& d : spec_.dirichlet)
+      require(d.group, nodes, "dirichlet #" + std::to_string(++i));
+    i = 0;
+    for (const auto& l : spec_.loads) {
+      ++i;
+      if (l.kind == ProblemSpec::Load::traction)
+        require(l.group, facets,
+                "load #" + std::to_string(i) + " (a traction needs a boundary group)");
+      else
+        require(l.group, cells,
+                "load #" + std::to_string(i) + " (a source or force needs a volume group)");
+      if (l.kind == ProblemSpec::Load::source && physics_.kind != PhysicsKind::laplace)
+        throw std::invalid_argument("problem file: load #" + std::to_string(i) +
+                                    ": 'source' is for Laplace; use 'force' for elasticity");
+      if (l.kind == ProblemSpec::Load::force && physics_.kind != PhysicsKind::elasticity)
+        throw std::invalid_argument("problem file: load #" + std::to_string(i) +
+                                    ": 'force' is for elasticity; use 'source' for Laplace");
+    }
+    i = 0;
+    for (const auto& c : spec_.contact) require(c.group, nodes, "contact #" + std::to_string(++i));
+  }
+
+  ProblemSpec spec_;
+  Expression source_;
+  std::unique_ptr<MeshSource> mesh_source_;
+};
+
+}  // namespace
+
+ProblemSpec cube_obstacle_spec(const std::vector<int>& elements, const std::vector<int>& subdomains,
+                               int cluster_size, double amplitude, CellType cell) {
+  auto three = [](const std::vector<int>& v, const char* what) {
+    if (v.size() == 1) return std::vector<int>{v[0], v[0], v[0]};
+    if (v.size() != 3)
+      throw std::invalid_argument(std::string(what) + " needs 1 or 3 numbers for cube-obstacle");
+    return v;
+  };
+  if (!std::isfinite(amplitude) || amplitude < 0)
+    throw std::invalid_argument("--obstacle-amplitude must be finite and non-negative");
+  ProblemSpec s;
+  s.path = "cube-obstacle";
+  s.box.dim = 3;
+  s.box.cell = cell;
+  s.box.size = {100, 100, 100};
+  const auto e = three(elements, "--elements");
+  for (int d = 0; d < 3; ++d) s.box.elements[d] = e[d];
+  s.physics.kind = PhysicsKind::elasticity;
+  s.physics.dim = 3;
+  s.physics.material = {2.1e7, 0.3};
+  s.physics.density = 7850;
+  s.physics.gravity = {0, 0, -9.8066};
+  s.dirichlet.push_back({"x0", {0, 0, 0}, {}});
+  std::ostringstream gap;
+  gap.precision(17);
+  gap << amplitude << "*sin(pi*x/50)";
+  s.contact.push_back({"z0", {0, 0, -1}, gap.str()});
+  s.subdomains = three(subdomains, "--subdomains");
+  s.cluster_size = cluster_size;
+  s.glue = Glue::averages;
+  return s;
+}
+
+std::unique_ptr<Model> make_model(const ProblemSpec& spec) {
+  if (!spec.builtin.empty()) {
+    DecompositionOptions o = spec.builtin_options;
+    if (spec.subdomains.size() != 1)
+      throw std::invalid_argument("decomposition.subdomains: one number (per side) for a built-in");
+    o.subdomains = spec.subdomains[0];
+    o.cluster_size = spec.cluster_size;
+    o.glue = spec.glue;
+    Decomposition check(o);
+    return make_builtin_model(o);
+  }
+  return std::make_unique<GroupModel>(spec);
+}
+
+}  // namespace htfeti

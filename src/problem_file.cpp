@@ -139,26 +139,37 @@ OptionValue toml_option_value(const OptionSpec& spec, const toml::node& n,
   bad(where, "unknown option type");
 }
 
-}  // namespace
+// decomposition.subdomains entries, range-checked before the cast (4294967300 is not 4).
+int subdomain_count(long long v) {
+  if (v <= 0 || v > 100000000) bad("decomposition.subdomains", "must be integers from 1 to 1e8");
+  return static_cast<int>(v);
+}
 
-ProblemSpec read_problem_file(const std::string& path, RunOptions& run) {
-  ProblemSpec spec;
-  spec.path = path;
-  toml::table root;
-  try {
-    root = toml::parse_file(path);
-  } catch (const toml::parse_error& e) {
-    std::ostringstream msg;
-    msg << "problem file '" << path << "': " << e.description() << " (line "
-        << e.source().begin.line << ")";
-    throw std::invalid_argument(msg.str());
-  } catch (const std::exception& e) {
-    throw std::invalid_argument("problem file '" + path + "' cannot be read: " + e.what());
+// A number (written with 17 digits) or an expression in x, y, z (muparser), checked.
+std::string number_or_expression(const toml::node& n, const std::string& where) {
+  std::string text;
+  if (n.is_number()) {
+    const double v = n.value<double>().value();
+    if (!std::isfinite(v)) bad(where, "must be finite");
+    std::ostringstream o;
+    o.precision(17);
+    o << v;
+    text = o.str();
+  } else if (n.is_string()) {
+    text = n.as_string()->get();
+  } else {
+    bad(where, "must be a number or an expression string");
   }
-  check_keys(
-      root, "",
-      {"mesh", "physics", "dirichlet", "load", "contact", "decomposition", "solver", "output"});
-  // [mesh]
+  try {
+    Expression check(text);
+  } catch (const std::invalid_argument& e) {
+    bad(where, e.what());
+  }
+  return text;
+}
+
+// [mesh]: a built-in problem (returns true), a mesh file or a generated box.
+bool read_mesh(const toml::table& root, const std::string& path, ProblemSpec& spec) {
   const toml::table& mesh = *table_of(root, "mesh", true);
   check_keys(mesh, "mesh", {"file", "generator", "size", "elements", "element", "builtin"});
   if (mesh.contains("builtin")) {
@@ -185,6 +196,7 @@ ProblemSpec read_problem_file(const std::string& path, RunOptions& run) {
       for (const char* k : {"size", "elements", "element"})
         if (mesh.contains(k)) bad(std::string("mesh.") + k, "is for generator = \"box\" only");
       const std::filesystem::path f = get_string(mesh, "mesh", "file", "");
+      if (f.empty()) bad("mesh.file", "is empty (give the path of a Gmsh mesh)");
       spec.mesh_file =
           f.is_absolute() ? f.string() : (std::filesystem::path(path).parent_path() / f).string();
     } else {
@@ -208,7 +220,9 @@ ProblemSpec read_problem_file(const std::string& path, RunOptions& run) {
       for (const auto& e : *ne->as_array()) {
         if (!e.is_integer() || d >= 3)
           bad("mesh.elements", "must be an array of positive integers");
-        spec.box.elements[d++] = static_cast<int>(e.value<long long>().value());
+        const long long v = e.as_integer()->get();  // range-checked before the cast
+        if (v <= 0 || v > 1000000000) bad("mesh.elements", "must be integers from 1 to 1e9");
+        spec.box.elements[d++] = static_cast<int>(v);
       }
       if (d != spec.box.dim)
         bad("mesh.elements", "must have " + std::to_string(spec.box.dim) + " integers");
@@ -218,177 +232,146 @@ ProblemSpec read_problem_file(const std::string& path, RunOptions& run) {
         spec.box.size[i] = size[i];
       }
     }
-    // [physics]
-    const toml::table& ph = *table_of(root, "physics", true);
-    const std::string type = get_string(ph, "physics", "type", "", true);
+  }
+  return !spec.builtin.empty();
+}
+
+// [physics]: Laplace (source, coefficient) or elasticity (material, density, gravity).
+void read_physics(const toml::table& root, ProblemSpec& spec) {
+  const bool has_gen = spec.mesh_file.empty();
+  // [physics]
+  const toml::table& ph = *table_of(root, "physics", true);
+  const std::string type = get_string(ph, "physics", "type", "", true);
+  try {
+    spec.physics.kind = parse_physics(type);
+  } catch (const std::invalid_argument& e) {
+    bad("physics.type", e.what());
+  }
+  spec.physics.dim = has_gen ? spec.box.dim : 3;  // set from the mesh later for files
+  if (const toml::node* c = ph.get("coefficient"))
+    spec.physics.coefficient = number_or_expression(*c, "physics.coefficient");
+  if (spec.physics.kind == PhysicsKind::laplace) {
+    check_keys(ph, "physics", {"type", "source", "coefficient"});
+    if (const toml::node* src = ph.get("source"))
+      spec.source = number_or_expression(*src, "physics.source");
+  } else {
+    check_keys(ph, "physics", {"type", "young", "poisson", "density", "gravity", "coefficient"});
+    spec.physics.material.young = get_double(ph, "physics", "young", 0, true);
+    spec.physics.material.poisson = get_double(ph, "physics", "poisson", 0, true);
+    spec.physics.density = get_double(ph, "physics", "density", 0);
+    if (const toml::node* g = ph.get("gravity")) {
+      const auto gv = get_numbers(*g, "physics.gravity");
+      if (gv.size() < 2 || gv.size() > 3) bad("physics.gravity", "must have 2 or 3 components");
+      for (size_t i = 0; i < gv.size(); ++i) spec.physics.gravity[i] = gv[i];
+    }
     try {
-      spec.physics.kind = parse_physics(type);
+      Physics p = spec.physics;
+      p.dim = 3;
+      p.validate();
     } catch (const std::invalid_argument& e) {
-      bad("physics.type", e.what());
-    }
-    spec.physics.dim = has_gen ? spec.box.dim : 3;  // set from the mesh later for files
-    if (const toml::node* c = ph.get("coefficient")) {
-      if (c->is_number()) {
-        std::ostringstream o;
-        o.precision(17);
-        o << c->value<double>().value();
-        spec.physics.coefficient = o.str();
-      } else if (c->is_string()) {
-        spec.physics.coefficient = c->value<std::string>().value();
-      } else {
-        bad("physics.coefficient", "must be a number or an expression string");
-      }
-      try {
-        Expression check(spec.physics.coefficient);
-      } catch (const std::invalid_argument& e) {
-        bad("physics.coefficient", e.what());
-      }
-    }
-    if (spec.physics.kind == PhysicsKind::laplace) {
-      check_keys(ph, "physics", {"type", "source", "coefficient"});
-      if (const toml::node* s = ph.get("source")) {
-        if (s->is_number()) {
-          std::ostringstream o;
-          o.precision(17);
-          o << s->value<double>().value();
-          spec.source = o.str();
-        } else if (s->is_string()) {
-          spec.source = s->value<std::string>().value();
-        } else {
-          bad("physics.source", "must be a number or an expression string");
-        }
-        try {
-          Expression check(spec.source);
-        } catch (const std::invalid_argument& e) {
-          bad("physics.source", e.what());
-        }
-      }
-    } else {
-      check_keys(ph, "physics", {"type", "young", "poisson", "density", "gravity", "coefficient"});
-      spec.physics.material.young = get_double(ph, "physics", "young", 0, true);
-      spec.physics.material.poisson = get_double(ph, "physics", "poisson", 0, true);
-      spec.physics.density = get_double(ph, "physics", "density", 0);
-      if (const toml::node* g = ph.get("gravity")) {
-        const auto gv = get_numbers(*g, "physics.gravity");
-        if (gv.size() < 2 || gv.size() > 3) bad("physics.gravity", "must have 2 or 3 components");
-        for (size_t i = 0; i < gv.size(); ++i) spec.physics.gravity[i] = gv[i];
-      }
-      try {
-        Physics p = spec.physics;
-        p.dim = 3;
-        p.validate();
-      } catch (const std::invalid_argument& e) {
-        bad("[physics]", e.what());
-      }
-    }
-    auto array_of_tables = [&](const char* name) {
-      std::vector<const toml::table*> out;
-      const toml::node* n = root.get(name);
-      if (!n) return out;
-      if (!n->is_array_of_tables()) bad(name, std::string("must be written [[") + name + "]]");
-      for (const auto& e : *n->as_array()) out.push_back(e.as_table());
-      return out;
-    };
-    const int dofs = spec.physics.kind == PhysicsKind::laplace ? 1 : 3;
-    int i = 0;
-    for (const toml::table* t : array_of_tables("dirichlet")) {
-      const std::string where = "dirichlet #" + std::to_string(++i);
-      check_keys(*t, where, {"group", "value", "components"});
-      ProblemSpec::Dirichlet d;
-      d.group = get_string(*t, where, "group", "", true);
-      if (const toml::node* v = t->get("value")) {
-        const auto x = get_numbers(*v, where + ".value");
-        if (x.size() == 1)
-          d.value = {x[0], x[0], x[0]};
-        else if (static_cast<int>(x.size()) <= 3 && dofs > 1)
-          for (size_t j = 0; j < x.size(); ++j) d.value[j] = x[j];
-        else
-          bad(where + ".value", "must be one number or one per displacement component");
-      }
-      if (const toml::node* c = t->get("components")) {
-        if (!c->is_array()) bad(where + ".components", "must be an array");
-        for (const auto& e : *c->as_array()) {
-          int comp = -1;
-          if (e.is_integer()) {  // range-checked before the cast (4294967296 is not 0)
-            const long long v = e.as_integer()->get();
-            comp = v >= 0 && v < dofs ? static_cast<int>(v) : -1;
-          }
-          if (e.is_string()) {
-            const std::string& s = e.as_string()->get();
-            comp = s == "x" ? 0 : s == "y" ? 1 : s == "z" ? 2 : -1;
-          }
-          if (comp < 0 || comp >= dofs)
-            bad(where + ".components", "entries must be 0..2 or \"x\", \"y\", \"z\"");
-          d.components.push_back(comp);
-        }
-      }
-      spec.dirichlet.push_back(d);
-    }
-    i = 0;
-    for (const toml::table* t : array_of_tables("load")) {
-      const std::string where = "load #" + std::to_string(++i);
-      check_keys(*t, where, {"group", "traction", "source", "force"});
-      ProblemSpec::Load l;
-      l.group = get_string(*t, where, "group", "", true);
-      const int kinds = t->contains("traction") + t->contains("source") + t->contains("force");
-      if (kinds != 1) bad(where, "give exactly one of traction, source, force");
-      if (t->contains("source")) {
-        l.kind = ProblemSpec::Load::source;
-        l.value[0] = get_double(*t, where, "source", 0);
-      } else {
-        l.kind = t->contains("traction") ? ProblemSpec::Load::traction : ProblemSpec::Load::force;
-        const auto x = get_numbers(
-            *t->get(l.kind == ProblemSpec::Load::traction ? "traction" : "force"), where);
-        if (x.size() > 3) bad(where, "a vector has at most 3 components");
-        for (size_t j = 0; j < x.size(); ++j) l.value[j] = x[j];
-      }
-      spec.loads.push_back(l);
-    }
-    i = 0;
-    for (const toml::table* t : array_of_tables("contact")) {
-      const std::string where = "contact #" + std::to_string(++i);
-      check_keys(*t, where, {"group", "direction", "gap"});
-      ProblemSpec::Contact c;
-      c.group = get_string(*t, where, "group", "", true);
-      const toml::node* dn = t->get("direction");
-      if (!dn) bad(where + ".direction", "missing");
-      const auto dir = get_numbers(*dn, where + ".direction");
-      if (dir.size() > 3) bad(where + ".direction", "has at most 3 components");
-      double norm = 0;
-      for (size_t j = 0; j < dir.size(); ++j) c.direction[j] = dir[j], norm += dir[j] * dir[j];
-      for (size_t j = dir.size(); j < 3; ++j) c.direction[j] = 0;
-      if (!(norm > 0)) bad(where + ".direction", "must not be zero");
-      for (double& v : c.direction) v /= std::sqrt(norm);
-      if (const toml::node* g = t->get("gap")) {
-        if (g->is_number()) {
-          std::ostringstream o;
-          o.precision(17);
-          o << g->value<double>().value();
-          c.gap = o.str();
-        } else if (g->is_string()) {
-          c.gap = g->value<std::string>().value();
-        } else {
-          bad(where + ".gap", "must be a number or an expression string");
-        }
-      }
-      try {
-        Expression check(c.gap);
-      } catch (const std::invalid_argument& e) {
-        bad(where + ".gap", e.what());
-      }
-      spec.contact.push_back(c);
+      bad("[physics]", e.what());
     }
   }
+}
+
+// [[dirichlet]], [[load]] and [[contact]] on named groups.
+void read_conditions(const toml::table& root, ProblemSpec& spec) {
+  auto array_of_tables = [&](const char* name) {
+    std::vector<const toml::table*> out;
+    const toml::node* n = root.get(name);
+    if (!n) return out;
+    if (!n->is_array_of_tables()) bad(name, std::string("must be written [[") + name + "]]");
+    for (const auto& e : *n->as_array()) out.push_back(e.as_table());
+    return out;
+  };
+  const int dofs = spec.physics.kind == PhysicsKind::laplace ? 1 : 3;
+  int i = 0;
+  for (const toml::table* t : array_of_tables("dirichlet")) {
+    const std::string where = "dirichlet #" + std::to_string(++i);
+    check_keys(*t, where, {"group", "value", "components"});
+    ProblemSpec::Dirichlet d;
+    d.group = get_string(*t, where, "group", "", true);
+    if (const toml::node* v = t->get("value")) {
+      const auto x = get_numbers(*v, where + ".value");
+      if (x.size() == 1)
+        d.value = {x[0], x[0], x[0]};
+      else if (static_cast<int>(x.size()) <= 3 && dofs > 1)
+        for (size_t j = 0; j < x.size(); ++j) d.value[j] = x[j];
+      else
+        bad(where + ".value", "must be one number or one per displacement component");
+    }
+    if (const toml::node* c = t->get("components")) {
+      if (!c->is_array()) bad(where + ".components", "must be an array");
+      for (const auto& e : *c->as_array()) {
+        int comp = -1;
+        if (e.is_integer()) {  // range-checked before the cast (4294967296 is not 0)
+          const long long v = e.as_integer()->get();
+          comp = v >= 0 && v < dofs ? static_cast<int>(v) : -1;
+        }
+        if (e.is_string()) {
+          const std::string& s = e.as_string()->get();
+          comp = s == "x" ? 0 : s == "y" ? 1 : s == "z" ? 2 : -1;
+        }
+        if (comp < 0 || comp >= dofs)
+          bad(where + ".components", "entries must be 0..2 or \"x\", \"y\", \"z\"");
+        d.components.push_back(comp);
+      }
+    }
+    spec.dirichlet.push_back(d);
+  }
+  i = 0;
+  for (const toml::table* t : array_of_tables("load")) {
+    const std::string where = "load #" + std::to_string(++i);
+    check_keys(*t, where, {"group", "traction", "source", "force"});
+    ProblemSpec::Load l;
+    l.group = get_string(*t, where, "group", "", true);
+    const int kinds = t->contains("traction") + t->contains("source") + t->contains("force");
+    if (kinds != 1) bad(where, "give exactly one of traction, source, force");
+    if (t->contains("source")) {
+      l.kind = ProblemSpec::Load::source;
+      l.value[0] = get_double(*t, where, "source", 0);
+    } else {
+      l.kind = t->contains("traction") ? ProblemSpec::Load::traction : ProblemSpec::Load::force;
+      const auto x =
+          get_numbers(*t->get(l.kind == ProblemSpec::Load::traction ? "traction" : "force"), where);
+      if (x.size() > 3) bad(where, "a vector has at most 3 components");
+      for (size_t j = 0; j < x.size(); ++j) l.value[j] = x[j];
+    }
+    spec.loads.push_back(l);
+  }
+  i = 0;
+  for (const toml::table* t : array_of_tables("contact")) {
+    const std::string where = "contact #" + std::to_string(++i);
+    check_keys(*t, where, {"group", "direction", "gap"});
+    ProblemSpec::Contact c;
+    c.group = get_string(*t, where, "group", "", true);
+    const toml::node* dn = t->get("direction");
+    if (!dn) bad(where + ".direction", "missing");
+    const auto dir = get_numbers(*dn, where + ".direction");
+    if (dir.size() > 3) bad(where + ".direction", "has at most 3 components");
+    double norm = 0;
+    for (size_t j = 0; j < dir.size(); ++j) c.direction[j] = dir[j], norm += dir[j] * dir[j];
+    for (size_t j = dir.size(); j < 3; ++j) c.direction[j] = 0;
+    if (!(norm > 0)) bad(where + ".direction", "must not be zero");
+    for (double& v : c.direction) v /= std::sqrt(norm);
+    const toml::node* g = t->get("gap");
+    c.gap = g ? number_or_expression(*g, where + ".gap") : "0";
+    spec.contact.push_back(c);
+  }
+}
+
+// [decomposition]: subdomains (METIS: N; a generated box: one per axis), cluster_size, glue.
+void read_decomposition(const toml::table& root, ProblemSpec& spec) {
   if (const toml::table* dec = table_of(root, "decomposition", false)) {
     check_keys(*dec, "decomposition", {"subdomains", "cluster_size", "glue"});
     if (const toml::node* s = dec->get("subdomains")) {
       spec.subdomains.clear();
       if (s->is_integer()) {
-        spec.subdomains.push_back(static_cast<int>(s->value<long long>().value()));
+        spec.subdomains.push_back(subdomain_count(s->as_integer()->get()));
       } else if (s->is_array()) {
         for (const auto& e : *s->as_array()) {
           if (!e.is_integer()) bad("decomposition.subdomains", "must be integers");
-          spec.subdomains.push_back(static_cast<int>(e.value<long long>().value()));
+          spec.subdomains.push_back(subdomain_count(e.as_integer()->get()));
         }
       } else {
         bad("decomposition.subdomains", "must be an integer or an array of integers");
@@ -405,7 +388,10 @@ ProblemSpec read_problem_file(const std::string& path, RunOptions& run) {
       bad("decomposition.glue", e.what());
     }
   }
-  // [solver] and [output]: generated from the options table (options.hpp).
+}
+
+// [solver] and [output]: generated from the options table (options.hpp).
+void read_option_tables(const toml::table& root, RunOptions& run) {
   for (const char* section : {"solver", "output"}) {
     const toml::table* t = table_of(root, section, false);
     if (!t) continue;
@@ -427,6 +413,33 @@ ProblemSpec read_problem_file(const std::string& path, RunOptions& run) {
   } catch (const std::invalid_argument& e) {
     bad("[solver]", e.what());
   }
+}
+
+}  // namespace
+
+ProblemSpec read_problem_file(const std::string& path, RunOptions& run) {
+  ProblemSpec spec;
+  spec.path = path;
+  toml::table root;
+  try {
+    root = toml::parse_file(path);
+  } catch (const toml::parse_error& e) {
+    std::ostringstream msg;
+    msg << "problem file '" << path << "': " << e.description() << " (line "
+        << e.source().begin.line << ")";
+    throw std::invalid_argument(msg.str());
+  } catch (const std::exception& e) {
+    throw std::invalid_argument("problem file '" + path + "' cannot be read: " + e.what());
+  }
+  check_keys(
+      root, "",
+      {"mesh", "physics", "dirichlet", "load", "contact", "decomposition", "solver", "output"});
+  if (!read_mesh(root, path, spec)) {
+    read_physics(root, spec);
+    read_conditions(root, spec);
+  }
+  read_decomposition(root, spec);
+  read_option_tables(root, run);
   return spec;
 }
 

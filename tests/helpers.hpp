@@ -10,7 +10,7 @@
 
 #include "htfeti/feti/dual_problem.hpp"
 #include "htfeti/model/model.hpp"
-#include "htfeti/reference.hpp"
+#include "reference.hpp"
 
 namespace htfeti::test {
 

@@ -271,6 +271,13 @@ TEST_F(Cli, BadProblemFilesExitWithCode2NamingTheKeyAndWriteNothing) {
       {with("[solver]", "[output]\nvtu_io = \"fast\"\n[solver]"), "output.vtu_io"},
       {with("[solver]", "[solver]\ncoarse_steps_per_product = 0"),
        "solver.coarse_steps_per_product"},
+      // Integers beyond int are refused, not wrapped (4294967312 is 16, 4294967300 is 4 and
+      // 4294967296 is 0 after a cast to int), and an empty mesh file name is no mesh.
+      {with("elements = [8, 8]", "elements = [4294967312, 8]"), "mesh.elements"},
+      {with("subdomains = [2, 2]", "subdomains = [4294967298, 2]"), "decomposition.subdomains"},
+      {with("value = 0.0", "value = 0.0\ncomponents = [4294967296]"), "components"},
+      {"[mesh]\nfile = \"\"\n[physics]\ntype = \"laplace\"\n", "mesh.file"},
+      {with("source = -10.0", "source = nan"), "physics.source"},
   };
   int i = 0;
   for (const auto& [text, needle] : cases) {

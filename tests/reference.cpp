@@ -1,4 +1,4 @@
-#include "htfeti/reference.hpp"
+#include "reference.hpp"
 
 #include <Eigen/Sparse>
 #include <Eigen/SparseCholesky>

@@ -14,6 +14,7 @@
 #include <iostream>
 
 #include "htfeti/clock.hpp"
+#include "htfeti/errors.hpp"
 #include "htfeti/io/vtu.hpp"
 #include "htfeti/memory_estimate.hpp"
 #include "htfeti/options.hpp"
@@ -484,7 +485,7 @@ int run(int argc, char** argv, const Comm& comm) {
 }  // namespace
 
 // Exit codes: 0 solved, 2 bad input (or it does not fit), 3 not converged (the report is
-// written), 4 a numerical failure. Errors raised by the library are agreed on by every rank, so
+// written), 4 a numerical failure, 5 a value that is not finite (an overflow). Errors raised by the library are agreed on by every rank, so
 // every rank leaves through the same path; anything else aborts the MPI job.
 int main(int argc, char** argv) {
   // Blocks of 1 MiB and more (matrices, factors, dense blocks) are mapped and unmapped
@@ -504,6 +505,8 @@ int main(int argc, char** argv) {
       code = fail(comm, e.what(), 2);
     } catch (const std::bad_alloc&) {
       code = fail(comm, "out of memory", 2);
+    } catch (const NonFiniteError& e) {
+      code = fail(comm, e.what(), 5);
     } catch (const std::runtime_error& e) {
       code = fail(comm, e.what(), 4);
     } catch (const std::exception& e) {

@@ -10,6 +10,7 @@
 #include <stdexcept>
 
 #include "htfeti/clock.hpp"
+#include "htfeti/errors.hpp"
 #include "htfeti/feti/dual_reducer.hpp"
 #include "htfeti/memory_estimate.hpp"
 #include "htfeti/options.hpp"
@@ -26,6 +27,13 @@ using Vec = Eigen::VectorXd;
 
 // The dual problem's operators for the QP solvers, each counted and timed apart (qp::Operator):
 // F, the projector P onto Ker G~ and the preconditioner M^{-1}; and the one-step products.
+// Throws NonFiniteError on every rank when some entry of v on some rank is not finite.
+void require_finite(const Comm& comm, bool finite, const std::string& what) {
+  if (comm.min(finite ? 1.0 : 0.0) < 1)
+    throw NonFiniteError(what + " is not finite (an overflow): check the magnitudes of the "
+                                "loads, gaps and material values");
+}
+
 struct DualOperators {
   explicit DualOperators(DualProblem& dual)
       : F([&dual](const Vec& x, Vec& y) { dual.apply_F(x, y); }),
@@ -253,6 +261,9 @@ SolveOutput solve(std::shared_ptr<const Model> model_ptr, const SolveOptions& op
       model.layout(), [&model](int s) { return model.input(s); }, comm, feti);
   DualProblem& dual = *out.dual;
   const DualReducer red(comm, dual);
+  require_finite(comm, dual.d().allFinite(), "the dual right-hand side d = B K^+ f - c");
+  require_finite(comm, dual.e().allFinite() && dual.lambda_tilde().allFinite(),
+                 "the coarse right-hand side e = R^T f");
   const double t_setup = seconds_now() - t0;
   if (verbose)
     std::fprintf(stderr, "  setup done in %.2f s (dual dimension %lld, coarse %d, %s operator)\n",
@@ -286,12 +297,18 @@ SolveOutput solve(std::shared_ptr<const Model> model_ptr, const SolveOptions& op
   const double peak_mb_solve = peak_rss_mb();
 
   double t_rec = seconds_now();
+  require_finite(comm, lambda.allFinite(), "the multipliers lambda at the end of the solve");
   out.u = dual.reconstruct(lambda);
   t_rec = seconds_now() - t_rec;
   if (verbose) std::fprintf(stderr, "  reconstruction done in %.2f s\n", t_rec);
   double t_checks = seconds_now();  // the report's checks of the solution
   const auto kkt = dual.kkt(out.u, lambda);
   const double energy = dual.energy(out.u);
+  {
+    bool finite = std::isfinite(energy);
+    for (const auto& ui : out.u) finite = finite && ui.allFinite();
+    require_finite(comm, finite, "the displacement or its energy");
+  }
   t_checks = seconds_now() - t_checks;
 
   const auto& st = dual.setup_timings();

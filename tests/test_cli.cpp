@@ -604,3 +604,77 @@ TEST_F(Cli, OptionsAreEchoedAndDryRunWritesNothing) {
     EXPECT_FALSE(fs::exists("r.json")) << bad;
   }
 }
+
+// A node in two contact conditions keeps both rows (reliability round 3, item 1): a square
+// pushed into the corner between a floor under y0 and a wall right of x1 touches both at the
+// corner node, which must respect both gaps. Opposite obstacles that leave no room are refused,
+// and components a 2D problem does not have are refused instead of ignored (item 7).
+TEST_F(Cli, EveryContactConditionKeepsItsRows) {
+  const std::string corner =
+      "[mesh]\ngenerator = \"box\"\nsize = [1.0, 1.0]\nelements = [8, 8]\nelement = \"quad4\"\n"
+      "[physics]\ntype = \"elasticity\"\nyoung = 1e3\npoisson = 0.3\n"
+      "[[dirichlet]]\ngroup = \"x0\"\nvalue = [0.01, 0.0]\ncomponents = [0]\n"
+      "[[dirichlet]]\ngroup = \"y1\"\nvalue = [0.0, -0.01]\ncomponents = [1]\n"
+      "[[contact]]\ngroup = \"y0\"\ndirection = [0.0, -1.0]\ngap = 1e-4\n"
+      "[[contact]]\ngroup = \"x1\"\ndirection = [1.0, 0.0]\ngap = 1e-4\n"
+      "[decomposition]\nsubdomains = [2, 2]\n[solver]\nrtol = 1e-8\n[output]\nvtu = false\n";
+  write_file("corner.toml", corner);
+  ASSERT_EQ(run(bin + " solve corner.toml --report r.json"), 0) << stderr_text();
+  std::ifstream f("r.json");
+  const auto r = nlohmann::json::parse(f);
+  EXPECT_EQ(r["inequalities"], 18);  // 9 nodes on y0, 9 on x1, the corner in both
+  const auto& c = r["contact"];
+  int at_corner = 0;
+  for (size_t i = 0; i < c["x"].size(); ++i) {
+    // Every row feasible: n.u <= gap (to round-off of the precision asked).
+    EXPECT_LE(c["u_left"][i].get<double>(), c["gap"][i].get<double>() * (1 + 1e-6)) << i;
+    if (std::abs(c["x"][i].get<double>() - 1) < 1e-12 && std::abs(c["y"][i].get<double>()) < 1e-12) {
+      ++at_corner;
+      EXPECT_GT(c["multiplier"][i].get<double>(), 0.0);  // pressed on both
+    }
+  }
+  EXPECT_EQ(at_corner, 2);
+  EXPECT_LT(r["kkt"]["max_violation"].get<double>(), 1e-9);
+
+  const auto replace = [&](const std::string& from, const std::string& to) {
+    std::string s = corner;
+    return s.replace(s.find(from), from.size(), to);
+  };
+  const std::pair<std::string, std::string> bad[] = {
+      // n.u <= -0.01 and -n.u <= -0.01: u_y >= 0.01 and u_y <= -0.01 on the same nodes.
+      {replace("group = \"x1\"\ndirection = [1.0, 0.0]\ngap = 1e-4",
+               "group = \"y0\"\ndirection = [0.0, 1.0]\ngap = -0.01")
+           .replace(corner.find("gap = 1e-4"), 10, "gap = -0.01"),
+       "contact #1 and contact #2"},
+      {replace("direction = [0.0, -1.0]", "direction = [0.0, 0.0, -1.0]"), "contact #1.direction"},
+      {replace("components = [1]", "components = [2]"), "dirichlet #2.components"},
+  };
+  for (const auto& [text, needle] : bad) {
+    write_file("bad.toml", text);
+    EXPECT_EQ(run(bin + " solve bad.toml --report b.json"), 2) << text;
+    EXPECT_NE(stderr_text().find(needle), std::string::npos) << stderr_text();
+    EXPECT_FALSE(fs::exists("b.json"));
+  }
+}
+
+// Values that overflow are an error with exit code 5 and no output (reliability round 3, item
+// 4), never "converged" with a NaN energy.
+TEST_F(Cli, NonFiniteResultsExitWithCode5) {
+  for (const char* args : {"--problem cube-obstacle --obstacle-amplitude 1e300",
+                           "--problem cube-obstacle --obstacle-amplitude 1e200"}) {
+    EXPECT_EQ(run(bin + " solve " + args + " --report r.json --vtu u.vtu"), 5) << args;
+    EXPECT_NE(stderr_text().find("not finite"), std::string::npos) << stderr_text();
+    EXPECT_FALSE(fs::exists("r.json"));
+    EXPECT_FALSE(fs::exists("u.vtu"));
+  }
+  write_file("g.toml",
+             "[mesh]\ngenerator = \"box\"\nsize = [1.0, 1.0]\nelements = [4, 4]\n"
+             "element = \"quad4\"\n[physics]\ntype = \"elasticity\"\nyoung = 1e3\n"
+             "poisson = 0.3\ndensity = 1e10\ngravity = [0.0, -1e300]\n"
+             "[[dirichlet]]\ngroup = \"y0\"\nvalue = [0.0, 0.0]\n[decomposition]\n"
+             "subdomains = [2, 2]\n");
+  EXPECT_EQ(run(bin + " solve g.toml --report r.json --vtu u.vtu"), 5);
+  EXPECT_NE(stderr_text().find("not finite"), std::string::npos) << stderr_text();
+  EXPECT_FALSE(fs::exists("r.json"));
+  EXPECT_FALSE(fs::exists("u.vtu"));
+}

@@ -235,7 +235,7 @@ void subdomain_rows(const FetiLayout& L, const SubdomainInput& in, std::vector<L
     const double inv = 1.0 / c.copies_a + (c.copies_b > 0 ? 1.0 / c.copies_b : 0.0);
     const double scale = 1.0 / std::sqrt(inv);
     row = LocalRow{};
-    row.key = {0, c.node_a, 2, 0, 0, 0};
+    row.key = {0, c.node_a, 2, c.condition, 0, 0};
     row.kind = MultiplierKind::contact;
     row.owner_subdomain = c.owner_subdomain;
     row.rhs = scale * c.gap;

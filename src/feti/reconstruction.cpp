@@ -206,7 +206,10 @@ std::vector<DualProblem::Vec> DualProblem::contact_gap_field(const std::vector<V
     const int dpn = subs_[s]->dofs_per_node();
     out[s] = Vec::Constant(subs_[s]->size() / dpn, std::numeric_limits<double>::quiet_NaN());
     for (const auto& r : rows_[s])
-      if (r.side != 0) out[s][r.dof / dpn] = rem[r.k];
+      if (r.side != 0) {  // the smallest remaining gap of a node's rows
+        double& g = out[s][r.dof / dpn];
+        g = std::isnan(g) ? rem[r.k] : std::min(g, rem[r.k]);
+      }
   }
   return out;
 }

@@ -20,6 +20,13 @@ std::string list_groups(const std::set<std::string>& names) {
   return s.empty() ? "(none)" : s;
 }
 
+std::string point_text(const std::array<double, 3>& p) {
+  std::ostringstream o;
+  o.precision(6);
+  o << p[0] << ", " << p[1] << ", " << p[2];
+  return o.str();
+}
+
 // Where a GroupModel's subdomain meshes come from. GroupModel asks its source alone and never
 // branches on the kind: a generated box split into boxes of subdomains (every rank generates its
 // own, and equal subdomains are equal bit for bit), or a whole mesh (read from a file, or a
@@ -240,13 +247,18 @@ class GroupModel final : public Model {
         for (int c : comps)
           if (c < dpn && fixed.insert({k, c}).second) in.dirichlet.push_back({k, c, d.value[c]});
     }
-    // Contact rows on the nodes of the contact groups, one per node (the first condition wins);
-    // dropped where a Dirichlet condition fixes every component the direction involves.
-    std::set<int> done;
-    for (const auto& c : spec_.contact) {
+    // Contact rows on the nodes of the contact groups: one per node and condition (a node may
+    // touch several obstacles); dropped where a Dirichlet condition fixes every component the
+    // direction involves. Two conditions on a node with opposite directions whose gaps leave
+    // no room (n.u <= g1 and -n.u <= g2 with g1 + g2 < 0) are infeasible: refused.
+    std::vector<std::vector<const ContactRow*>> at_node(m.num_nodes());
+    const size_t first_row = in.contact.size();
+    for (size_t ci = 0; ci < spec_.contact.size(); ++ci) {
+      const auto& c = spec_.contact[ci];
       auto it = m.node_groups.find(c.group);
       if (it == m.node_groups.end()) continue;
       const Expression gap(c.gap);
+      std::set<int> done;
       for (int k : it->second) {
         if (!done.insert(k).second) continue;
         bool all_fixed = true;
@@ -261,12 +273,32 @@ class GroupModel final : public Model {
         r.copies_b = 0;
         r.owner_subdomain = *std::min_element(m.copies(k), m.copies(k) + m.num_copies(k));
         r.direction = c.direction;
-        if (dpn == 1) r.direction = {1, 0, 0};
+        if (dpn == 1) r.direction = {c.direction[0] < 0 ? -1.0 : 1.0, 0, 0};
         r.point = point(k);
         r.gap = gap(r.point);
+        if (!std::isfinite(r.gap))
+          throw std::invalid_argument("problem file: contact #" + std::to_string(ci + 1) +
+                                      ".gap is not finite at (" + point_text(r.point) + ")");
+        r.condition = static_cast<int>(ci);
         in.contact.push_back(r);
       }
     }
+    for (size_t i = first_row; i < in.contact.size(); ++i)
+      at_node[in.contact[i].node].push_back(&in.contact[i]);
+    for (const auto& rows : at_node)
+      for (size_t a = 0; a < rows.size(); ++a)
+        for (size_t b = a + 1; b < rows.size(); ++b) {
+          bool opposite = true;
+          for (int d = 0; d < 3; ++d)
+            opposite &= std::abs(rows[a]->direction[d] + rows[b]->direction[d]) < 1e-12;
+          if (opposite && rows[a]->gap + rows[b]->gap < 0)
+            throw std::invalid_argument(
+                "problem file: contact #" + std::to_string(rows[a]->condition + 1) +
+                " and contact #" + std::to_string(rows[b]->condition + 1) +
+                " cannot both hold at (" + point_text(rows[a]->point) +
+                "): opposite directions whose gaps add up to " +
+                std::to_string(rows[a]->gap + rows[b]->gap) + " < 0 (no feasible position)");
+        }
   }
   nlohmann::json describe() const override {
     nlohmann::json j;
@@ -325,6 +357,40 @@ class GroupModel final : public Model {
     }
     i = 0;
     for (const auto& c : spec_.contact) require(c.group, nodes, "contact #" + std::to_string(++i));
+    check_components();
+  }
+
+  // Components the problem does not have are refused, not ignored: a third component of a
+  // direction or a Dirichlet component 2 in 2D, a direction other than +1 or -1 for Laplace.
+  void check_components() const {
+    const int dpn = physics_.dofs_per_node();
+    int i = 0;
+    for (const auto& d : spec_.dirichlet) {
+      ++i;
+      for (int c : d.components)
+        if (c >= dpn)
+          throw std::invalid_argument("problem file: dirichlet #" + std::to_string(i) +
+                                      ".components: component " + std::to_string(c) +
+                                      " does not exist in this " + std::to_string(physics_.dim) +
+                                      "D " + to_string(physics_.kind) + " problem");
+    }
+    i = 0;
+    for (const auto& c : spec_.contact) {
+      ++i;
+      const std::string where = "problem file: contact #" + std::to_string(i) + ".direction: ";
+      if (dpn == 1) {
+        if (c.direction[1] != 0 || c.direction[2] != 0)
+          throw std::invalid_argument(where +
+                                      "a Laplace problem takes one component (1: u <= gap, "
+                                      "-1: u >= -gap)");
+      } else {
+        for (int d = dpn; d < 3; ++d)
+          if (c.direction[d] != 0)
+            throw std::invalid_argument(where + "has a component " + std::to_string(d) +
+                                        " that this " + std::to_string(physics_.dim) +
+                                        "D problem does not have");
+      }
+    }
   }
 
   ProblemSpec spec_;

@@ -76,6 +76,9 @@ struct ContactRow {
   std::array<double, 3> direction{1, 0, 0};  ///< unit normal n (dofs_per_node components used)
   double gap = 0;
   std::array<double, 3> point{0, 0, 0};  ///< coordinates of a (for the report)
+  /// The contact condition the row comes from: a node may carry one row per condition (a
+  /// corner under a floor and beside a wall), each its own multiplier.
+  int condition = 0;
 };
 
 /// One local subdomain's input: moved into the FETI stage, which keeps what it needs.

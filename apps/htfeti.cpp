@@ -8,6 +8,7 @@
 
 #include <CLI/CLI.hpp>
 #include <algorithm>
+#include <csignal>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -15,6 +16,7 @@
 
 #include "htfeti/clock.hpp"
 #include "htfeti/errors.hpp"
+#include "htfeti/io/output_file.hpp"
 #include "htfeti/io/vtu.hpp"
 #include "htfeti/memory_estimate.hpp"
 #include "htfeti/options.hpp"
@@ -33,57 +35,6 @@ using namespace htfeti;
 int fail(const Comm& comm, const std::string& msg, int code) {
   if (comm.rank() == 0) std::fprintf(stderr, "htfeti: error: %s\n", msg.c_str());
   return code;
-}
-
-// Writes text to path through a unique temporary name in the same directory, renamed only when
-// complete; a special file (such as /dev/null) is written in place, never replaced.
-void write_atomically(const std::string& path, const std::string& text) {
-  std::error_code ec;
-  const auto st = std::filesystem::status(path, ec);
-  if (!ec && std::filesystem::exists(st) && !std::filesystem::is_regular_file(st)) {
-    std::ofstream o(path);
-    o << text << '\n';
-    o.flush();
-    if (!o) throw std::runtime_error("error while writing " + path);
-    return;
-  }
-  const std::string tmp = path + ".htfeti-tmp-" + std::to_string(::getpid());
-  {
-    std::ofstream o(tmp);
-    if (!o) throw std::runtime_error("cannot write " + path);
-    o << text << '\n';
-    o.flush();
-    if (!o) {
-      o.close();
-      std::filesystem::remove(tmp, ec);
-      throw std::runtime_error("error while writing " + path + " (disk full?)");
-    }
-  }
-  std::filesystem::rename(tmp, path, ec);
-  if (ec) {
-    std::filesystem::remove(tmp, ec);
-    throw std::runtime_error("cannot rename the report to " + path);
-  }
-}
-
-// An output path must be usable before any work: not empty, its directory exists and is
-// writable, and it is not a directory.
-void check_output_path(const std::string& path, const std::string& option) {
-  if (path.empty()) throw std::invalid_argument(option + " is empty");
-  namespace fs = std::filesystem;
-  std::error_code ec;
-  const fs::path p(path);
-  if (fs::is_directory(p, ec))
-    throw std::invalid_argument(option + " '" + path + "' is a directory");
-  if (p.filename().empty() || p.filename() == "." || p.filename() == "..")
-    throw std::invalid_argument(option + " '" + path + "' names no file");
-  const fs::path dir = p.parent_path().empty() ? fs::path(".") : p.parent_path();
-  if (!fs::is_directory(dir, ec))
-    throw std::invalid_argument(option + " '" + path + "': directory '" + dir.string() +
-                                "' does not exist");
-  if (::access(dir.c_str(), W_OK) != 0)
-    throw std::invalid_argument(option + " '" + path + "': directory '" + dir.string() +
-                                "' is not writable");
 }
 
 void print_summary(const nlohmann::json& r) {
@@ -321,8 +272,7 @@ void check_outputs(const OutputOptions& out, const Comm& comm) {
     throw std::invalid_argument("--vtu '" + out.vtu + "' must end in .vtu or .pvtu");
   for (const auto& f : vtu_files(out.vtu, comm.size())) {
     check_output_path(f, "--vtu");
-    if (out.write_report &&
-        std::filesystem::weakly_canonical(f) == std::filesystem::weakly_canonical(out.report))
+    if (out.write_report && same_file(f, out.report))
       throw std::invalid_argument("--report and --vtu name the same file '" + f + "'");
   }
 }
@@ -476,23 +426,33 @@ int run(int argc, char** argv, const Comm& comm) {
 
   SolveOutput out = htfeti::solve(model, opt.solve, comm);
   if (comm.rank() == 0) print_summary(out.report);
-  write_outputs(out, opt.output, opt, comm);
+  try {
+    write_outputs(out, opt.output, opt, comm);
+  } catch (const IoError&) {
+    throw;
+  } catch (const std::runtime_error& e) {  // the VTU writer's errors, agreed on by all ranks
+    throw IoError(e.what());
+  }
   if (comm.rank() == 0 && std::fflush(stdout) != 0)
-    throw std::runtime_error("cannot write to standard output");
+    throw IoError("cannot write to standard output");
   return out.converged ? 0 : 3;
 }
 
 }  // namespace
 
 // Exit codes: 0 solved, 2 bad input (or it does not fit), 3 not converged (the report is
-// written), 4 a numerical failure, 5 a value that is not finite (an overflow). Errors raised by the library are agreed on by every rank, so
-// every rank leaves through the same path; anything else aborts the MPI job.
+// written), 4 a numerical failure, 5 a value that is not finite (an overflow), 6 an output
+// that could not be written (nothing is left behind). Errors raised by the library are agreed on by
+// every rank, so every rank leaves through the same path; anything else aborts the MPI job.
 int main(int argc, char** argv) {
   // Blocks of 1 MiB and more (matrices, factors, dense blocks) are mapped and unmapped
   // directly. glibc's default raises this threshold to the largest block freed so far, after
   // which freed subdomain matrices stay in the heap, fragmented, while the factors grow: on the
   // 512-subdomain cube the factorization peak was 6.6 GiB instead of 5.0 GiB for the same data.
   mallopt(M_MMAP_THRESHOLD, 1 << 20);
+  // Past a file size limit (ulimit -f) a write fails with EFBIG instead of killing the process,
+  // so the writers remove their temporary files and the run ends with exit 6.
+  std::signal(SIGXFSZ, SIG_IGN);
   int provided = 0;
   MPI_Init_thread(&argc, &argv, MPI_THREAD_FUNNELED, &provided);
   init_threads();
@@ -507,6 +467,8 @@ int main(int argc, char** argv) {
       code = fail(comm, "out of memory", 2);
     } catch (const NonFiniteError& e) {
       code = fail(comm, e.what(), 5);
+    } catch (const IoError& e) {
+      code = fail(comm, e.what(), 6);
     } catch (const std::runtime_error& e) {
       code = fail(comm, e.what(), 4);
     } catch (const std::exception& e) {

@@ -30,8 +30,9 @@ using Vec = Eigen::VectorXd;
 // Throws NonFiniteError on every rank when some entry of v on some rank is not finite.
 void require_finite(const Comm& comm, bool finite, const std::string& what) {
   if (comm.min(finite ? 1.0 : 0.0) < 1)
-    throw NonFiniteError(what + " is not finite (an overflow): check the magnitudes of the "
-                                "loads, gaps and material values");
+    throw NonFiniteError(what +
+                         " is not finite (an overflow): check the magnitudes of the "
+                         "loads, gaps and material values");
 }
 
 struct DualOperators {

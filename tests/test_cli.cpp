@@ -1,6 +1,7 @@
 // The htfeti program as a user runs it: bad arguments give one message and exit code 2 and leave
 // no file behind; reports from 1, 2 and 4 ranks agree to round-off; VTU/PVTU files appear.
 #include <gtest/gtest.h>
+#include <sys/stat.h>
 
 #include <cstdlib>
 #include <filesystem>
@@ -628,7 +629,8 @@ TEST_F(Cli, EveryContactConditionKeepsItsRows) {
   for (size_t i = 0; i < c["x"].size(); ++i) {
     // Every row feasible: n.u <= gap (to round-off of the precision asked).
     EXPECT_LE(c["u_left"][i].get<double>(), c["gap"][i].get<double>() * (1 + 1e-6)) << i;
-    if (std::abs(c["x"][i].get<double>() - 1) < 1e-12 && std::abs(c["y"][i].get<double>()) < 1e-12) {
+    if (std::abs(c["x"][i].get<double>() - 1) < 1e-12 &&
+        std::abs(c["y"][i].get<double>()) < 1e-12) {
       ++at_corner;
       EXPECT_GT(c["multiplier"][i].get<double>(), 0.0);  // pressed on both
     }
@@ -677,4 +679,34 @@ TEST_F(Cli, NonFiniteResultsExitWithCode5) {
   EXPECT_NE(stderr_text().find("not finite"), std::string::npos) << stderr_text();
   EXPECT_FALSE(fs::exists("r.json"));
   EXPECT_FALSE(fs::exists("u.vtu"));
+}
+
+// Output paths (reliability round 3, items 9-12 and 16): the same file written twice through
+// "./", a FIFO (which would block after the solve), names longer than the file system takes
+// are refused before any work; a legal 250-character name works (its temporary name fits);
+// a file size limit ends the run with exit 6 and leaves nothing behind.
+TEST_F(Cli, OutputPathsAreCheckedAndFailuresLeaveNothing) {
+  const std::string small = bin + " solve -n 16 --subdomains 2 ";
+  EXPECT_EQ(run(small + "--report x.vtu --vtu ./x.vtu"), 2);
+  EXPECT_NE(stderr_text().find("same file"), std::string::npos) << stderr_text();
+  EXPECT_TRUE(outputs().empty());
+  ASSERT_EQ(::mkfifo("fifo", 0644), 0);
+  EXPECT_EQ(run("timeout 60 " + small + "--report fifo --no-vtu"), 2);
+  EXPECT_NE(stderr_text().find("not a regular file"), std::string::npos) << stderr_text();
+  fs::remove("fifo");
+  const std::string long_name(245, 'r');
+  EXPECT_EQ(run(small + "--report " + long_name + ".json --no-vtu"), 0) << stderr_text();
+  EXPECT_TRUE(fs::exists(long_name + ".json"));
+  fs::remove(long_name + ".json");
+  EXPECT_TRUE(outputs().empty());  // no temporary file left
+  EXPECT_EQ(run(small + "--report " + std::string(260, 'r') + ".json --no-vtu"), 2);
+  EXPECT_NE(stderr_text().find("255"), std::string::npos) << stderr_text();
+  // 20 MB: the 50 MB VTU of the 512 x 512 membranes does not fit (Open MPI's start-up needs
+  // some MB of its own: with 4 MB its PMIx segment already fails on this machine).
+  EXPECT_EQ(
+      run("ulimit -f 40000; " + bin + " solve -n 512 --subdomains 8 --report s.json --vtu s.vtu"),
+      6)
+      << stderr_text();
+  EXPECT_NE(stderr_text().find("error while writing"), std::string::npos) << stderr_text();
+  EXPECT_TRUE(outputs().empty());
 }

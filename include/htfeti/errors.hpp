@@ -14,4 +14,11 @@ class NonFiniteError : public std::runtime_error {
   explicit NonFiniteError(const std::string& what) : std::runtime_error(what) {}
 };
 
+/// An output that could not be written (disk full, a file size limit, standard output closed):
+/// nothing is left behind (exit code 6).
+class IoError : public std::runtime_error {
+ public:
+  explicit IoError(const std::string& what) : std::runtime_error(what) {}
+};
+
 }  // namespace htfeti

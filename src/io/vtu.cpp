@@ -21,6 +21,7 @@
 #include <thread>
 
 #include "htfeti/fem/element.hpp"
+#include "htfeti/io/output_file.hpp"
 
 namespace htfeti {
 
@@ -33,9 +34,7 @@ std::string stem_of(const std::string& path) {
   return path;
 }
 
-std::string temp_name(const std::string& file) {
-  return file + ".htfeti-tmp-" + std::to_string(::getpid());
-}
+std::string temp_name(const std::string& file) { return temporary_name(file); }
 
 // One data array: name, VTK type, components, raw bytes.
 struct Array {

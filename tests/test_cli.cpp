@@ -710,3 +710,34 @@ TEST_F(Cli, OutputPathsAreCheckedAndFailuresLeaveNothing) {
   EXPECT_NE(stderr_text().find("error while writing"), std::string::npos) << stderr_text();
   EXPECT_TRUE(outputs().empty());
 }
+
+// Invalid elements are refused with their tag (reliability round 3, item 8): a self-intersecting
+// (bow-tie) quad was solved with a wrong stiffness, a degenerate triangle ended in a CHOLMOD
+// failure. The same two quads in a valid order solve.
+TEST_F(Cli, InvalidElementsAreRefused) {
+  auto mesh = [](const std::string& type, const std::string& second) {
+    return "$MeshFormat\n2.2 0 8\n$EndMeshFormat\n$PhysicalNames\n2\n1 1 \"left\"\n2 2 \"body\"\n"
+           "$EndPhysicalNames\n$Nodes\n6\n1 0 0 0\n2 1 0 0\n3 2 0 0\n4 0 1 0\n5 1 1 0\n6 2 1 0\n"
+           "$EndNodes\n$Elements\n3\n1 1 2 1 1 1 4\n2 " +
+           type + " 2 2 1 " + (type == "3" ? "1 2 5 4" : "1 2 4") + "\n3 " + type + " 2 2 1 " +
+           second + "\n$EndElements\n";
+  };
+  const std::string toml =
+      "[physics]\ntype = \"laplace\"\nsource = 1.0\n[[dirichlet]]\ngroup = \"left\"\n"
+      "value = 0.0\n[decomposition]\nsubdomains = 1\n[output]\nvtu = false\n";
+  const std::pair<std::string, int> cases[] = {
+      {mesh("3", "2 3 6 5"), 0},  // valid quads
+      {mesh("3", "2 3 5 6"), 2},  // bow-tie
+      {mesh("2", "1 2 3"), 2},    // a triangle on three collinear nodes
+  };
+  for (const auto& [text, code] : cases) {
+    write_file("m.msh", text);
+    write_file("m.toml", "[mesh]\nfile = \"m.msh\"\n" + toml);
+    EXPECT_EQ(run(bin + " solve m.toml --report r.json"), code) << text << stderr_text();
+    if (code == 2) {
+      EXPECT_NE(stderr_text().find("element 3"), std::string::npos) << stderr_text();
+      EXPECT_FALSE(fs::exists("r.json"));
+    }
+    fs::remove("r.json");
+  }
+}

@@ -1,6 +1,7 @@
 #include "htfeti/fem/element.hpp"
 
 #include <cmath>
+#include <limits>
 #include <stdexcept>
 #include <vector>
 
@@ -241,6 +242,40 @@ double facet_measure(int dim, int n, const double* x) {
   sub(2, 0, u), sub(3, 0, v);
   return a + 0.5 * cross_norm(u, v);
   (void)dim;
+}
+
+bool cell_is_valid(CellType t, const double* x) {
+  const int n = cell_nodes(t), dim = cell_dimension(t);
+  // The size of the cell: its largest coordinate extent.
+  double h = 0;
+  for (int d = 0; d < dim; ++d) {
+    double lo = x[d], hi = x[d];
+    for (int a = 1; a < n; ++a) lo = std::min(lo, x[3 * a + d]), hi = std::max(hi, x[3 * a + d]);
+    h = std::max(h, hi - lo);
+  }
+  if (!(h > 0) || !std::isfinite(h)) return false;
+  Eigen::MatrixXd X(n, dim);
+  for (int a = 0; a < n; ++a)
+    for (int d = 0; d < dim; ++d) X(a, d) = x[3 * a + d];
+  // det J at the corners of the reference cell (constant for simplices): an inverted or
+  // self-intersecting (bow-tie) quad or hex changes sign there; a degenerate cell is 0.
+  std::vector<std::array<double, 3>> corners;
+  if (t == CellType::quad4)
+    for (const auto& c : q4) corners.push_back({c[0], c[1], 0});
+  else if (t == CellType::hex8)
+    for (const auto& c : h8) corners.push_back({c[0], c[1], c[2]});
+  else
+    corners.push_back({0.25, 0.25, 0.25});
+  double lo = std::numeric_limits<double>::infinity(), hi = -lo;
+  Eigen::VectorXd N;
+  Eigen::MatrixXd dN;
+  for (const auto& c : corners) {
+    reference_shape(t, c.data(), N, dN);
+    const double det = (X.transpose() * dN).determinant();
+    lo = std::min(lo, det), hi = std::max(hi, det);
+  }
+  const double tiny = 1e-12 * std::pow(h, dim);
+  return (lo > tiny && hi > tiny) || (lo < -tiny && hi < -tiny);
 }
 
 }  // namespace htfeti

@@ -150,6 +150,7 @@ Mesh read_gmsh(const std::string& path) {
     mesh.cells.resize(cell_nodes_tags.size());
     for (size_t i = 0; i < cell_nodes_tags.size(); ++i)
       mesh.cells[i] = index.at(cell_nodes_tags[i]);
+    mesh.cell_tags = cell_tags;
     std::unordered_map<std::size_t, int> cell_index;
     for (size_t i = 0; i < cell_tags.size(); ++i) cell_index[cell_tags[i]] = static_cast<int>(i);
     (void)nc;

@@ -113,6 +113,7 @@ class MetisSplit final : public MeshSource {
   explicit MetisSplit(const ProblemSpec& spec) {
     if (!spec.mesh_file.empty()) {
       mesh_ = std::make_unique<Mesh>(read_gmsh(spec.mesh_file));
+      check_cells(spec.mesh_file);
     } else {  // a generated box split by METIS: generate it whole
       BoxGridOptions o = spec.box;
       o.subdomains = {1, 1, 1};
@@ -132,6 +133,26 @@ class MetisSplit final : public MeshSource {
   void split(const ProblemSpec& spec) {
     part_ = std::make_unique<MeshPartition>(
         partition_mesh(*mesh_, spec.subdomains.at(0), spec.cluster_size));
+  }
+  // Every cell valid (fem/element.hpp: cell_is_valid): an inverted, self-intersecting or
+  // degenerate element is refused with its tag, not solved with a wrong stiffness.
+  void check_cells(const std::string& file) const {
+    const int nc = cell_nodes(mesh_->type);
+    double x[24];
+    for (int e = 0; e < mesh_->num_cells(); ++e) {
+      const int* cn = mesh_->cells.data() + static_cast<size_t>(e) * nc;
+      for (int a = 0; a < nc; ++a)
+        for (int d = 0; d < 3; ++d)
+          x[3 * a + d] = mesh_->coords[3 * static_cast<size_t>(cn[a]) + d];
+      if (!cell_is_valid(mesh_->type, x))
+        throw std::invalid_argument(
+            "mesh file '" + file + "': element " +
+            std::to_string(e < static_cast<int>(mesh_->cell_tags.size()) ? mesh_->cell_tags[e]
+                                                                         : e) +
+            " (" + to_string(mesh_->type) +
+            ") is inverted, self-intersecting or degenerate (its Jacobian changes sign or "
+            "vanishes)");
+    }
   }
   int dim() const override { return mesh_->dim; }
   int num_subdomains() const override { return part_->num_subdomains; }

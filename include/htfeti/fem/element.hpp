@@ -22,6 +22,12 @@ struct Material {
   double poisson = 0.3;
 };
 
+/// Whether the cell is valid: the Jacobian determinant at the corners of the reference cell
+/// (constant for simplices) has one sign and is above 1e-12 h^dim in magnitude (h the cell's
+/// largest coordinate extent); false for an inverted, self-intersecting (bow-tie) or degenerate
+/// cell, or non-finite coordinates.
+bool cell_is_valid(CellType type, const double* x);
+
 /// Element stiffness for -div(grad u) (Laplace) on a cell with coordinates x (3 per node,
 /// unused components zero). Rows/columns follow the cell's nodes.
 Eigen::MatrixXd laplace_stiffness(CellType type, const double* x);

@@ -25,6 +25,7 @@ struct Mesh {
   };
   std::map<std::string, FacetGroup> facet_groups;
   std::map<std::string, std::vector<int>> cell_groups;  ///< cell indices
+  std::vector<std::size_t> cell_tags;                   ///< the file's element tag of each cell
   int num_nodes() const { return static_cast<int>(coords.size() / 3); }
   int num_cells() const { return static_cast<int>(cells.size()) / cell_nodes(type); }
 };

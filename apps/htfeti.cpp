@@ -94,9 +94,19 @@ const CLI::Validator kStrictInt(
     [](std::string& s) {
       const bool ok = !s.empty() && s.size() < 10 &&
                       std::all_of(s.begin(), s.end(), [](char c) { return c >= '0' && c <= '9'; });
-      return ok ? std::string() : "'" + s + "' is not a non-negative decimal integer";
+      return ok ? std::string()
+                : "'" + s + "' is not a decimal integer from 0 to 999999999 (digits only)";
     },
     "INT");
+
+// A positive integer (after kStrictInt): the message names the value and the range.
+const CLI::Validator kPositive(
+    [](std::string& s) {
+      return s.find_first_not_of('0') == std::string::npos
+                 ? "'" + s + "' must be a positive integer (1 to 999999999)"
+                 : std::string();
+    },
+    "POSITIVE");
 
 // What selects the problem (not options of the solve): a problem file or a built-in, and the
 // built-ins' sizes. Each has a problem-file key of its own in [mesh] or [decomposition].
@@ -132,7 +142,7 @@ void add_problem_args(CLI::App* cmd, ProblemArgs& p) {
                           "METIS: subdomains per cluster [decomposition.cluster_size]")
               ->capture_default_str()
               ->check(kStrictInt)
-              ->check(CLI::PositiveNumber);
+              ->check(kPositive);
   p.o_glue = cmd->add_option("--glue", p.glue,
                              "primal gluing inside clusters: corners | averages | "
                              "corners+averages [decomposition.glue]")

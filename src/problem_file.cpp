@@ -227,7 +227,7 @@ bool read_mesh(const toml::table& root, const std::string& path, ProblemSpec& sp
       if (d != spec.box.dim)
         bad("mesh.elements", "must have " + std::to_string(spec.box.dim) + " integers");
       for (int i = 0; i < spec.box.dim; ++i) {
-        if (!(size[i] > 0)) bad("mesh.size", "must be positive");
+        if (!(size[i] > 0) || size[i] > 1e100) bad("mesh.size", "must lie in (0, 1e100]");
         if (spec.box.elements[i] <= 0) bad("mesh.elements", "must be positive");
         spec.box.size[i] = size[i];
       }
@@ -421,6 +421,9 @@ ProblemSpec read_problem_file(const std::string& path, RunOptions& run) {
   ProblemSpec spec;
   spec.path = path;
   toml::table root;
+  std::error_code ec;
+  if (std::filesystem::is_directory(path, ec))
+    throw std::invalid_argument("problem file '" + path + "' is a directory");
   try {
     root = toml::parse_file(path);
   } catch (const toml::parse_error& e) {

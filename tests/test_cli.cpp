@@ -741,3 +741,26 @@ TEST_F(Cli, InvalidElementsAreRefused) {
     fs::remove("r.json");
   }
 }
+
+// Messages name the input and the limit (reliability round 3, item 15).
+TEST_F(Cli, MessagesNameTheInputAndTheLimit) {
+  fs::create_directory("dir.toml");
+  write_file("huge.toml",
+             "[mesh]\ngenerator = \"box\"\nsize = [1e200, 1.0]\nelements = [4, 4]\n"
+             "element = \"quad4\"\n[physics]\ntype = \"laplace\"\nsource = 1.0\n"
+             "[[dirichlet]]\ngroup = \"x0\"\nvalue = 0.0\n[decomposition]\nsubdomains = [2, 2]\n");
+  const std::pair<std::string, std::string> cases[] = {
+      {"-m 0", "'0' must be a positive integer (1 to 999999999)"},
+      {"-m 2147483648", "from 0 to 999999999"},
+      {"--rho-factor 1e308", "--rho-factor: must lie in (0, 1e6]"},
+      {"dir.toml", "'dir.toml' is a directory"},
+      {"huge.toml", "mesh.size: must lie in (0, 1e100]"},
+  };
+  for (const auto& [args, needle] : cases) {
+    EXPECT_EQ(run(bin + " solve " + args + " --report r.json --vtu u.vtu"), 2) << args;
+    const std::string err = stderr_text();
+    EXPECT_NE(err.find(needle), std::string::npos) << args << ": " << err;
+    EXPECT_LT(err.size(), 200u) << err;  // one short line, no 309-digit range
+    EXPECT_FALSE(fs::exists("r.json"));
+  }
+}

@@ -213,7 +213,7 @@ void apply_table_args(const TableArgs& args, RunOptions& run) {
 
 // The model of a problem file with the command line's problem arguments over its keys.
 std::shared_ptr<const Model> file_model(const ProblemArgs& p, const TableArgs& args,
-                                        RunOptions& run) {
+                                        RunOptions& run, const Comm& comm) {
   ProblemSpec spec = read_problem_file(p.file, run);
   apply_table_args(args, run);
   if (p.o_subdomains->count()) spec.subdomains = parse_int_list(p.subdomains, "--subdomains");
@@ -238,12 +238,13 @@ std::shared_ptr<const Model> file_model(const ProblemArgs& p, const TableArgs& a
     throw std::invalid_argument("--element is for the built-in problems; set mesh.element");
   if (p.o_element->count()) spec.builtin_options.element = parse_element(p.element);
   validate_solver(run.solve);
+  if (run.solve.check_memory) check_memory_before_model(spec, run.solve.feti, comm);
   return make_model(spec);
 }
 
 // The model of a built-in problem (--problem).
 std::shared_ptr<const Model> builtin_model(const ProblemArgs& p, const TableArgs& args,
-                                           RunOptions& run) {
+                                           RunOptions& run, const Comm& comm) {
   apply_table_args(args, run);
   validate_solver(run.solve);
   if (p.problem == "cube-obstacle") {
@@ -253,6 +254,7 @@ std::shared_ptr<const Model> builtin_model(const ProblemArgs& p, const TableArgs
     if (p.o_element->count()) throw std::invalid_argument("cube-obstacle uses hex8 elements");
     ProblemSpec spec = cube_obstacle_spec(e, sd, p.cluster_size, p.amplitude);
     spec.glue = parse_glue(p.glue);
+    if (run.solve.check_memory) check_memory_before_model(spec, run.solve.feti, comm);
     return make_model(spec);
   }
   if (p.o_amplitude->count())
@@ -426,8 +428,8 @@ int run(int argc, char** argv, const Comm& comm) {
   try {
     if (!problem.file.empty() && problem.o_problem->count() > 0)
       throw std::invalid_argument("give a problem file or --problem, not both");
-    model =
-        problem.file.empty() ? builtin_model(problem, table, opt) : file_model(problem, table, opt);
+    model = problem.file.empty() ? builtin_model(problem, table, opt, comm)
+                                 : file_model(problem, table, opt, comm);
     if (dry) return dry_run(*model, opt, comm);
     check_outputs(opt.output, comm);
   } catch (const std::invalid_argument& e) {

@@ -9,6 +9,7 @@
 #include <stdexcept>
 
 #include "htfeti/feti/subdomain.hpp"
+#include "htfeti/model/problem_spec.hpp"
 #include "htfeti/parallel/memory.hpp"
 
 namespace htfeti {
@@ -39,7 +40,8 @@ std::string gb(double mb) {
 
 }  // namespace
 
-MemoryEstimate estimate_memory(const Model& model, const FetiOptions& options, const Comm& comm) {
+MemoryEstimate estimate_memory(const Model& model, const FetiOptions& options, const Comm& comm,
+                               bool sample_one) {
   MemoryEstimate e;
   const FetiLayout layout = model.layout();
   const auto [c0, c1] = layout.cluster_range(comm.rank(), comm.size());
@@ -54,7 +56,7 @@ MemoryEstimate estimate_memory(const Model& model, const FetiOptions& options, c
   e.matrices_mb = lower_nnz * 12.0 / kMiB;
   e.factors_mb = lower_nnz * 8.0 / kMiB;  // L has at least the nonzeros of K's lower triangle
   e.factors_held_mb = e.factors_mb;
-  if (per_subdomain > kMaxSampleUnknowns) return e;
+  if (!sample_one || per_subdomain > kMaxSampleUnknowns) return e;
   // Sample: the rank's first subdomain, assembled and analysed with the ordering in effect.
   SubdomainInput in = model.input(s0);
   const double n = static_cast<double>(in.system.f.size());
@@ -145,10 +147,10 @@ MemoryEstimate check_memory(const Model& model, FetiOptions& options, const Comm
     double sum[6] = {0, 0, 0, 0, 0, 0};
     bool fits(double avail) const { return error.empty() && !(avail > 0 && sum[0] > avail); }
   };
-  auto estimate = [&](const FetiOptions& o) {
+  auto estimate = [&](const FetiOptions& o, bool sample) {
     Sums s;
     try {
-      s.e = estimate_memory(model, o, comm);
+      s.e = estimate_memory(model, o, comm, sample);
     } catch (const std::bad_alloc&) {
       s.error = "out of memory while estimating the memory needed";
     } catch (const std::exception& ex) {
@@ -160,17 +162,27 @@ MemoryEstimate check_memory(const Model& model, FetiOptions& options, const Comm
     MPI_Allreduce(mine, s.sum, 6, MPI_DOUBLE, MPI_SUM, node);
     return s;
   };
-  Sums s = estimate(options);
+  // The lower bound alone first: a problem that cannot fit is refused before a subdomain is
+  // assembled and analysed (which costs as much as a large subdomain: 1.2 GB for one 40^3 hex8
+  // subdomain), unless the automatic operator may still take the explicit one.
+  // What any operator needs (the matrices and vectors) decides for the automatic one.
+  Sums s = estimate(options, false);
+  const bool over_any = s.error.empty() && available > 0 && s.sum[2] + s.sum[3] > available;
+  const bool refuse_early =
+      comm.max(over_any || (options.dual_operator != DualOperator::automatic && !s.fits(available))
+                   ? 1.0
+                   : 0.0) > 0;
+  if (!refuse_early) s = estimate(options, true);
   // The implicit operator keeps every factor; the explicit one can free them. When the automatic
   // choice (the explicit blocks' size budget) gives the implicit operator and it does not fit,
   // the explicit operator is taken if it fits everywhere.
   const bool implicit_over =
       comm.max(s.fits(available) ? 0.0 : 1.0) > 0 && comm.max(s.error.empty() ? 0.0 : 1.0) == 0;
-  if (options.dual_operator == DualOperator::automatic && implicit_over &&
+  if (!refuse_early && options.dual_operator == DualOperator::automatic && implicit_over &&
       comm.min(s.e.sampled && s.e.explicit_eligible && !s.e.explicit_operator ? 1.0 : 0.0) > 0) {
     FetiOptions alt = options;
     alt.dual_operator = DualOperator::explicit_;
-    Sums t = estimate(alt);
+    Sums t = estimate(alt, true);
     if (comm.min(t.fits(available) ? 1.0 : 0.0) > 0) {
       const double implicit_peak = comm.max(s.sum[0]);
       options.dual_operator = DualOperator::explicit_;
@@ -194,9 +206,56 @@ MemoryEstimate check_memory(const Model& model, FetiOptions& options, const Comm
                  ? "limit (--memory-limit) "
                  : "available ") +
             gb(available) +
-            "; use fewer unknowns, more machines, or --no-memory-check to try anyway";
+            "; use fewer unknowns, more machines, or --no-memory-check to try anyway" +
+            (refuse_early ? " (a lower bound: nothing was assembled)" : "");
   comm.agree(error, true);
   return s.e;
+}
+
+void check_memory_before_model(const ProblemSpec& spec, const FetiOptions& options,
+                               const Comm& comm) {
+  if (!spec.builtin.empty() || !spec.mesh_file.empty()) return;  // sizes known from the box only
+  const BoxGridOptions& b = spec.box;
+  double nodes = 1, cells = 1;
+  for (int d = 0; d < b.dim; ++d) nodes *= b.elements[d] + 1.0, cells *= b.elements[d];
+  Physics ph = spec.physics;
+  ph.dim = b.dim;
+  // The decomposed problem has at least one copy of every node; its matrices (all alive at the
+  // end of the assembly, whatever the operator) and vectors at least the lower bound of
+  // estimate_memory. A box split by METIS is also held whole on every rank (coordinates, cells)
+  // while it is partitioned.
+  const double unknowns = nodes * ph.dofs_per_node();
+  const double lower_nnz = unknowns * lower_nonzeros_per_row(ph);
+  const bool metis = spec.subdomains.size() == 1;
+  const double whole_mesh_mb =
+      metis ? (24.0 * nodes + 4.0 * cell_nodes(b.cell) * cells) / kMiB : 0.0;
+  MPI_Comm node;
+  MPI_Comm_split_type(comm.raw(), MPI_COMM_TYPE_SHARED, comm.rank(), MPI_INFO_NULL, &node);
+  int node_ranks = 1;
+  MPI_Comm_size(node, &node_ranks);
+  double available = available_memory_mb();
+  MPI_Allreduce(MPI_IN_PLACE, &available, 1, MPI_DOUBLE, MPI_MIN, node);
+  MPI_Comm_free(&node);
+  if (options.memory_limit_mb > 0 && (available <= 0 || options.memory_limit_mb < available))
+    available = options.memory_limit_mb;
+  // The ranks of this machine share the problem (their shares add up to the whole), and each
+  // holds the whole box while it is split by METIS.
+  const double problem_mb = (lower_nnz * 12.0 + unknowns * 8.0 * (ph.kernel_dimension() + 4)) /
+                                kMiB *
+                                std::min(1.0, static_cast<double>(node_ranks) / comm.size()) +
+                            node_ranks * whole_mesh_mb;
+  std::string error;
+  if (available > 0 && problem_mb > available)
+    error = "the problem does not fit in memory: at least " + gb(problem_mb) + " on " +
+            std::to_string(node_ranks) + " rank(s) of this machine for " +
+            std::to_string(static_cast<long long>(unknowns)) + " unknowns (estimated from the " +
+            "box before it is generated), " +
+            (options.memory_limit_mb > 0 && available == options.memory_limit_mb
+                 ? "limit (--memory-limit) "
+                 : "available ") +
+            gb(available) +
+            "; use fewer unknowns, more machines, or --no-memory-check to try anyway";
+  comm.agree(error, true);
 }
 
 }  // namespace htfeti

@@ -764,3 +764,23 @@ TEST_F(Cli, MessagesNameTheInputAndTheLimit) {
     EXPECT_FALSE(fs::exists("r.json"));
   }
 }
+
+// Refusing a problem that cannot fit costs nothing (reliability round 3, item 3): a generated
+// box split by METIS is refused from its sizes before it is generated (2.5 s and 270 MB for
+// 80^3 before), and a problem whose matrices and vectors alone cannot fit from the lower bound
+// before a subdomain is assembled and analysed (1.2 GB and 4 s for one 40^3 subdomain before).
+TEST_F(Cli, RefusingAProblemThatCannotFitCostsNothing) {
+  write_file("cube.toml",
+             "[mesh]\ngenerator = \"box\"\nsize = [100.0, 100.0, 100.0]\n"
+             "elements = [80, 80, 80]\nelement = \"hex8\"\n[physics]\ntype = \"elasticity\"\n"
+             "young = 2.1e7\npoisson = 0.3\n[[dirichlet]]\ngroup = \"x0\"\n"
+             "value = [0.0, 0.0, 0.0]\n[decomposition]\nsubdomains = 64\n");
+  EXPECT_EQ(run(bin + " solve cube.toml --memory-limit 0.05 --report r.json"), 2);
+  EXPECT_NE(stderr_text().find("estimated from the box before it is generated"), std::string::npos)
+      << stderr_text();
+  EXPECT_EQ(run(bin + " solve " + std::string(HTFETI_SOURCE_DIR) +
+                "/examples/bracket.toml --memory-limit 0.001 --report r.json --vtu u.vtu"),
+            2);
+  EXPECT_NE(stderr_text().find("nothing was assembled"), std::string::npos) << stderr_text();
+  EXPECT_TRUE(outputs().empty());
+}

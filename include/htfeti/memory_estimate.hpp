@@ -69,7 +69,9 @@ struct MemoryEstimate {
 };
 
 /// This rank's estimate (collective: no; it assembles one subdomain of the rank).
-MemoryEstimate estimate_memory(const Model& model, const FetiOptions& options, const Comm& comm);
+/// With sample_one = false only the lower bound (nothing is assembled).
+MemoryEstimate estimate_memory(const Model& model, const FetiOptions& options, const Comm& comm,
+                               bool sample_one = true);
 
 /// Throws std::invalid_argument on every rank, with the estimate, when the ranks of some machine
 /// together need more than its available memory (or options.memory_limit_mb); returns this
@@ -78,5 +80,14 @@ MemoryEstimate estimate_memory(const Model& model, const FetiOptions& options, c
 /// explicit one (its F_i, factors released as memory runs short) fits on all, it sets
 /// options.dual_operator to explicit (explicit_for_memory). Collective.
 MemoryEstimate check_memory(const Model& model, FetiOptions& options, const Comm& comm);
+
+struct ProblemSpec;
+/// Before the model is built (a generated box: the sizes are known from the problem file): the
+/// lower bound of estimate_memory for the whole box, plus the whole mesh that a METIS split holds
+/// on every rank, against the available memory (or options.memory_limit_mb); throws
+/// std::invalid_argument on every rank when it cannot fit, so that refusing a problem costs
+/// nothing. Nothing for mesh files and built-ins (checked by check_memory). Collective.
+void check_memory_before_model(const ProblemSpec& spec, const FetiOptions& options,
+                               const Comm& comm);
 
 }  // namespace htfeti

@@ -38,6 +38,16 @@ std::string gb(double mb) {
   return buf;
 }
 
+// The memory the ranks of one machine (`node`) may use together: the smallest available memory
+// any of them sees, or the limit (options.memory_limit_mb) when it is smaller. Collective on node.
+double machine_available_mb(const FetiOptions& options, MPI_Comm node) {
+  double available = available_memory_mb();
+  MPI_Allreduce(MPI_IN_PLACE, &available, 1, MPI_DOUBLE, MPI_MIN, node);
+  if (options.memory_limit_mb > 0 && (available <= 0 || options.memory_limit_mb < available))
+    available = options.memory_limit_mb;
+  return available;
+}
+
 }  // namespace
 
 MemoryEstimate estimate_memory(const Model& model, const FetiOptions& options, const Comm& comm,
@@ -135,10 +145,7 @@ MemoryEstimate check_memory(const Model& model, FetiOptions& options, const Comm
   MPI_Comm_split_type(comm.raw(), MPI_COMM_TYPE_SHARED, comm.rank(), MPI_INFO_NULL, &node);
   int node_ranks = 1;
   MPI_Comm_size(node, &node_ranks);
-  double available = available_memory_mb();
-  MPI_Allreduce(MPI_IN_PLACE, &available, 1, MPI_DOUBLE, MPI_MIN, node);
-  if (options.memory_limit_mb > 0 && (available <= 0 || options.memory_limit_mb < available))
-    available = options.memory_limit_mb;
+  const double available = machine_available_mb(options, node);
   // One estimate and its sums over the machine: peak, factors, matrices, vectors, explicit,
   // factors held.
   struct Sums {
@@ -233,11 +240,8 @@ void check_memory_before_model(const ProblemSpec& spec, const FetiOptions& optio
   MPI_Comm_split_type(comm.raw(), MPI_COMM_TYPE_SHARED, comm.rank(), MPI_INFO_NULL, &node);
   int node_ranks = 1;
   MPI_Comm_size(node, &node_ranks);
-  double available = available_memory_mb();
-  MPI_Allreduce(MPI_IN_PLACE, &available, 1, MPI_DOUBLE, MPI_MIN, node);
+  const double available = machine_available_mb(options, node);
   MPI_Comm_free(&node);
-  if (options.memory_limit_mb > 0 && (available <= 0 || options.memory_limit_mb < available))
-    available = options.memory_limit_mb;
   // The ranks of this machine share the problem (their shares add up to the whole), and each
   // holds the whole box while it is split by METIS.
   const double problem_mb = (lower_nnz * 12.0 + unknowns * 8.0 * (ph.kernel_dimension() + 4)) /

@@ -9,47 +9,22 @@ CellType parse_cell_type(const std::string& name) {
 
 std::string to_string(CellType value) { return name_of(kCellTypeNames, value); }
 
-int cell_dimension(CellType t) { return t == CellType::tri3 || t == CellType::quad4 ? 2 : 3; }
-int cell_nodes(CellType t) {
-  switch (t) {
-    case CellType::tri3:
-      return 3;
-    case CellType::quad4:
-      return 4;
-    case CellType::tet4:
-      return 4;
-    case CellType::hex8:
-      return 8;
-  }
-  return 0;
-}
-int vtk_cell_type(CellType t) {
-  switch (t) {
-    case CellType::tri3:
-      return 5;
-    case CellType::quad4:
-      return 9;
-    case CellType::tet4:
-      return 10;
-    case CellType::hex8:
-      return 12;
-  }
-  return 0;
-}
+namespace {
 
-int cell_facet_count(CellType t) {
-  switch (t) {
-    case CellType::tri3:
-      return 3;
-    case CellType::quad4:
-      return 4;
-    case CellType::tet4:
-      return 4;
-    case CellType::hex8:
-      return 6;
-  }
-  return 0;
-}
+// The topology of each cell type, indexed by CellType (tri3, quad4, tet4, hex8).
+struct CellInfo {
+  int dimension, nodes, vtk_type, facets;
+};
+constexpr CellInfo kCells[4] = {{2, 3, 5, 3}, {2, 4, 9, 4}, {3, 4, 10, 4}, {3, 8, 12, 6}};
+
+const CellInfo& info(CellType t) { return kCells[static_cast<int>(t)]; }
+
+}  // namespace
+
+int cell_dimension(CellType t) { return info(t).dimension; }
+int cell_nodes(CellType t) { return info(t).nodes; }
+int vtk_cell_type(CellType t) { return info(t).vtk_type; }
+int cell_facet_count(CellType t) { return info(t).facets; }
 
 int cell_facet(CellType t, int f, int* nodes) {
   static const int tri[3][2] = {{0, 1}, {1, 2}, {2, 0}};

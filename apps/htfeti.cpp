@@ -74,6 +74,19 @@ void print_summary(const nlohmann::json& r) {
         "(+%ld for the norm estimate)\n",
         state.c_str(), r["outer_iterations"].get<int>(), r["inner_iterations"].get<int>(),
         r["matvecs"].get<long>(), r["solver"]["norm_estimate_matvecs"].get<long>());
+  if (!pcg) {  // which test held and which did not, relative to ||b|| (qp/smalbe.hpp)
+    const auto& s = r["solver"];
+    const double bn = s["rhs_norm"].get<double>() > 0 ? s["rhs_norm"].get<double>() : 1.0;
+    const double tol = s["tolerance"].get<double>();
+    const double g = s["projected_gradient"].get<double>();
+    const double q = s["norm_estimate"].get<double>() * s["equality_residual"].get<double>();
+    std::printf(
+        "  stopping test: ||g^P||/||b|| %.2e %s %.2e, ||PFP|| ||G lambda||/||b|| %.2e %s %.2e%s\n",
+        g / bn, g <= tol ? "<=" : ">", tol / bn, q / bn, q <= tol ? "<=" : ">", tol / bn,
+        s["tolerance_set_by"] == "round-off floor"
+            ? " (the round-off floor: rtol is finer than double precision can measure)"
+            : "");
+  }
   const auto& k = r["kkt"];
   std::printf(
       "  energy %.12e; ||B_E u - c_E|| %.2e, max violation %.2e, min multiplier %.2e, "

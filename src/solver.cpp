@@ -157,6 +157,10 @@ QpSolve solve_with_contact(DualProblem& dual, DualOperators& ops, Vec& lambda,
                 {"projected_gradient", r.projected_gradient},
                 {"equality_residual", r.equality_residual},
                 {"rhs_norm", r.rhs_norm},
+                {"multiplier_norm", r.multiplier_norm},
+                {"tolerance", r.tolerance},
+                {"tolerance_set_by", r.roundoff_floor ? "round-off floor" : "rtol ||b||"},
+                {"stopping_test", "||g^P|| <= tolerance and ||PFP|| ||G lambda|| <= tolerance"},
                 {"norm_estimate", normA},
                 {"norm_estimate_matvecs", norm_matvecs},
                 {"norm_estimate_method", qp::to_string(options.norm_estimate)},
@@ -522,9 +526,15 @@ SolveOutput solve(std::shared_ptr<const Model> model_ptr, const SolveOptions& op
   }
   const double t_image = merged ? dual.coarse_image_stats().seconds : 0.0;
   double t_solve = seconds_now();
+  const bool contact = dual.has_inequalities();
   auto progress = [&](int it, double gp, double gx) {
-    if (verbose)
-      std::fprintf(stderr, "  it %5d  ||g^P|| %.3e  ||G lambda|| %.3e  %.2f s\n", it, gp, gx,
+    if (!verbose) return;
+    if (contact)
+      std::fprintf(stderr,
+                   "  it %5d  ||g^P||/||b|| %.3e  ||PFP|| ||G lambda||/||b|| %.3e  %.2f s\n", it,
+                   gp, gx, seconds_now() - t_solve);
+    else
+      std::fprintf(stderr, "  it %5d  ||P r||/||P b|| %.3e  %.2f s\n", it, gp,
                    seconds_now() - t_solve);
   };
   const QpSolve qs = dual.has_inequalities()

@@ -784,3 +784,74 @@ TEST_F(Cli, RefusingAProblemThatCannotFitCostsNothing) {
   EXPECT_NE(stderr_text().find("nothing was assembled"), std::string::npos) << stderr_text();
   EXPECT_TRUE(outputs().empty());
 }
+
+// SMALBE-M's stopping test does not depend on the units (issue 28): the same contact problem in
+// other units of stiffness (E and the tractions times sE) and of length (the box, the prescribed
+// displacements and the gap times sL) takes the same iterations (+-1), and its solution is the
+// first one scaled: displacements times sL, the energy times sE sL^2 (2D, per unit thickness). A
+// test that compares ||G lambda|| (forces) with ||b|| (displacements) fails this: with E x 1e6 it
+// never stops. The tight precision is met too (exit 0 at rtol 1e-10, not 3).
+TEST_F(Cli, StoppingTestDoesNotDependOnTheUnits) {
+  const auto problem = [](double sE, double sL, const char* rtol) {
+    const auto num = [](double v) {
+      char b[40];
+      std::snprintf(b, sizeof b, "%.17g", v);
+      return std::string(b);
+    };
+    return "[mesh]\ngenerator = \"box\"\nsize = [" + num(sL) + ", " + num(sL) +
+           "]\nelements = [12, 12]\nelement = \"quad4\"\n"
+           "[physics]\ntype = \"elasticity\"\nyoung = " +
+           num(2.1e5 * sE) +
+           "\npoisson = 0.3\n"
+           "[[dirichlet]]\ngroup = \"x0\"\nvalue = [" +
+           num(-2e-3 * sL) +
+           ", 0.0]\n"
+           "[[load]]\ngroup = \"y1\"\ntraction = [0.0, " +
+           num(-300.0 * sE) +
+           "]\n"
+           "[[contact]]\ngroup = \"y0\"\ndirection = [0.0, -1.0]\ngap = " +
+           num(1e-3 * sL) + "\n[decomposition]\nsubdomains = [3, 3]\n[solver]\nrtol = " + rtol +
+           "\n[output]\nvtu = false\n";
+  };
+  struct Run {
+    int outer;
+    long products;
+    double energy, umax;
+    std::vector<double> u_contact;
+  };
+  const auto solve = [&](double sE, double sL, const char* rtol) {
+    write_file("units.toml", problem(sE, sL, rtol));
+    EXPECT_EQ(run(bin + " solve units.toml --report units.json"), 0)
+        << "sE " << sE << " sL " << sL << " rtol " << rtol << ": " << stderr_text();
+    std::ifstream f("units.json");
+    const auto r = nlohmann::json::parse(f);
+    Run out{r["outer_iterations"].get<int>(),
+            r["matvecs"].get<long>(),
+            r["objective"].get<double>(),
+            r["displacement"]["max_norm"].get<double>(),
+            {}};
+    for (const auto& u : r["contact"]["u_left"]) out.u_contact.push_back(u.get<double>());
+    EXPECT_TRUE(r["converged"].get<bool>());
+    return out;
+  };
+  for (const char* rtol : {"1e-6", "1e-10"}) {
+    const Run si = solve(1, 1, rtol);
+    ASSERT_GT(si.u_contact.size(), 0u);
+    int active = 0;  // the problem is a contact problem: some rows are at their gap
+    for (double u : si.u_contact) active += std::abs(u - 1e-3) < 1e-6;
+    EXPECT_GT(active, 0);
+    const double tol = std::string(rtol) == "1e-6" ? 1e-5 : 1e-8;
+    for (const auto [sE, sL] : {std::pair{1e6, 1.0}, std::pair{1e6, 1e3}, std::pair{1e-3, 1e-2}}) {
+      const Run s = solve(sE, sL, rtol);
+      const std::string at = std::string("rtol ") + rtol + ", E x " + std::to_string(sE) +
+                             ", lengths x " + std::to_string(sL);
+      EXPECT_LE(std::abs(s.outer - si.outer), 1) << at;
+      EXPECT_LE(std::abs(s.products - si.products), 1) << at;
+      EXPECT_NEAR(s.energy / (sE * sL * sL), si.energy, tol * std::abs(si.energy)) << at;
+      EXPECT_NEAR(s.umax / sL, si.umax, tol * si.umax) << at;
+      ASSERT_EQ(s.u_contact.size(), si.u_contact.size()) << at;
+      for (size_t i = 0; i < si.u_contact.size(); ++i)
+        EXPECT_NEAR(s.u_contact[i] / sL, si.u_contact[i], tol * si.umax) << at << " row " << i;
+    }
+  }
+}

@@ -34,7 +34,7 @@ PcgResult projected_cg(const QuadraticProgram& qp, Vec& x, const Reducer& red,
   for (int it = 0;; ++it) {
     res.iterations = it;
     res.projected_residual = std::sqrt(ww);
-    if (progress) progress(it, res.projected_residual, 0.0);
+    if (progress) progress(it, res.projected_residual / (tol / opt.rtol), 0.0);
     if (res.projected_residual <= tol) {
       res.reason = StopReason::converged;
       return res;

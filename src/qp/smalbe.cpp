@@ -1,6 +1,7 @@
 #include "htfeti/qp/smalbe.hpp"
 
 #include <algorithm>
+#include <limits>
 #include <stdexcept>
 
 namespace htfeti::qp {
@@ -25,9 +26,27 @@ SmalbeResult smalbe(const QuadraticProgram& qp, double normA, Vec& x, const Redu
   PenalizedOperator H(*qp.hessian, Q, rho, n, hooks.fused_hessian);
   res.rhs_norm = red.norm(b);
   const double bnorm = res.rhs_norm > 0 ? res.rhs_norm : 1.0;
-  const double tol = opt.rtol * bnorm;
   const double eta = opt.eta_factor * bnorm;
   double M = opt.M0_factor * normA;
+  // The stopping tests (smalbe.hpp): ||g^P|| <= tol and ||A|| ||G x|| <= tol, with
+  // tol = max(rtol ||b||, kRoundoffFloor eps (||b|| + ||A|| ||lambda||)), all in the units of b.
+  const double floor_rel = kRoundoffFloor * std::numeric_limits<double>::epsilon();
+  const bool shifted = qp.shift.size() == n;
+  Vec lam(n);
+  double grad_tol = 0, eq_tol = 0;  // eq_tol = grad_tol / ||A||: ||G x||'s bound, units of x
+  const auto set_tolerances = [&]() {
+    if (shifted)
+      lam = qp.shift + x;
+    else
+      lam = x;
+    res.multiplier_norm = red.norm(lam);
+    const double floor = floor_rel * (res.rhs_norm + normA * res.multiplier_norm);
+    grad_tol = std::max(opt.rtol * bnorm, floor);
+    eq_tol = grad_tol / normA;
+    res.tolerance = grad_tol;
+    res.roundoff_floor = floor > opt.rtol * bnorm;
+  };
+  set_tolerances();
   res.rho = rho;
   res.alpha = 2.0 / (opt.norm_safety * std::max(normA, rho));
 
@@ -49,7 +68,7 @@ SmalbeResult smalbe(const QuadraticProgram& qp, double normA, Vec& x, const Redu
   // inner solve's last x is checked with Q x applied afresh below.
   const MprgpStop stop = [&](const Vec&, const Vec&, double gp) {
     const double q = red.norm(image.tx);
-    return (gp <= tol && q <= tol) || gp <= std::min(M * q, eta);
+    return (gp <= grad_tol && q <= eq_tol) || gp <= std::min(M * q, eta);
   };
   for (int k = 0;; ++k) {
     rhs = b - nu;
@@ -61,7 +80,8 @@ SmalbeResult smalbe(const QuadraticProgram& qp, double normA, Vec& x, const Redu
     Q.apply(x, qx);
     qnorm = red.norm(qx);
     image.tx = qx;
-    global_stop = inner.projected_gradient <= tol && qnorm <= tol;
+    set_tolerances();  // lambda at the inner solve's exit
+    global_stop = inner.projected_gradient <= grad_tol && qnorm <= eq_tol;
     res.inner_iterations += inner.iterations;
     res.cg_steps += inner.cg_steps;
     res.expansion_steps += inner.expansion_steps;
@@ -70,7 +90,7 @@ SmalbeResult smalbe(const QuadraticProgram& qp, double normA, Vec& x, const Redu
     res.projected_gradient = inner.projected_gradient;
     res.equality_residual = qnorm;
     res.M = M;
-    if (progress) progress(k + 1, inner.projected_gradient, qnorm);
+    if (progress) progress(k + 1, inner.projected_gradient / bnorm, normA * qnorm / bnorm);
     if (global_stop) {
       res.reason = StopReason::converged;
       break;

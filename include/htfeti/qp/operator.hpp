@@ -84,7 +84,9 @@ inline std::string to_string(StopReason r) {
   return "?";
 }
 
-/// Called once per outer iteration with (iteration, projected gradient norm, ||G x|| or 0).
+/// Called once per (outer) iteration with the iteration number and the stopping measures
+/// relative to their scales: PCG ||P r|| / ||P b|| and 0; SMALBE-M ||g^P|| / ||b|| and
+/// ||A|| ||G x|| / ||b|| (smalbe.hpp).
 using Progress = std::function<void(int, double, double)>;
 
 }  // namespace htfeti::qp

@@ -10,7 +10,20 @@
 //      g = H_rho x - b + nu (the gradient of the augmented Lagrangian L);
 //   2. nu^{k+1} = nu^k + rho Q x^k;
 //   3. if L(x^k, mu^k) < L(x^{k-1}, mu^{k-1}) + rho/2 ||G x^k||^2, then M_{k+1} = M_k / beta.
-// Stops when ||g^P|| <= rtol ||b|| and ||G x|| <= rtol ||b||.
+// Stops when both hold (the paper's relative precision eps = rtol):
+//   ||g^P|| <= tol  and  ||A|| ||G x|| <= tol,  tol = rtol ||b||,
+// which are Dostal's tests ||g^P|| <= eps ||b||, ||G x|| <= eps ||b|| for the problem scaled to
+// ||A|| = 1 (his analyses of SMALBE-M assume ||F|| = 1). Both sides are in the units of b
+// (displacements for the FETI dual; ||G x|| alone is in the units of the multipliers, forces):
+// multiplying the stiffness, the load or the length unit by any factor leaves both tests, and so
+// every iteration, unchanged, and ||A|| ||G x|| bounds what the equality residual adds to the
+// gradient, so the primal error is controlled by rtol in both. (Comparing ||G x|| with ||b||, as
+// before, mixed units: with E = 2.1e11, lambda ~ 1e8, ||G x|| cannot come below ||b|| 1e-8 in
+// double precision, and the same problem in other units stopped or never did.)
+// tol never asks for less than the round-off of what is measured: it is at least
+// kRoundoffFloor eps (||b|| + ||A|| ||lambda||) (F lambda and b are computed to about that, and
+// ||G x|| to eps ||lambda||), lambda = shift + x the unhomogenized variable;
+// SmalbeResult::roundoff_floor says when the floor, not rtol, set it.
 // Cost: the inner MPRGP iterations, each one H_rho application (PenalizedOperator: one A, one Q;
 // with A = PFP and a fused PenalizedHessian, two projections in all); the stopping test's
 // ||G x|| comes from Q x tracked by MPRGP (TrackedImage of H_rho's image(), one axpy); an outer
@@ -21,6 +34,9 @@
 #include "htfeti/qp/qp.hpp"
 
 namespace htfeti::qp {
+
+/// The round-off floor of the stopping tests, in units of the machine epsilon (64 eps = 1.4e-14).
+inline constexpr double kRoundoffFloor = 64.0;
 
 struct SmalbeOptions {
   double rtol = 1e-4;        ///< relative precision eps (paper: 1e-4)
@@ -43,6 +59,9 @@ struct SmalbeResult {
   double projected_gradient = 0;  ///< ||g^P|| at exit
   double equality_residual = 0;   ///< ||G x|| at exit
   double rhs_norm = 0;            ///< ||b||
+  double multiplier_norm = 0;     ///< ||lambda|| = ||shift + x|| at exit
+  double tolerance = 0;           ///< tol = max(rtol ||b||, round-off floor) at exit
+  bool roundoff_floor = false;    ///< the round-off floor, not rtol ||b||, set tol
   double rho = 0, M = 0, alpha = 0;
 };
 

@@ -15,8 +15,10 @@ import argparse
 
 from common import save, solve
 
-# Paper, Table 4 row 1 (k = 4): TFETI 169 iterations, H-TFETI-DP 117.
-PAPER = {"tfeti_iterations": 169, "htfeti_iterations": 117, "subdomains": 4096, "clusters": 64}
+# Paper, Table 4 row 1 (64 clusters of 4 x 4 x 4): H-TFETI-DP 169 iterations / 23.9 s, TFETI
+# 117 / 24.9 s (the paper prints H-TFETI-DP first).
+PAPER = {"htfeti_iterations": 169, "htfeti_seconds": 23.9, "tfeti_iterations": 117,
+         "tfeti_seconds": 24.9, "subdomains": 4096, "clusters": 64}
 
 p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
 p.add_argument("--ks", type=int, nargs="+", default=[1, 2])

@@ -66,7 +66,7 @@ for name, args, rtol, ref_args in cases:
         ref_args = [x if i != args.index("--subdomains") + 1 else "1,1,1"
                     for i, x in enumerate(args)]
     else:
-        ref_args = [*ref_args, "--subdomains", 1]
+        ref_args = [*ref_args, "--subdomains", 1, "--cluster-size", 1]
     key = " ".join(map(str, ref_args))
     if key not in undecomposed:
         undecomposed[key] = solve([*ref_args, "--rtol", 1e-12, "--max-it", 1000],

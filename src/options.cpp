@@ -199,6 +199,14 @@ std::vector<OptionSpec> build_table() {
     return x > 0 && x <= 1e6 ? nullptr : "must lie in (0, 1e6]";
   };
   t.push_back(number(
+      "perturb_load", "--perturb-load",
+      "a robustness check of the iteration counts: every load entry times 1 + delta r, r in "
+      "[-1, 1] fixed by its global dof (0: the load as given; bench/perturbation.py)",
+      [](RunOptions& r) -> double& { return r.solve.perturb_load; },
+      [](double x) -> const char* {
+        return std::abs(x) <= 1e-3 ? nullptr : "must lie in [-1e-3, 1e-3]";
+      }));
+  t.push_back(number(
       "rho_factor", "--rho-factor", "SMALBE-M penalty rho = factor * ||PFP||",
       [](RunOptions& r) -> double& { return r.solve.smalbe.rho_factor; }, positive));
   t.push_back(number(

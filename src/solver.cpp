@@ -5,6 +5,7 @@
 
 #include <chrono>
 #include <cmath>
+#include <cstdint>
 #include <cstdio>
 #include <memory>
 #include <stdexcept>
@@ -55,6 +56,22 @@ struct QpSolve {
   long matvecs = 0;
   nlohmann::json solver;
 };
+
+// f_j *= 1 + delta r_j, r_j in [-1, 1] from the dof's global node and component (SplitMix64),
+// so that every copy of a node gets the same factor on any rank (SolveOptions::perturb_load).
+void perturb_load(SubdomainInput& in, double delta) {
+  const int dpn = in.system.dofs_per_node;
+  for (int k = 0; k < in.sharing.num_nodes(); ++k)
+    for (int c = 0; c < dpn; ++c) {
+      std::uint64_t z = static_cast<std::uint64_t>(in.sharing.global_node[k]) * 3 + c +
+                        0x9E3779B97F4A7C15ULL;
+      z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ULL;
+      z = (z ^ (z >> 27)) * 0x94D049BB133111EBULL;
+      z ^= z >> 31;
+      const double r = static_cast<double>(z >> 11) * 0x1.0p-52 - 1.0;  // [-1, 1)
+      in.system.f[k * dpn + c] *= 1.0 + delta * r;
+    }
+}
 
 // The dual problem without contact (the paper's (11) with equalities only): projected CG from
 // lambda~, preconditioned by P M^{-1} P when a preconditioner was built.
@@ -499,7 +516,13 @@ SolveOutput solve(std::shared_ptr<const Model> model_ptr, const SolveOptions& op
                  "  setup: %d subdomains in %d clusters on %d ranks: assembling, factoring...\n",
                  model.num_subdomains(), model.num_clusters(), comm.size());
   out.dual = std::make_unique<DualProblem>(
-      model.layout(), [&model](int s) { return model.input(s); }, comm, feti);
+      model.layout(),
+      [&model, &options](int s) {
+        SubdomainInput in = model.input(s);
+        if (options.perturb_load != 0) perturb_load(in, options.perturb_load);
+        return in;
+      },
+      comm, feti);
   DualProblem& dual = *out.dual;
   const DualReducer red(comm, dual);
   require_finite(comm, dual.d().allFinite(), "the dual right-hand side d = B K^+ f - c");

@@ -40,6 +40,10 @@ struct SolveOptions {
   /// product over many ranks. Projected CG (no contact) always takes 2.
   int coarse_steps_per_product = 2;
   bool progress = false;  ///< print one line per (outer) iteration on rank 0 (stderr)
+  /// A robustness check of the iteration counts (bench/perturbation.py): every entry of the load
+  /// f is multiplied by 1 + perturb_load r, with r in [-1, 1] a hash of the entry's global node
+  /// and component (the same on every rank and thread). 0: the load as given.
+  double perturb_load = 0;
   /// Estimate the memory before setup and refuse (std::invalid_argument) what cannot fit
   /// (memory_estimate.hpp).
   bool check_memory = true;

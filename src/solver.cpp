@@ -63,8 +63,8 @@ void perturb_load(SubdomainInput& in, double delta) {
   const int dpn = in.system.dofs_per_node;
   for (int k = 0; k < in.sharing.num_nodes(); ++k)
     for (int c = 0; c < dpn; ++c) {
-      std::uint64_t z = static_cast<std::uint64_t>(in.sharing.global_node[k]) * 3 + c +
-                        0x9E3779B97F4A7C15ULL;
+      std::uint64_t z =
+          static_cast<std::uint64_t>(in.sharing.global_node[k]) * 3 + c + 0x9E3779B97F4A7C15ULL;
       z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ULL;
       z = (z ^ (z >> 27)) * 0x94D049BB133111EBULL;
       z ^= z >> 31;

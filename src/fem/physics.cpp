@@ -8,7 +8,7 @@
 #include <string>
 
 #include "htfeti/expression.hpp"
-#include "htfeti/linalg/grid_offsets.hpp"
+#include "htfeti/fem/grid_offsets.hpp"
 
 namespace htfeti {
 

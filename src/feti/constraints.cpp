@@ -7,7 +7,6 @@
 #include <numeric>
 #include <stdexcept>
 
-#include "htfeti/linalg/grid_offsets.hpp"
 #include "htfeti/linalg/orthonormal.hpp"
 
 namespace htfeti {
@@ -81,20 +80,21 @@ std::map<std::pair<int, int>, std::vector<int>> averaged_objects(const DofSharin
 }
 
 // Orthonormal kernel W of the physics on the object's dofs; xyz gets the nodes' coordinates.
-// On a generated grid the kernel is taken on the offsets from the object's first node in whole
-// grid spacings (the same span: rigid motions about another point), so that equal objects at
-// different places give the same W bit for bit, and equal subdomains the same C_i (their
-// K_i^+ C_i^T are then computed and held once, SparseCholesky::shared_result).
+// The kernel is taken in the model's frame for it (DofSharing::kernel_frame: on a generated grid
+// the offsets from the object's first node in whole grid spacings, the same span: rigid motions
+// about another point), so that equal objects at different places give the same W bit for bit,
+// and equal subdomains the same C_i (their K_i^+ C_i^T are then computed and held once,
+// SparseCholesky::shared_result).
 Eigen::MatrixXd object_kernel(const FetiLayout& L, const DofSharing& sh,
                               const std::vector<int>& nodes, std::vector<double>& xyz) {
   const int p = static_cast<int>(nodes.size());
   xyz.resize(3 * static_cast<size_t>(p));
   for (int t = 0; t < p; ++t)
     for (int d = 0; d < 3; ++d) xyz[3 * t + d] = sh.coords[3 * static_cast<size_t>(nodes[t]) + d];
-  if (!(sh.grid_spacing[0] > 0) || p == 0) return orthonormal_columns(L.kernel(xyz.data(), p));
-  std::vector<double> rel(xyz.size());
-  grid_offsets(sh.grid_spacing, xyz.data(), rel.data(), p, xyz.data());
-  return orthonormal_columns(L.kernel(rel.data(), p));  // rank-revealing
+  if (!sh.kernel_frame || p == 0) return orthonormal_columns(L.kernel(xyz.data(), p));
+  std::vector<double> frame(xyz);
+  sh.kernel_frame(frame.data(), p);
+  return orthonormal_columns(L.kernel(frame.data(), p));  // rank-revealing
 }
 
 // Recursive step of hierarchical_complement: the group `idx` (node indices) is split by

@@ -1,9 +1,11 @@
 #include "htfeti/model/model.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 
 #include "htfeti/fem/element.hpp"
+#include "htfeti/fem/grid_offsets.hpp"
 #include "htfeti/mesh/box.hpp"
 
 namespace htfeti {
@@ -55,8 +57,13 @@ SubdomainInput Model::input(int s) const {
   in.sharing.copy_offset = std::move(m.copy_offset);
   in.sharing.copy_list = std::move(m.copy_list);
   in.sharing.on_boundary = std::move(m.on_boundary);
-  if (m.uniform_period > 0)
-    for (int d = 0; d < 3; ++d) in.sharing.grid_spacing[d] = m.uniform_spacing[d];
+  if (m.uniform_period > 0) {  // a generated grid: kernels on whole grid spacings
+    std::array<double, 3> h{m.uniform_spacing[0], m.uniform_spacing[1], m.uniform_spacing[2]};
+    in.sharing.kernel_frame = [h](double* xyz, int n) {
+      const double origin[3] = {xyz[0], xyz[1], xyz[2]};
+      grid_offsets(h.data(), xyz, xyz, n, origin);
+    };
+  }
   return in;
 }
 

@@ -49,10 +49,12 @@ struct DofSharing {
   std::vector<double> coords;  ///< 3 per node
   std::vector<int> copy_offset, copy_list;
   std::vector<char> on_boundary;
-  /// Generated grids: the grid spacing per direction (0: a general mesh). The kernel of an
-  /// averaged object is then computed on its nodes' offsets from its first node in whole
-  /// spacings, so that equal objects of a box get the same primal constraints bit for bit.
-  double grid_spacing[3] = {0, 0, 0};
+  /// The frame the kernel of an averaged object (face, edge) is computed in, set by the model:
+  /// maps the object's node coordinates (3 per node, n nodes, in place; the first node is the
+  /// object's first by global id). Empty: the coordinates as they are. A generated box sets
+  /// offsets from the first node in whole grid spacings (fem/grid_offsets.hpp), so that equal
+  /// objects of a box get the same primal constraints bit for bit.
+  std::function<void(double* xyz, int n)> kernel_frame;
   int num_nodes() const { return static_cast<int>(global_node.size()); }
   int num_copies(int k) const { return copy_offset[k + 1] - copy_offset[k]; }
   const int* copies(int k) const { return copy_list.data() + copy_offset[k]; }

@@ -1,7 +1,8 @@
 // Points of a generated grid as offsets in whole grid spacings: the same bits at every position of
 // the box, where the coordinates g h round differently from place to place. Used for the element
 // matrices, kernels and fixed dofs of a subdomain (fem/physics.cpp) and for the kernel of an
-// averaged face or edge (feti/constraints.cpp), so that equal subdomains of a box are equal bit
+// averaged face or edge (the frame the model hands to feti/constraints.cpp through
+// DofSharing::kernel_frame), so that equal subdomains of a box are equal bit
 // for bit and can share their matrix, factor and cluster solves.
 #pragma once
 

@@ -172,9 +172,8 @@ constexpr std::array<EnumName<DirichletStorage>, 3> kDirichletStorageNames{
      {DirichletStorage::dense, "dense"},
      {DirichletStorage::implicit, "implicit"}}};
 
-std::vector<OptionSpec> build_table() {
-  std::vector<OptionSpec> t;
-  // --- the QP solvers
+// The QP solvers: precision, limits, SMALBE-M and MPRGP parameters.
+void add_qp_options(std::vector<OptionSpec>& t) {
   t.push_back(number(
       "rtol", "--rtol", "relative precision eps of PCG and SMALBE-M, in (0, 1) (the paper: 1e-4)",
       [](RunOptions& r) -> double& { return r.solve.rtol; },
@@ -230,7 +229,10 @@ std::vector<OptionSpec> build_table() {
   t.push_back(boolean("solver", "progress", "--progress", "",
                       "print one line per (outer) iteration (standard error, rank 0)",
                       [](RunOptions& r) -> bool& { return r.solve.progress; }));
-  // --- the FETI operators
+}
+
+// The FETI operators: dual operator, preconditioner, ordering, coarse space.
+void add_feti_options(std::vector<OptionSpec>& t) {
   t.push_back(choice(
       "solver", "dual_operator", "--dual-operator",
       "how F is applied: implicit (sparse solves), explicit (dense local blocks from Schur "
@@ -282,7 +284,10 @@ std::vector<OptionSpec> build_table() {
       "GB per rank: with dirichlet_storage = auto the Dirichlet preconditioner stores its S_i "
       "dense when they fit this, else applies them with a factor of K_ii",
       [](RunOptions& r) -> double& { return r.solve.feti.dirichlet_dense_budget_bytes; }));
-  // --- memory
+}
+
+// Memory: limits, budgets and caches (GB).
+void add_memory_options(std::vector<OptionSpec>& t) {
   t.push_back(gigabytes(
       "explicit_budget_gb", "--explicit-budget",
       "GB per rank: --dual-operator auto takes the explicit operator only when its F_i fit "
@@ -346,7 +351,10 @@ std::vector<OptionSpec> build_table() {
       "for entry (generated boxes): such a subdomain shares the kept factor instead of "
       "factoring; the factors are the same either way (0: off; needs symbolic_cache > 0)",
       [](RunOptions& r) -> double& { return r.solve.feti.numeric_cache_bytes; }));
-  // --- output
+}
+
+// Output: the report and the VTU file.
+void add_output_options(std::vector<OptionSpec>& t) {
   t.push_back(path(
       "report", "--report", "--no-report", "the report JSON (false: none)",
       [](RunOptions& r) -> std::string& { return r.output.report; },
@@ -366,6 +374,15 @@ std::vector<OptionSpec> build_table() {
       "buffered where the file system refuses it) or auto (direct for a piece of 256 MiB and "
       "more)",
       kVtuIoNames, +[](RunOptions& r) -> VtuIo& { return r.output.vtu_io; }));
+}
+
+// The table, one row per option, in the order of --help (grouped as the four parts above).
+std::vector<OptionSpec> build_table() {
+  std::vector<OptionSpec> t;
+  add_qp_options(t);
+  add_feti_options(t);
+  add_memory_options(t);
+  add_output_options(t);
   return t;
 }
 

@@ -72,15 +72,48 @@ std::vector<int> distance3_colouring(const std::vector<std::vector<int>>& adj) {
   }
   return colour;
 }
+// Step 2 of build_coarse_image: the cluster graph, every rank the whole of it: clusters are
+// adjacent when a multiplier touches both. Collective.
+std::vector<std::vector<int>> cluster_graph(const std::vector<std::vector<int>>& touching, int ncl,
+                                            MPI_Comm mc) {
+  int P = 0;
+  MPI_Comm_size(mc, &P);
+  std::vector<long long> edges;
+  for (const auto& t : touching)
+    for (size_t a = 0; a < t.size(); ++a)
+      for (size_t b = a + 1; b < t.size(); ++b)
+        if (t[a] != t[b]) edges.push_back(static_cast<long long>(t[a]) * ncl + t[b]);
+  std::sort(edges.begin(), edges.end());
+  edges.erase(std::unique(edges.begin(), edges.end()), edges.end());
+  int nedges = static_cast<int>(edges.size());
+  std::vector<int> counts(P), disp(P + 1, 0);
+  MPI_Allgather(&nedges, 1, MPI_INT, counts.data(), 1, MPI_INT, mc);
+  for (int r = 0; r < P; ++r) disp[r + 1] = disp[r] + counts[r];
+  std::vector<long long> all_edges(disp[P]);
+  MPI_Allgatherv(edges.data(), nedges, MPI_LONG_LONG, all_edges.data(), counts.data(), disp.data(),
+                 MPI_LONG_LONG, mc);
+  edges = {};
+  std::vector<std::vector<int>> adj(ncl);
+  for (long long e : all_edges) {
+    const int a = static_cast<int>(e / ncl), b = static_cast<int>(e % ncl);
+    adj[a].push_back(b), adj[b].push_back(a);
+  }
+  all_edges = {};
+  for (auto& a : adj) {
+    std::sort(a.begin(), a.end());
+    a.erase(std::unique(a.begin(), a.end()), a.end());
+  }
+  return adj;
+}
+
 }  // namespace
 
-void DualProblem::build_coarse_image(double memory_limit_mb) {
-  const double t0 = seconds_now();
-  const int P = comm_.size(), n_own = layout_dual_.n_owned(), ncl = layout_.num_clusters;
+// Step 1 of build_coarse_image: per owned multiplier, the clusters touching it (sorted), from
+// (global multiplier, cluster) pairs of each rank's clusters sent to the multipliers' owners.
+// Collective.
+std::vector<std::vector<int>> DualProblem::clusters_touching_owned_rows() const {
+  const int P = comm_.size(), n_own = layout_dual_.n_owned();
   const MPI_Comm mc = comm_.raw();
-
-  // 1. The clusters touching each owned multiplier: (global multiplier, cluster) pairs of the
-  //    rank's clusters sent to the multipliers' owners.
   std::vector<std::vector<long long>> out(P);
   {
     std::vector<int> ks;
@@ -115,33 +148,46 @@ void DualProblem::build_coarse_image(double memory_limit_mb) {
   }
   rbuf = {};
   for (auto& t : touching) std::sort(t.begin(), t.end());
+  return touching;
+}
 
-  // 2. The cluster graph (every rank the whole of it) and its distance-3 colouring.
-  std::vector<long long> edges;
-  for (const auto& t : touching)
-    for (size_t a = 0; a < t.size(); ++a)
-      for (size_t b = a + 1; b < t.size(); ++b)
-        if (t[a] != t[b]) edges.push_back(static_cast<long long>(t[a]) * ncl + t[b]);
-  std::sort(edges.begin(), edges.end());
-  edges.erase(std::unique(edges.begin(), edges.end()), edges.end());
-  int nedges = static_cast<int>(edges.size());
-  std::vector<int> counts(P), disp(P + 1, 0);
-  MPI_Allgather(&nedges, 1, MPI_INT, counts.data(), 1, MPI_INT, mc);
-  for (int r = 0; r < P; ++r) disp[r + 1] = disp[r] + counts[r];
-  std::vector<long long> all_edges(disp[P]);
-  MPI_Allgatherv(edges.data(), nedges, MPI_LONG_LONG, all_edges.data(), counts.data(), disp.data(),
-                 MPI_LONG_LONG, mc);
-  edges = {};
-  std::vector<std::vector<int>> adj(ncl);
-  for (long long e : all_edges) {
-    const int a = static_cast<int>(e / ncl), b = static_cast<int>(e % ncl);
-    adj[a].push_back(b), adj[b].push_back(a);
+// Step 4 of build_coarse_image: C = G~ E. At each owned multiplier, G~'s column times E's row;
+// partial sums per owner cluster in multiplier order, then in cluster order (as the coarse matrix
+// G~ G~^T). Collective.
+void DualProblem::assemble_image_coarse_matrix() {
+  auto& im = image_;
+  const std::vector<GItem> gcol = g_columns_at_owners();
+  const std::vector<CoarseTriplet> mine =
+      owner_cluster_sums(gcol, [&](size_t i, size_t j, std::vector<CoarseTriplet>& products) {
+        const int e = layout_dual_.ext_index(gcol[i].k);
+        for (size_t a = i; a < j; ++a)
+          for (int q = im.e_ptr[e]; q < im.e_ptr[e + 1]; ++q)
+            products.push_back({gcol[i].k, gcol[a].row, im.e_col[q], gcol[a].g * im.e_val[q]});
+      });
+  const std::vector<CoarseTriplet> all = allgather_sorted(mine);
+  const int nc = coarse_dimension();
+  im.c_ptr.assign(nc + 1, 0);
+  im.c_col.clear(), im.c_val.clear();
+  for (size_t p = 0; p < all.size();) {
+    size_t q = p;
+    double v = 0;
+    for (; q < all.size() && all[q].a == all[p].a && all[q].b == all[p].b; ++q) v += all[q].v;
+    im.c_col.push_back(all[p].b), im.c_val.push_back(v);
+    ++im.c_ptr[all[p].a + 1];
+    p = q;
   }
-  all_edges = {};
-  for (auto& a : adj) {
-    std::sort(a.begin(), a.end());
-    a.erase(std::unique(a.begin(), a.end()), a.end());
-  }
+  for (int a = 0; a < nc; ++a) im.c_ptr[a + 1] += im.c_ptr[a];
+}
+
+void DualProblem::build_coarse_image(double memory_limit_mb) {
+  const double t0 = seconds_now();
+  const int n_own = layout_dual_.n_owned(), ncl = layout_.num_clusters;
+  const MPI_Comm mc = comm_.raw();
+
+  // 1. The clusters touching each owned multiplier.
+  std::vector<std::vector<int>> touching = clusters_touching_owned_rows();
+  // 2. The cluster graph and its distance-3 colouring.
+  const std::vector<std::vector<int>> adj = cluster_graph(touching, ncl, mc);
   const std::vector<int> colour = distance3_colouring(adj);
   const int ncolours = ncl ? *std::max_element(colour.begin(), colour.end()) + 1 : 0;
 
@@ -228,31 +274,8 @@ void DualProblem::build_coarse_image(double memory_limit_mb) {
       im.e_col[im.e_ptr[e] + i] = row[i].first, im.e_val[im.e_ptr[e] + i] = row[i].second;
   }
 
-  // 4. C = G~ E: at each owned multiplier, G~'s column times E's row; partial sums per owner
-  //    cluster in multiplier order, then in cluster order (as the coarse matrix G~ G~^T).
-  {
-    const std::vector<GItem> gcol = g_columns_at_owners();
-    const std::vector<CoarseTriplet> mine =
-        owner_cluster_sums(gcol, [&](size_t i, size_t j, std::vector<CoarseTriplet>& products) {
-          const int e = layout_dual_.ext_index(gcol[i].k);
-          for (size_t a = i; a < j; ++a)
-            for (int q = im.e_ptr[e]; q < im.e_ptr[e + 1]; ++q)
-              products.push_back({gcol[i].k, gcol[a].row, im.e_col[q], gcol[a].g * im.e_val[q]});
-        });
-    const std::vector<CoarseTriplet> all = allgather_sorted(mine);
-    const int nc = coarse_dimension();
-    im.c_ptr.assign(nc + 1, 0);
-    im.c_col.clear(), im.c_val.clear();
-    for (size_t p = 0; p < all.size();) {
-      size_t q = p;
-      double v = 0;
-      for (; q < all.size() && all[q].a == all[p].a && all[q].b == all[p].b; ++q) v += all[q].v;
-      im.c_col.push_back(all[p].b), im.c_val.push_back(v);
-      ++im.c_ptr[all[p].a + 1];
-      p = q;
-    }
-    for (int a = 0; a < nc; ++a) im.c_ptr[a + 1] += im.c_ptr[a];
-  }
+  // 4. C = G~ E.
+  assemble_image_coarse_matrix();
   im.ab = Vec::Zero(2 * coarse_dimension());
   im.z1 = Vec::Zero(coarse_dimension());
   im.z2 = Vec::Zero(coarse_dimension());

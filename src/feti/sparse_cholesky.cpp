@@ -227,6 +227,70 @@ void SparseCholesky::factorize(const Eigen::SparseMatrix<double>& A, const std::
 double SparseCholesky::symbolic_seconds() const { return impl_->symbolic_seconds; }
 double SparseCholesky::numeric_seconds() const { return impl_->numeric_seconds; }
 
+// The symbolic analysis of A (upper triangle `upper`, CHOLMOD view `view`) with the rows in `last`
+// ordered after all others: constrained AMD (method 0) or METIS on the other rows (method 1),
+// then the rows of `last`; postordered when that keeps them last. Throws if CHOLMOD fails.
+static cholmod_factor* analyze_with_last(cholmod_sparse& view,
+                                         const Eigen::SparseMatrix<double>& upper,
+                                         const std::vector<int>& last, int method,
+                                         cholmod_common& c) {
+  const int n = static_cast<int>(upper.rows());
+  cholmod_factor* factor = nullptr;
+  std::vector<int> cmember(n, 0), perm(n);
+  for (int r : last) cmember[r] = 1;
+  if (method == 0) {
+    // Constrained AMD: set 0 first, then set 1 (`last`).
+    if (!cholmod_camd(&view, nullptr, 0, cmember.data(), perm.data(), &c))
+      throw std::runtime_error("CHOLMOD: constrained ordering failed");
+  } else {
+    // METIS nested dissection of the rows not in `last`, then `last`.
+    std::vector<int> inner, index(n, -1);
+    for (int r = 0; r < n; ++r)
+      if (!cmember[r]) index[r] = static_cast<int>(inner.size()), inner.push_back(r);
+    const int ni = static_cast<int>(inner.size());
+    std::vector<Eigen::Triplet<double>> t;
+    for (int col = 0; col < n; ++col)
+      for (Eigen::SparseMatrix<double>::InnerIterator it(upper, col); it; ++it)
+        if (index[it.row()] >= 0 && index[col] >= 0)
+          t.emplace_back(index[it.row()], index[col], it.value());
+    Eigen::SparseMatrix<double> Aii(ni, ni);
+    Aii.setFromTriplets(t.begin(), t.end());
+    cholmod_sparse vi = upper_view(Aii);
+    std::vector<int> pi(ni);
+    if (ni > 0) {
+      std::lock_guard<std::mutex> lock(metis_mutex);
+      if (!cholmod_metis(&vi, nullptr, 0, 1, pi.data(), &c))
+        throw std::runtime_error("CHOLMOD: METIS ordering failed");
+    }
+    int k = 0;
+    for (int q = 0; q < ni; ++q) perm[k++] = inner[pi[q]];
+    for (int r = 0; r < n; ++r)
+      if (cmember[r]) perm[k++] = r;
+  }
+  const int saved_nmethods = c.nmethods, saved_ordering = c.method[0].ordering;
+  const int saved_postorder = c.postorder;
+  c.nmethods = 1;
+  c.method[0].ordering = CHOLMOD_GIVEN;
+  // Postordering gives larger supernodes (less padding, faster solves) and usually keeps the
+  // trailing set last; if it does not, analyze again without it.
+  for (int post = 1; post >= 0; --post) {
+    c.postorder = post;
+    factor = cholmod_analyze_p(&view, perm.data(), nullptr, 0, &c);
+    if (!factor) break;
+    const int* fp = static_cast<const int*>(factor->Perm);
+    bool tail_ok = true;
+    for (int p = n - static_cast<int>(last.size()); p < n && tail_ok; ++p)
+      tail_ok = cmember[fp[p]] == 1;
+    if (tail_ok) break;
+    cholmod_free_factor(&factor, &c);
+  }
+  c.nmethods = saved_nmethods;
+  c.method[0].ordering = saved_ordering;
+  c.postorder = saved_postorder;
+  if (!factor) throw std::runtime_error("CHOLMOD analysis failed");
+  return factor;
+}
+
 void SparseCholesky::factorize_impl(const Eigen::SparseMatrix<double>& A,
                                     const std::vector<int>* last, SymbolicCache* cache) {
   if (A.rows() != A.cols()) throw std::invalid_argument("SparseCholesky: matrix is not square");
@@ -338,58 +402,7 @@ void SparseCholesky::factorize_impl(const Eigen::SparseMatrix<double>& A,
   if (reused) {
     // the cached analysis is the one this pattern would get
   } else if (last) {
-    std::vector<int> cmember(n, 0), perm(n);
-    for (int r : *last) cmember[r] = 1;
-    if (impl_->method == 0) {
-      // Constrained AMD: set 0 first, then set 1 (`last`).
-      if (!cholmod_camd(&view, nullptr, 0, cmember.data(), perm.data(), &c))
-        throw std::runtime_error("CHOLMOD: constrained ordering failed");
-    } else {
-      // METIS nested dissection of the rows not in `last`, then `last`.
-      std::vector<int> inner, index(n, -1);
-      for (int r = 0; r < n; ++r)
-        if (!cmember[r]) index[r] = static_cast<int>(inner.size()), inner.push_back(r);
-      const int ni = static_cast<int>(inner.size());
-      std::vector<Eigen::Triplet<double>> t;
-      for (int col = 0; col < n; ++col)
-        for (Eigen::SparseMatrix<double>::InnerIterator it(upper, col); it; ++it)
-          if (index[it.row()] >= 0 && index[col] >= 0)
-            t.emplace_back(index[it.row()], index[col], it.value());
-      Eigen::SparseMatrix<double> Aii(ni, ni);
-      Aii.setFromTriplets(t.begin(), t.end());
-      cholmod_sparse vi = upper_view(Aii);
-      std::vector<int> pi(ni);
-      if (ni > 0) {
-        std::lock_guard<std::mutex> lock(metis_mutex);
-        if (!cholmod_metis(&vi, nullptr, 0, 1, pi.data(), &c))
-          throw std::runtime_error("CHOLMOD: METIS ordering failed");
-      }
-      int k = 0;
-      for (int q = 0; q < ni; ++q) perm[k++] = inner[pi[q]];
-      for (int r = 0; r < n; ++r)
-        if (cmember[r]) perm[k++] = r;
-    }
-    const int saved_nmethods = c.nmethods, saved_ordering = c.method[0].ordering;
-    const int saved_postorder = c.postorder;
-    c.nmethods = 1;
-    c.method[0].ordering = CHOLMOD_GIVEN;
-    // Postordering gives larger supernodes (less padding, faster solves) and usually keeps the
-    // trailing set last; if it does not, analyze again without it.
-    for (int post = 1; post >= 0; --post) {
-      c.postorder = post;
-      impl_->factor = cholmod_analyze_p(&view, perm.data(), nullptr, 0, &c);
-      if (!impl_->factor) break;
-      const int* fp = static_cast<const int*>(impl_->factor->Perm);
-      bool tail_ok = true;
-      for (int p = n - static_cast<int>(last->size()); p < n && tail_ok; ++p)
-        tail_ok = cmember[fp[p]] == 1;
-      if (tail_ok) break;
-      cholmod_free_factor(&impl_->factor, &c);
-    }
-    c.nmethods = saved_nmethods;
-    c.method[0].ordering = saved_ordering;
-    c.postorder = saved_postorder;
-    if (!impl_->factor) throw std::runtime_error("CHOLMOD analysis failed");
+    impl_->factor = analyze_with_last(view, upper, *last, impl_->method, c);
   } else if (impl_->method == 1) {
     std::lock_guard<std::mutex> lock(metis_mutex);
     impl_->factor = cholmod_analyze(&view, &c);

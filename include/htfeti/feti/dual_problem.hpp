@@ -390,6 +390,9 @@ class DualProblem {
     double g;
   };
   std::vector<GItem> g_columns_at_owners() const;
+  // build_coarse_image's steps 1 and 4 (coarse_image.cpp).
+  std::vector<std::vector<int>> clusters_touching_owned_rows() const;
+  void assemble_image_coarse_matrix();
   // (key, a, b, value) partial sums of a coarse matrix, summed over ranks in (a, b, key) order.
   struct CoarseTriplet {
     long long k;

@@ -95,7 +95,7 @@ MemoryEstimate estimate_memory(const Model& model, const FetiOptions& options, c
   const double f_bytes = static_cast<double>(sample.symbolic_factor_bytes(ordering));
   e.matrices_mb = std::max(e.matrices_mb, k_bytes / n * unknowns / kMiB);
   e.factors_mb = std::max(e.factors_mb, f_bytes / n * unknowns / kMiB);
-  // Equal subdomains share a factor (SymbolicCache): a generated box gives every subdomain the
+  // Equal subdomains share a factor (SubdomainCache): a generated box gives every subdomain the
   // same element matrices, so with one material the implicit operator's matrices are equal up
   // to a few position classes, counted as 3^dim (measured: 3 on the cube-obstacle). The
   // explicit operator's factors order each subdomain's interface last, which differs with its

@@ -125,7 +125,7 @@ TEST(ExplicitPrecision, SingleGivesTheDoubleSolutionToItsRounding) {
 // Shared symbolic analyses change nothing but the setup time: identical reports with the cache
 // on and off, for the implicit and the explicit operator, TFETI and H-TFETI-DP; the box's
 // subdomains have few patterns.
-TEST(SymbolicCache, SameResultsWithAndWithoutSharedAnalyses) {
+TEST(SubdomainCache, SameResultsWithAndWithoutSharedAnalyses) {
   Comm comm;
   for (DualOperator op : {DualOperator::implicit, DualOperator::explicit_})
     for (int m : {1, 2}) {

@@ -105,7 +105,7 @@ Eigen::MatrixXd expect_same_schur_factor(const SparseCholesky& a, const SparseCh
   return Lb;
 }
 
-TEST(SymbolicCache, SharesAnalysesOnlyBetweenEqualPatterns) {
+TEST(SubdomainCache, SharesAnalysesOnlyBetweenEqualPatterns) {
   const auto grid = [](int n, double shift) {  // 5-point Laplacian on n x n, diagonal shifted
     std::vector<Eigen::Triplet<double>> t;
     for (int y = 0; y < n; ++y)
@@ -131,7 +131,7 @@ TEST(SymbolicCache, SharesAnalysesOnlyBetweenEqualPatterns) {
     return x;
   };
   for (Ordering ordering : {Ordering::amd, Ordering::metis}) {
-    SymbolicCache cache;
+    SubdomainCache cache;
     SparseCholesky plain(ordering), shared1(ordering), shared2(ordering), other(ordering);
     plain.factorize(A2);
     shared1.factorize(A1, &cache);
@@ -146,7 +146,7 @@ TEST(SymbolicCache, SharesAnalysesOnlyBetweenEqualPatterns) {
     EXPECT_LT((A2 * x_shared - b).norm(), 1e-12 * b.norm());
   }
   {  // the set ordered last is part of the key; a Schur factor from a reused analysis is exact
-    SymbolicCache cache;
+    SubdomainCache cache;
     SparseCholesky p1, p2, p3, plain;
     p1.factorize(A1, last, &cache);
     p2.factorize(A2, last, &cache);
@@ -157,7 +157,7 @@ TEST(SymbolicCache, SharesAnalysesOnlyBetweenEqualPatterns) {
     expect_same_schur_factor(p2, plain);
   }
   {  // numeric factors: kept for a repeated pattern, copied for an equal matrix only
-    SymbolicCache cache(64, 1e9);
+    SubdomainCache cache(64, 1e9);
     SparseCholesky f1, f2, f3, f4, f5, plain;
     f1.factorize(A1, last, &cache);        // analysed
     f2.factorize(A1, last, &cache);        // analysis reused; its numeric factor kept
@@ -211,7 +211,7 @@ TEST(SymbolicCache, SharesAnalysesOnlyBetweenEqualPatterns) {
     EXPECT_EQ(cache.solve_reuses(), before + 2);
     EXPECT_EQ((x3 - solve(plain)).cwiseAbs().maxCoeff(), 0.0);
     EXPECT_EQ((x2 - x3).cwiseAbs().maxCoeff(), 0.0);
-    SymbolicCache small(64, 1.0);  // a byte budget too small for any factor: none kept
+    SubdomainCache small(64, 1.0);  // a byte budget too small for any factor: none kept
     SparseCholesky g1, g2, g3;
     g1.factorize(A1, &small);
     g2.factorize(A1, &small);
@@ -220,7 +220,7 @@ TEST(SymbolicCache, SharesAnalysesOnlyBetweenEqualPatterns) {
     EXPECT_EQ(small.matrices(), 0);
   }
   {  // capacity 1: the second pattern is analysed but not kept, the first is still reused
-    SymbolicCache cache(1);
+    SubdomainCache cache(1);
     SparseCholesky a, b2, c;
     a.factorize(A1, &cache);
     b2.factorize(A3, &cache);
@@ -238,7 +238,7 @@ TEST(SymbolicCache, SharesAnalysesOnlyBetweenEqualPatterns) {
 // Equal assembled matrices are held once: the pool hands back the held matrix for an equal one
 // (pattern and values compared), a matrix differing in one bit of one value is held on its own,
 // and a matrix is freed with its last holder (the pool remembers it by weak_ptr only).
-TEST(MatrixPool, EqualMatricesAreHeldOnce) {
+TEST(SubdomainCache, EqualMatricesAreHeldOnce) {
   auto make = [](double last) {
     Eigen::SparseMatrix<double> K(3, 3);
     std::vector<Eigen::Triplet<double>> t{
@@ -246,17 +246,17 @@ TEST(MatrixPool, EqualMatricesAreHeldOnce) {
     K.setFromTriplets(t.begin(), t.end());
     return K;
   };
-  MatrixPool pool;
+  SubdomainCache pool;  // its matrix level
   Eigen::SparseMatrix<double> a = make(2.0), b = make(2.0), c = make(std::nextafter(2.0, 3.0));
-  auto A = pool.intern(a);
+  auto A = pool.intern_matrix(a);
   EXPECT_EQ(a.nonZeros(), 0);  // the storage moved into the pool's matrix
   ASSERT_EQ(A->nonZeros(), 5);
-  auto B = pool.intern(b);
+  auto B = pool.intern_matrix(b);
   EXPECT_EQ(B.get(), A.get());
   EXPECT_EQ(b.nonZeros(), 0);
-  const auto C = pool.intern(c);
+  const auto C = pool.intern_matrix(c);
   EXPECT_NE(C.get(), A.get());
-  EXPECT_EQ(pool.reuses(), 1);
+  EXPECT_EQ(pool.matrix_reuses(), 1);
   std::weak_ptr<const Eigen::SparseMatrix<double>> w = A;
   const Eigen::SparseMatrix<double> copy = *A;
   // Subdomains holding the pool's matrix read it through K(); releasing drops their hold.
@@ -264,9 +264,9 @@ TEST(MatrixPool, EqualMatricesAreHeldOnce) {
   Eigen::SparseMatrix<double> k = make(2.0);
   sys.f = Eigen::VectorXd::Zero(3);
   sys.R = Eigen::MatrixXd::Zero(3, 0);
-  Subdomain sub(std::move(sys), pool.intern(k));  // as the setup hands over an assembled K_i
+  Subdomain sub(std::move(sys), pool.intern_matrix(k));  // as the setup hands over an assembled K_i
   EXPECT_EQ(&sub.K(), A.get());
-  EXPECT_EQ(pool.reuses(), 2);
+  EXPECT_EQ(pool.matrix_reuses(), 2);
   sub.release_matrix();
   EXPECT_EQ(sub.K().nonZeros(), 0);
   EXPECT_FALSE(w.expired());
@@ -274,12 +274,12 @@ TEST(MatrixPool, EqualMatricesAreHeldOnce) {
   B.reset();
   EXPECT_TRUE(w.expired()) << "the pool must not keep a matrix alive";
   Eigen::SparseMatrix<double> d = make(2.0);
-  const auto D = pool.intern(d);
-  EXPECT_EQ(pool.reuses(), 2);  // the freed one is not found again
+  const auto D = pool.intern_matrix(d);
+  EXPECT_EQ(pool.matrix_reuses(), 2);  // the freed one is not found again
   EXPECT_EQ(std::memcmp(D->valuePtr(), copy.valuePtr(), 5 * sizeof(double)), 0);
 }
 
-TEST(SymbolicCache, SharedNumericFactorOutlivesItsOtherHolders) {
+TEST(SubdomainCache, SharedNumericFactorOutlivesItsOtherHolders) {
   const int n = 14;
   std::vector<Eigen::Triplet<double>> t;
   for (int y = 0; y < n; ++y)
@@ -297,7 +297,7 @@ TEST(SymbolicCache, SharedNumericFactorOutlivesItsOtherHolders) {
   const int holders = 8;
   std::vector<SparseCholesky> f(holders);
   {
-    SymbolicCache cache(64, 1e9);
+    SubdomainCache cache(64, 1e9);
     for (auto& c : f) c.factorize(A, &cache);
     EXPECT_EQ(cache.matrices(), 1);
     EXPECT_EQ(cache.numeric_reuses(), holders - 2);  // the first analyses, the second is kept
@@ -326,7 +326,7 @@ TEST(SymbolicCache, SharedNumericFactorOutlivesItsOtherHolders) {
 
 // shared_result: holders of one shared factor get one result per key (key and tag compared in
 // full); a key whose first holder's computation throws is computed by each waiting holder.
-TEST(SymbolicCache, SharedResultOncePerKeyAndAfterAFailure) {
+TEST(SubdomainCache, SharedResultOncePerKeyAndAfterAFailure) {
   const int n = 10;
   std::vector<Eigen::Triplet<double>> t;
   for (int i = 0; i < n; ++i) {
@@ -335,7 +335,7 @@ TEST(SymbolicCache, SharedResultOncePerKeyAndAfterAFailure) {
   }
   Eigen::SparseMatrix<double> A(n, n);
   A.setFromTriplets(t.begin(), t.end());
-  SymbolicCache cache(64, 1e9);
+  SubdomainCache cache(64, 1e9);
   std::vector<SparseCholesky> f(3);
   for (auto& c : f) c.factorize(A, &cache);  // f[1] keeps the factor, f[2] copies it
   const Eigen::MatrixXd key = Eigen::MatrixXd::Identity(n, 2);

@@ -39,7 +39,8 @@ Eigen::MatrixXd null_space(const Eigen::MatrixXd& A) {
 
 Cluster::Cluster(int id, std::vector<Subdomain*> subs, std::vector<std::vector<ConstraintEntry>> C,
                  Ordering ordering, std::vector<std::vector<Subdomain::BEntry>> b,
-                 std::vector<int> nmult, bool explicit_F, SymbolicCache* cache, Precision precision)
+                 std::vector<int> nmult, bool explicit_F, SubdomainCache* cache,
+                 Precision precision)
     : id_(id), subs_(std::move(subs)), explicit_(explicit_F) {
   const int s = static_cast<int>(subs_.size());
   // The cluster's dual operator (ClusterDualOperator): the explicit one's blocks are formed
@@ -67,8 +68,7 @@ Cluster::Cluster(int id, std::vector<Subdomain*> subs, std::vector<std::vector<C
         subs_[i]->factorize_with_interface_last(dofs, cache, ordering);
         ex->F_[i] = subs_[i]->dual_block(b[i], nmult[i], precision);
         ex->V_[i] = Eigen::MatrixXd::Zero(nmult[i], subs_[i]->kernel_dimension());
-        for (const auto& e : b[i])
-          ex->V_[i].row(e.mult) += e.value * subs_[i]->kernel().row(e.dof);
+        for (const auto& e : b[i]) ex->V_[i].row(e.mult) += e.value * subs_[i]->kernel().row(e.dof);
       } else {
         subs_[i]->factorize(ordering, cache);
       }
@@ -226,7 +226,7 @@ void Cluster::release_factors() {
   }
 }
 
-void Cluster::refactor(Ordering ordering, SymbolicCache* cache, bool as_setup) {
+void Cluster::refactor(Ordering ordering, SubdomainCache* cache, bool as_setup) {
   const int s = static_cast<int>(subs_.size());
   std::string error;
 #pragma omp parallel for schedule(dynamic) if (!omp_in_parallel() && s > 1)
@@ -272,7 +272,8 @@ ImplicitClusterOperator::ImplicitClusterOperator(Cluster& cluster,
                                                  std::vector<std::vector<Subdomain::BEntry>> b,
                                                  std::vector<int> nmult)
     : ClusterDualOperator(std::move(nmult)), cluster_(cluster), b_(std::move(b)) {
-  for (const Subdomain* sd : cluster_.subdomains()) xw_.push_back(Eigen::VectorXd::Zero(sd->size()));
+  for (const Subdomain* sd : cluster_.subdomains())
+    xw_.push_back(Eigen::VectorXd::Zero(sd->size()));
 }
 
 void ImplicitClusterOperator::do_apply(const std::vector<Eigen::VectorXd>& lam,

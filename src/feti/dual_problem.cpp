@@ -88,6 +88,10 @@ DualProblem::DualProblem(const FetiLayout& layout,
   sub_first_.resize(st.ncl + 1);
   for (int c = 0; c <= st.ncl; ++c)
     sub_first_[c] = layout_.cluster_first[first_cluster_ + c] - st.s0;
+  // The one cache for equal subdomains and patterns (SubdomainCache): its matrix level always,
+  // its factor levels when symbolic_cache_patterns > 0.
+  cache_ = std::make_unique<SubdomainCache>(options.symbolic_cache_patterns,
+                                            options.numeric_cache_bytes);
   assemble_subdomains(make_input, st);  // 1.
   number_multipliers(st);               // 2.
   number_local_rows(st);
@@ -121,7 +125,6 @@ void DualProblem::assemble_subdomains(const std::function<SubdomainInput(int)>& 
     exact_node_scaling_ = layout_.glue == Glue::averages || !groups;
   }
   if (exact_node_scaling_) node_copies_.resize(nsub);
-  MatrixPool matrices;  // equal K_i held once (a box's subdomains); freed with their holders
   outer_parallel_ = omp_get_max_threads() > 1 && ncl >= omp_get_max_threads();
   std::string error;
   bool input_error = false;
@@ -130,9 +133,9 @@ void DualProblem::assemble_subdomains(const std::function<SubdomainInput(int)>& 
     try {
       const int ms = members(c);
       std::vector<SubdomainInput> in(ms);
-      // Each K_i goes to the pool as soon as it is assembled: a cluster's members are all made
+      // Each K_i goes to the cache as soon as it is assembled: a cluster's members are all made
       // before its primal constraints, and held unpooled they would all be in memory at once.
-      std::vector<std::shared_ptr<const MatrixPool::Matrix>> pooled(ms);
+      std::vector<std::shared_ptr<const SubdomainCache::Matrix>> pooled(ms);
       std::string inner_error;
       bool inner_input = false;
 #pragma omp parallel for schedule(dynamic) if (!omp_in_parallel() && ms > 1)
@@ -144,7 +147,7 @@ void DualProblem::assemble_subdomains(const std::function<SubdomainInput(int)>& 
           in[i] = std::move(made);
           in[i].system.K.swap(K);
           if (in[i].system.K.rows() == in[i].system.f.size())
-            pooled[i] = matrices.intern(in[i].system.K);  // leaves system.K empty
+            pooled[i] = cache_->intern_matrix(in[i].system.K);  // leaves system.K empty
           subdomain_rows(layout_, in[i], local_rows[sub_of(c, i)]);
           if (!node_copies_.empty()) {
             auto& nc = node_copies_[sub_of(c, i)];
@@ -182,7 +185,7 @@ void DualProblem::assemble_subdomains(const std::function<SubdomainInput(int)>& 
     }
   }
   comm_.agree(error, input_error);
-  setup_.shared_matrices = matrices.reuses();
+  setup_.shared_matrices = cache_->matrix_reuses();
   setup_.assembly = seconds_now() - t;
   setup_.peak_mb_assembly = peak_rss_mb();
 }
@@ -416,9 +419,6 @@ void DualProblem::set_up_clusters(Setup& st) {
 
   // 3. Clusters: factorizations, explicit blocks, the primal-constraint systems; d.
   const double t = seconds_now();
-  if (options.symbolic_cache_patterns > 0)
-    symbolic_ = std::make_unique<SymbolicCache>(options.symbolic_cache_patterns,
-                                                options.numeric_cache_bytes);
   clusters_.resize(ncl);
   std::string error;
   bool input_error = false;
@@ -436,7 +436,7 @@ void DualProblem::set_up_clusters(Setup& st) {
     try {
       clusters_[c] = std::make_unique<Cluster>(
           first_cluster_ + c, std::move(ptrs), std::move(primal[c]), ordering_, std::move(b),
-          std::move(nmult), explicit_, symbolic_.get(), options.explicit_precision);
+          std::move(nmult), explicit_, factor_cache(), options.explicit_precision);
       // The cluster's part of d = B~ K~^+ f, while its factors are at hand.
       cluster_rhs_from_ext(c, true, 0.0);
       clusters_[c]->solve(x_[c]);
@@ -453,7 +453,7 @@ void DualProblem::set_up_clusters(Setup& st) {
               for (const auto& r : rows_[s]) rho[s].push_back(K.coeff(r.dof, r.dof));
             precond_[s] = std::make_unique<LocalPreconditioner>(
                 K, std::move(interface[s]), precond_kind_, precond_dense_, ordering_,
-                &subs_[s]->kernel(), symbolic_.get());
+                &subs_[s]->kernel(), factor_cache());
           } catch (const std::exception& e) {
 #pragma omp critical
             perr = e.what();
@@ -497,20 +497,20 @@ void DualProblem::set_up_clusters(Setup& st) {
     }
   }
   comm_.agree(error, input_error);
-  if (symbolic_) setup_.distinct_factor_mb += symbolic_->kept_factor_bytes() / 1048576.0;
+  if (factor_cache()) setup_.distinct_factor_mb += cache_->kept_factor_bytes() / 1048576.0;
   if (explicit_) {  // every thread frees its F_i work arrays (they are kept between subdomains)
 #pragma omp parallel
     Subdomain::release_dual_block_work();
   }
   setup_.factorization = seconds_now() - t;
   factors_released_ = comm_.max(static_cast<double>(clusters_released())) > 0;
-  if (symbolic_) {
-    setup_.symbolic_analyses = symbolic_->analyses();
-    setup_.symbolic_reuses = symbolic_->reuses();
-    setup_.symbolic_patterns = symbolic_->patterns();
-    setup_.numeric_reuses = symbolic_->numeric_reuses();
-    setup_.numeric_matrices = symbolic_->matrices();
-    setup_.solve_reuses = symbolic_->solve_reuses();
+  if (factor_cache()) {
+    setup_.symbolic_analyses = cache_->analyses();
+    setup_.symbolic_reuses = cache_->reuses();
+    setup_.symbolic_patterns = cache_->patterns();
+    setup_.numeric_reuses = cache_->numeric_reuses();
+    setup_.numeric_matrices = cache_->matrices();
+    setup_.solve_reuses = cache_->solve_reuses();
   }
   setup_.peak_mb_factorization = peak_rss_mb();
   for (const auto& c : clusters_) setup_.cluster_setup += c->setup_seconds();

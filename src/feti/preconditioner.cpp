@@ -20,7 +20,7 @@ std::string to_string(Scaling value) { return name_of(kScalingNames, value); }
 LocalPreconditioner::LocalPreconditioner(const Eigen::SparseMatrix<double>& K,
                                          std::vector<int> interface, PreconditionerKind kind,
                                          bool dense, Ordering ordering,
-                                         const Eigen::MatrixXd* kernel, SymbolicCache* cache)
+                                         const Eigen::MatrixXd* kernel, SubdomainCache* cache)
     : interface_(std::move(interface)), kind_(kind) {
   if (kind == PreconditionerKind::none) throw std::logic_error("LocalPreconditioner: no kind");
   const int n = static_cast<int>(K.rows()), nb = size();

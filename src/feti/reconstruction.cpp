@@ -51,7 +51,7 @@ std::vector<DualProblem::Vec> DualProblem::reconstruct(const Vec& lambda) {
       // Freed factors are rebuilt plain (ordering_, no interface last): solve() is all the
       // reconstruction needs, and that factor is cheaper (docs/method.md); u then
       // agrees with the kept factors' u to round-off.
-      if (released_[c]) clusters_[c]->refactor(ordering_, symbolic_.get(), false);
+      if (released_[c]) clusters_[c]->refactor(ordering_, factor_cache(), false);
       cluster_rhs_from_ext(c, true, -1.0);  // f - B~^T lambda
       clusters_[c]->solve(x_[c]);
       for (int i = 0; i < members(c); ++i) u[sub_of(c, i)] = x_[c][i];

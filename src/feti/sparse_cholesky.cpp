@@ -92,7 +92,7 @@ struct SharedFactor {
 
 // One cached symbolic analysis: the pattern it belongs to (compared in full) and the symbolic
 // factor, allocated through the cache's own CHOLMOD common.
-struct SymbolicCache::Entry {
+struct SubdomainCache::Entry {
   std::uint64_t hash = 0;
   int method = 0;  // 0 AMD, 1 METIS, 2 constrained AMD with `last` ordered last
   std::vector<int> p, i, last;
@@ -111,13 +111,13 @@ struct SymbolicCache::Entry {
   }
 };
 
-SymbolicCache::SymbolicCache(int capacity, double numeric_bytes)
+SubdomainCache::SubdomainCache(int capacity, double numeric_bytes)
     : capacity_(capacity), numeric_bytes_(numeric_bytes) {}
-long SymbolicCache::numeric_reuses() const {
+long SubdomainCache::numeric_reuses() const {
   std::lock_guard<std::mutex> lock(mutex_);
   return numeric_reuses_;
 }
-long SymbolicCache::solve_reuses() const {
+long SubdomainCache::solve_reuses() const {
   std::lock_guard<std::mutex> lock(mutex_);
   long n = 0;
   for (const auto& e : numeric_)
@@ -127,26 +127,72 @@ long SymbolicCache::solve_reuses() const {
     }
   return n;
 }
-int SymbolicCache::matrices() const {
+int SubdomainCache::matrices() const {
   std::lock_guard<std::mutex> lock(mutex_);
   return static_cast<int>(numeric_.size());
 }
-double SymbolicCache::kept_factor_bytes() const {
+double SubdomainCache::kept_factor_bytes() const {
   std::lock_guard<std::mutex> lock(mutex_);
   double bytes = 0;
   for (const auto& e : numeric_) bytes += static_cast<double>(e->factor_bytes);
   return bytes;
 }
-SymbolicCache::~SymbolicCache() = default;
-long SymbolicCache::analyses() const {
+SubdomainCache::~SubdomainCache() = default;
+
+std::shared_ptr<const SubdomainCache::Matrix> SubdomainCache::intern_matrix(Matrix& K) {
+  K.makeCompressed();
+  const long nnz = K.nonZeros();
+  std::uint64_t h = 1469598103934665603ULL;  // FNV-1a over the sizes and the values' bits
+  auto mix = [&](std::uint64_t v) { h = (h ^ v) * 1099511628211ULL; };
+  mix(static_cast<std::uint64_t>(K.rows())), mix(static_cast<std::uint64_t>(nnz));
+  for (long k = 0; k < nnz; ++k) {
+    std::uint64_t bits;
+    std::memcpy(&bits, K.valuePtr() + k, sizeof bits);
+    mix(bits);
+  }
+  auto equal = [&](const Matrix& A) {
+    return A.rows() == K.rows() && A.cols() == K.cols() && A.nonZeros() == nnz &&
+           std::equal(A.outerIndexPtr(), A.outerIndexPtr() + A.outerSize() + 1,
+                      K.outerIndexPtr()) &&
+           std::equal(A.innerIndexPtr(), A.innerIndexPtr() + nnz, K.innerIndexPtr()) &&
+           std::memcmp(A.valuePtr(), K.valuePtr(), sizeof(double) * nnz) == 0;
+  };
+  std::vector<std::shared_ptr<const Matrix>> candidates;  // compared outside the lock
+  {
+    std::lock_guard<std::mutex> lock(matrix_mutex_);
+    const auto [first, last] = held_matrices_.equal_range(h);
+    for (auto it = first; it != last; ++it)
+      if (auto A = it->second.lock()) candidates.push_back(std::move(A));
+  }
+  for (auto& A : candidates)
+    if (equal(*A)) {
+      Matrix().swap(K);
+      std::lock_guard<std::mutex> lock(matrix_mutex_);
+      ++matrix_reuses_;
+      return std::move(A);
+    }
+  // (An equal matrix interned meanwhile by another thread is simply held twice.)
+  auto A = std::make_shared<Matrix>();
+  A->swap(K);
+  std::lock_guard<std::mutex> lock(matrix_mutex_);
+  held_matrices_.emplace(h, A);
+  return A;
+}
+
+long SubdomainCache::matrix_reuses() const {
+  std::lock_guard<std::mutex> lock(matrix_mutex_);
+  return matrix_reuses_;
+}
+
+long SubdomainCache::analyses() const {
   std::lock_guard<std::mutex> lock(mutex_);
   return analyses_;
 }
-long SymbolicCache::reuses() const {
+long SubdomainCache::reuses() const {
   std::lock_guard<std::mutex> lock(mutex_);
   return reuses_;
 }
-int SymbolicCache::patterns() const {
+int SubdomainCache::patterns() const {
   std::lock_guard<std::mutex> lock(mutex_);
   return static_cast<int>(entries_.size());
 }
@@ -215,12 +261,12 @@ SparseCholesky::~SparseCholesky() = default;
 SparseCholesky::SparseCholesky(SparseCholesky&&) noexcept = default;
 SparseCholesky& SparseCholesky::operator=(SparseCholesky&&) noexcept = default;
 
-void SparseCholesky::factorize(const Eigen::SparseMatrix<double>& A, SymbolicCache* cache) {
+void SparseCholesky::factorize(const Eigen::SparseMatrix<double>& A, SubdomainCache* cache) {
   factorize_impl(A, nullptr, cache);
 }
 
 void SparseCholesky::factorize(const Eigen::SparseMatrix<double>& A, const std::vector<int>& last,
-                               SymbolicCache* cache) {
+                               SubdomainCache* cache) {
   factorize_impl(A, &last, cache);
 }
 
@@ -292,7 +338,7 @@ static cholmod_factor* analyze_with_last(cholmod_sparse& view,
 }
 
 void SparseCholesky::factorize_impl(const Eigen::SparseMatrix<double>& A,
-                                    const std::vector<int>* last, SymbolicCache* cache) {
+                                    const std::vector<int>* last, SubdomainCache* cache) {
   if (A.rows() != A.cols()) throw std::invalid_argument("SparseCholesky: matrix is not square");
   using clock = std::chrono::steady_clock;
   const auto t0 = clock::now();
@@ -313,7 +359,7 @@ void SparseCholesky::factorize_impl(const Eigen::SparseMatrix<double>& A,
     for (long k = 0; k < len; ++k)
       hash = (hash ^ static_cast<std::uint32_t>(v[k])) * 1099511628211ULL;
   };
-  const auto same = [&](const SymbolicCache::Entry& e) {
+  const auto same = [&](const SubdomainCache::Entry& e) {
     return e.hash == hash && e.method == method && static_cast<int>(e.p.size()) == n + 1 &&
            static_cast<int>(e.i.size()) == nnz && e.last == last_sorted &&
            std::equal(e.p.begin(), e.p.end(), upper.outerIndexPtr()) &&
@@ -322,7 +368,7 @@ void SparseCholesky::factorize_impl(const Eigen::SparseMatrix<double>& A,
   // A cache entry for this pattern: a copy of the current (symbolic) factor, or with `numeric`
   // the current numeric factor itself, from then on shared by this factorization and the entry.
   const auto new_entry = [&](bool numeric) {
-    auto e = std::make_unique<SymbolicCache::Entry>();
+    auto e = std::make_unique<SubdomainCache::Entry>();
     e->hash = hash;
     e->method = method;
     e->p.assign(upper.outerIndexPtr(), upper.outerIndexPtr() + n + 1);
@@ -343,7 +389,7 @@ void SparseCholesky::factorize_impl(const Eigen::SparseMatrix<double>& A,
   };
   bool reused = false;
   std::uint64_t value_hash = 1469598103934665603ULL;
-  const auto same_values = [&](const SymbolicCache::Entry& e) {
+  const auto same_values = [&](const SubdomainCache::Entry& e) {
     return e.value_hash == value_hash && same(e) &&
            std::equal(e.x.begin(), e.x.end(), upper.valuePtr());
   };
@@ -366,8 +412,8 @@ void SparseCholesky::factorize_impl(const Eigen::SparseMatrix<double>& A,
     }
     // Entries are never removed while the cache lives, so a found one is used outside the lock
     // (the analysis copies of two threads do not wait for each other).
-    const SymbolicCache::Entry* numeric = nullptr;
-    const SymbolicCache::Entry* symbolic = nullptr;
+    const SubdomainCache::Entry* numeric = nullptr;
+    const SubdomainCache::Entry* symbolic = nullptr;
     {
       std::lock_guard<std::mutex> lock(cache->mutex_);
       for (const auto& e : cache->numeric_)

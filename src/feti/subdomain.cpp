@@ -38,51 +38,6 @@ Subdomain::Subdomain(SubdomainSystem system,
     if (reduced_[d] == 0) reduced_[d] = r++;
 }
 
-std::shared_ptr<const MatrixPool::Matrix> MatrixPool::intern(Matrix& K) {
-  K.makeCompressed();
-  const long nnz = K.nonZeros();
-  std::uint64_t h = 1469598103934665603ULL;  // FNV-1a over the sizes and the values' bits
-  auto mix = [&](std::uint64_t v) { h = (h ^ v) * 1099511628211ULL; };
-  mix(static_cast<std::uint64_t>(K.rows())), mix(static_cast<std::uint64_t>(nnz));
-  for (long k = 0; k < nnz; ++k) {
-    std::uint64_t bits;
-    std::memcpy(&bits, K.valuePtr() + k, sizeof bits);
-    mix(bits);
-  }
-  auto equal = [&](const Matrix& A) {
-    return A.rows() == K.rows() && A.cols() == K.cols() && A.nonZeros() == nnz &&
-           std::equal(A.outerIndexPtr(), A.outerIndexPtr() + A.outerSize() + 1,
-                      K.outerIndexPtr()) &&
-           std::equal(A.innerIndexPtr(), A.innerIndexPtr() + nnz, K.innerIndexPtr()) &&
-           std::memcmp(A.valuePtr(), K.valuePtr(), sizeof(double) * nnz) == 0;
-  };
-  std::vector<std::shared_ptr<const Matrix>> candidates;  // compared outside the lock
-  {
-    std::lock_guard<std::mutex> lock(mutex_);
-    const auto [first, last] = held_.equal_range(h);
-    for (auto it = first; it != last; ++it)
-      if (auto A = it->second.lock()) candidates.push_back(std::move(A));
-  }
-  for (auto& A : candidates)
-    if (equal(*A)) {
-      Matrix().swap(K);
-      std::lock_guard<std::mutex> lock(mutex_);
-      ++reuses_;
-      return std::move(A);
-    }
-  // (An equal matrix interned meanwhile by another thread is simply held twice.)
-  auto A = std::make_shared<Matrix>();
-  A->swap(K);
-  std::lock_guard<std::mutex> lock(mutex_);
-  held_.emplace(h, A);
-  return A;
-}
-
-long MatrixPool::reuses() const {
-  std::lock_guard<std::mutex> lock(mutex_);
-  return reuses_;
-}
-
 double Subdomain::energy(const Eigen::VectorXd& u) const {
   const Eigen::SparseMatrix<double>& K = this->K();
   if (K.rows() == size()) return 0.5 * u.dot(K.selfadjointView<Eigen::Lower>() * u) - sys_.f.dot(u);
@@ -96,12 +51,12 @@ void Subdomain::release_factor() {
   work_ = Eigen::VectorXd();
 }
 
-void Subdomain::factorize(Ordering ordering, SymbolicCache* cache) {
+void Subdomain::factorize(Ordering ordering, SubdomainCache* cache) {
   factorize_impl(ordering, nullptr, cache);
 }
 
 void Subdomain::factorize_with_interface_last(const std::vector<int>& interface_dofs,
-                                              SymbolicCache* cache, Ordering ordering) {
+                                              SubdomainCache* cache, Ordering ordering) {
   factorize_impl(ordering, &interface_dofs, cache);
 }
 
@@ -206,7 +161,7 @@ Eigen::SparseMatrix<double> Subdomain::reduced_matrix() {
 }
 
 void Subdomain::factorize_impl(Ordering ordering, const std::vector<int>* interface_dofs,
-                               SymbolicCache* cache) {
+                               SubdomainCache* cache) {
   const double t0 = seconds_now();
   const Eigen::SparseMatrix<double> Krr = reduced_matrix();
   const double t_reduce = seconds_now() - t0;

@@ -131,7 +131,7 @@ class Cluster {
   /// locally. Factors the subdomains. explicit_F: build the dense local blocks.
   Cluster(int id, std::vector<Subdomain*> subs, std::vector<std::vector<ConstraintEntry>> C,
           Ordering ordering, std::vector<std::vector<Subdomain::BEntry>> b, std::vector<int> nmult,
-          bool explicit_F, SymbolicCache* cache = nullptr,
+          bool explicit_F, SubdomainCache* cache = nullptr,
           Precision precision = Precision::double_);
   /// Without dual rows: for tests of the generalized inverse alone.
   Cluster(int id, std::vector<Subdomain*> subs, std::vector<std::vector<ConstraintEntry>> C,
@@ -173,7 +173,7 @@ class Cluster {
   /// (explicit: the same interface-last factors, so that solve() gives bit for bit what the kept
   /// factors gave); otherwise a plain factorization with `ordering`, which is all solve() needs
   /// (2D: 40% less numeric work than the interface-last factor; the same solution to round-off).
-  void refactor(Ordering ordering, SymbolicCache* cache = nullptr, bool as_setup = true);
+  void refactor(Ordering ordering, SubdomainCache* cache = nullptr, bool as_setup = true);
   /// Seconds this cluster spent on its primal-constraint setup (K_i^+ C_i^T, the saddle-point
   /// matrix and its LU, U_i), beyond the subdomain factorizations and explicit blocks.
   double setup_seconds() const { return setup_seconds_; }

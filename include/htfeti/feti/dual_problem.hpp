@@ -73,12 +73,12 @@ struct FetiOptions {
   /// Force the Dirichlet storage: 0 automatic (the budget above), 1 dense, 2 implicit.
   int dirichlet_storage = 0;
   /// Subdomain factorizations share the symbolic analysis of an earlier subdomain with the same
-  /// sparsity pattern (SymbolicCache); this many patterns are kept per rank (0: every subdomain
+  /// sparsity pattern (SubdomainCache); this many patterns are kept per rank (0: every subdomain
   /// is analysed on its own). The factors are the same either way.
   int symbolic_cache_patterns = 64;
   /// With the symbolic cache on, numeric factors of repeated patterns are kept too, up to this
   /// many bytes per rank, and a subdomain whose K_rr equals a kept one entry for entry copies
-  /// its factor instead of factoring (SymbolicCache; the same factor bit for bit). 0: off.
+  /// its factor instead of factoring (SubdomainCache; the same factor bit for bit). 0: off.
   double numeric_cache_bytes = 512.0 * (1 << 20);
   /// With automatic storage, what to use when the dense S_i do not fit: the implicit Dirichlet
   /// preconditioner (dirichlet), or another kind (the automatic choice falls back to none: the
@@ -100,7 +100,7 @@ struct SetupTimings {
   /// Part of factorization, summed over subdomains (thread-seconds): forming K_rr, ordering and
   /// symbolic analysis (or its copy from the cache), and the numeric factorization.
   double factor_symbolic = 0, factor_numeric = 0;
-  /// The rank's SymbolicCache after the setup's factorizations (subdomains and preconditioner):
+  /// The rank's SubdomainCache after the setup's factorizations (subdomains and preconditioner):
   /// analyses done, analyses reused, patterns held (all 0 when the cache is off).
   long symbolic_analyses = 0, symbolic_reuses = 0, symbolic_patterns = 0;
   /// Factorizations that copied the numeric factor of an equal matrix; numeric factors held.
@@ -348,8 +348,13 @@ class DualProblem {
   std::vector<int> coarse_first_;  // per global cluster: first coarse index (num_clusters + 1)
   std::vector<std::unique_ptr<Subdomain>> subs_;
   std::vector<std::unique_ptr<Cluster>> clusters_;
-  std::unique_ptr<SymbolicCache> symbolic_;  // shared symbolic analyses (null: off)
-  std::vector<std::vector<Row>> rows_;       // B~ rows per local subdomain
+  // Equal subdomains' matrices, analyses, factors and their results (sparse_cholesky.hpp).
+  std::unique_ptr<SubdomainCache> cache_;
+  // The cache for factorizations: null when its factor levels are off.
+  SubdomainCache* factor_cache() const {
+    return cache_ && cache_->factors() ? cache_.get() : nullptr;
+  }
+  std::vector<std::vector<Row>> rows_;  // B~ rows per local subdomain
   DualLayout layout_dual_;
   OrderedSum sub_sum_, clu_sum_;  // contributions by subdomain / by cluster (G~^T)
   std::vector<int> flat_off_;     // per local subdomain: its first pair in flat_

@@ -66,7 +66,7 @@ class LocalPreconditioner {
   /// kernel: the subdomain's kernel basis (rows: dofs), or nullptr (S_i as it is).
   LocalPreconditioner(const Eigen::SparseMatrix<double>& K, std::vector<int> interface,
                       PreconditionerKind kind, bool dense, Ordering ordering,
-                      const Eigen::MatrixXd* kernel = nullptr, SymbolicCache* cache = nullptr);
+                      const Eigen::MatrixXd* kernel = nullptr, SubdomainCache* cache = nullptr);
   int size() const { return static_cast<int>(interface_.size()); }
   const std::vector<int>& interface() const { return interface_; }
   bool dense() const { return dense_; }

@@ -3,10 +3,12 @@
 #pragma once
 
 #include <Eigen/Sparse>
+#include <cstdint>
 #include <functional>
 #include <memory>
 #include <mutex>
 #include <string>
+#include <unordered_map>
 #include <vector>
 
 #include "htfeti/enum_names.hpp"
@@ -22,28 +24,31 @@ inline constexpr std::array<EnumName<Ordering>, 3> kOrderingNames{
 Ordering parse_ordering(const std::string& name);
 std::string to_string(Ordering ordering);
 
-/// Symbolic analyses (fill-reducing ordering, elimination tree, supernodes) shared between the
-/// factorizations of matrices with the same sparsity pattern. The analysis depends on the pattern
-/// alone, so a factorization that reuses one gives bit-for-bit the factor of its own analysis.
-/// The subdomains of a generated box have a handful of distinct patterns (position in the box,
-/// Dirichlet and contact rows); a Gmsh mesh split by METIS has as many as subdomains, so the
-/// cache keeps at most `capacity` patterns (the first ones analysed) and analyses the rest anew.
-/// Thread-safe; the pattern is compared in full, not only its hash.
-/// Numeric factors too, optionally: matrices equal entry for entry (pattern, values and the set
-/// ordered last) have the same factor, so a factorization finding an equal matrix shares its
-/// factor (held by all of them, read only, freed with the last holder) instead of factoring; the
-/// result is the same bit for bit. On a
-/// generated box with one material the subdomain matrices are translates of each other and
-/// mostly equal. A numeric factor is kept only for a pattern that has been seen before (a
-/// symbolic reuse), so a METIS-split mesh, whose matrices all differ, keeps none; at most
-/// numeric_bytes are kept per cache (factors and values; any number of matrices).
-class SymbolicCache {
+/// The one cache of the FETI setup for equal subdomains (a generated box with one material has
+/// mostly equal K_i; a METIS-split mesh has none) and for equal sparsity patterns. Its key is the
+/// content of a subdomain matrix, compared in full after a hash, never its position or id:
+///   (pattern of the upper triangle, values bit for bit, the set of rows ordered last).
+/// Four levels use a part of that key or extend it:
+///  1. the assembled matrix (pattern and values of the whole K_i): intern_matrix() hands back a
+///     held equal matrix (remembered by weak_ptr: freed with its last holder). On a box, all K_i
+///     alive at the end of the assembly were most of the setup's peak.
+///  2. the symbolic analysis (pattern, ordering and the set ordered last): it depends on the
+///     pattern alone, so a factorization reusing one gives bit for bit the factor of its own.
+///     At most `capacity` patterns (the first ones analysed); capacity 0 turns levels 2-4 off.
+///  3. the numeric factor (pattern, values and the set ordered last): equal matrices share one
+///     factor (read only, freed with the last holder) instead of factoring. Kept only for a
+///     pattern seen before (a symbolic reuse), at most numeric_bytes in all (factors and values).
+///  4. results computed with a shared factor, keyed further by their input's content:
+///     SparseCholesky::solve_many's solves and shared_result's matrices (K_i^+ C_i^T of equal
+///     subdomains of a cluster, Subdomain::pinv_many_shared), held in the factor's slot.
+/// Every level gives the bits the computation it replaces would give. Thread-safe.
+class SubdomainCache {
  public:
   /// numeric_bytes > 0 also keeps numeric factors (see above), up to that many bytes in all.
-  explicit SymbolicCache(int capacity = 64, double numeric_bytes = 0);
-  ~SymbolicCache();
-  SymbolicCache(const SymbolicCache&) = delete;
-  SymbolicCache& operator=(const SymbolicCache&) = delete;
+  explicit SubdomainCache(int capacity = 64, double numeric_bytes = 0);
+  ~SubdomainCache();
+  SubdomainCache(const SubdomainCache&) = delete;
+  SubdomainCache& operator=(const SubdomainCache&) = delete;
   long analyses() const;        ///< symbolic analyses done (cache misses)
   long reuses() const;          ///< factorizations that reused a cached analysis
   int patterns() const;         ///< patterns held
@@ -52,6 +57,13 @@ class SymbolicCache {
   long solve_reuses() const;
   int matrices() const;              ///< numeric factors held
   double kept_factor_bytes() const;  ///< their bytes (factor_bytes() of each, once)
+  /// Level 1: empties K and returns a held matrix equal to it (pattern and values compared in
+  /// full after a hash), or K's storage itself, now held by a shared_ptr.
+  using Matrix = Eigen::SparseMatrix<double>;
+  std::shared_ptr<const Matrix> intern_matrix(Matrix& K);
+  long matrix_reuses() const;  ///< matrices found equal to a held one
+  /// Whether levels 2-4 are on (capacity > 0); callers pass the cache to factorizations then.
+  bool factors() const { return capacity_ > 0; }
 
  private:
   friend class SparseCholesky;
@@ -62,6 +74,9 @@ class SymbolicCache {
   long analyses_ = 0, reuses_ = 0, numeric_reuses_ = 0;
   std::vector<std::unique_ptr<Entry>> entries_;
   std::vector<std::unique_ptr<Entry>> numeric_;  // entries with the values too
+  mutable std::mutex matrix_mutex_;              // level 1
+  std::unordered_multimap<std::uint64_t, std::weak_ptr<const Matrix>> held_matrices_;
+  long matrix_reuses_ = 0;
 };
 
 class SparseCholesky {
@@ -76,12 +91,12 @@ class SparseCholesky {
   /// Factors A (only its upper triangle is read). Throws std::runtime_error if A is not
   /// positive definite.
   /// With a cache, the symbolic analysis of an earlier matrix of the same pattern is reused.
-  void factorize(const Eigen::SparseMatrix<double>& A, SymbolicCache* cache = nullptr);
+  void factorize(const Eigen::SparseMatrix<double>& A, SubdomainCache* cache = nullptr);
   /// Factors A with the rows in `last` ordered after all others (constrained AMD, no
   /// postordering), so that the trailing block of the factor is the Cholesky factor of the Schur
   /// complement of A onto `last`. The ordering option of the constructor is not used.
   void factorize(const Eigen::SparseMatrix<double>& A, const std::vector<int>& last,
-                 SymbolicCache* cache = nullptr);
+                 SubdomainCache* cache = nullptr);
   /// Seconds of the last factorize(): the symbolic part (ordering and analysis, or the copy of a
   /// cached analysis; includes forming the upper triangle) and the numeric factorization.
   double symbolic_seconds() const;
@@ -131,7 +146,7 @@ class SparseCholesky {
 
  private:
   void factorize_impl(const Eigen::SparseMatrix<double>& A, const std::vector<int>* last,
-                      SymbolicCache* cache);
+                      SubdomainCache* cache);
   struct Impl;
   std::unique_ptr<Impl> impl_;
 };

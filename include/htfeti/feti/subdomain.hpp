@@ -23,27 +23,11 @@
 
 namespace htfeti {
 
-/// Equal assembled matrices held once: on a generated box with one material the subdomains'
-/// K_i are equal bit for bit, and all of them alive at the end of the assembly were most of the
-/// setup's peak. intern(K) empties K and returns a held matrix equal to it (pattern and values
-/// compared in full after a hash), or K's storage itself, now held by a shared_ptr. The pool
-/// remembers matrices by weak_ptr: a matrix is freed with its last holder. Thread-safe.
-class MatrixPool {
- public:
-  using Matrix = Eigen::SparseMatrix<double>;
-  std::shared_ptr<const Matrix> intern(Matrix& K);
-  long reuses() const;  ///< matrices found equal to a held one
-
- private:
-  mutable std::mutex mutex_;
-  std::unordered_multimap<std::uint64_t, std::weak_ptr<const Matrix>> held_;
-  long reuses_ = 0;
-};
-
 class Subdomain {
  public:
   /// Takes the assembled system; the factorization is separate (factorize()). With `pooled`
-  /// (K_i as MatrixPool::intern returned it), system.K is empty and K_i is the pooled one.
+  /// (K_i as SubdomainCache::intern_matrix returned it), system.K is empty and K_i is the pooled
+  /// one.
   explicit Subdomain(SubdomainSystem system,
                      std::shared_ptr<const Eigen::SparseMatrix<double>> pooled = nullptr);
 
@@ -68,14 +52,14 @@ class Subdomain {
   const std::vector<int>& fixed_dofs() const { return sys_.fixed_dofs; }
 
   /// With a cache, the symbolic analysis is shared with subdomains of the same pattern.
-  void factorize(Ordering ordering, SymbolicCache* cache = nullptr);
+  void factorize(Ordering ordering, SubdomainCache* cache = nullptr);
   /// Factors with the given dofs (the interface) ordered last, so that the Schur complement of
   /// K_rr onto them is available for dual_block() (explicit dual operator). Fixed dofs among
   /// them are left out (K^+ is zero there).
   /// ordering: of the other dofs (AMD: constrained AMD over all; METIS: nested dissection of
   /// the non-interface dofs).
   void factorize_with_interface_last(const std::vector<int>& interface_dofs,
-                                     SymbolicCache* cache = nullptr,
+                                     SubdomainCache* cache = nullptr,
                                      Ordering ordering = Ordering::amd);
   /// Seconds of the last factorization: symbolic (forming K_rr, ordering, analysis) and numeric.
   double symbolic_seconds() const { return symbolic_seconds_; }
@@ -122,7 +106,7 @@ class Subdomain {
 
  private:
   void factorize_impl(Ordering ordering, const std::vector<int>* interface_dofs,
-                      SymbolicCache* cache);
+                      SubdomainCache* cache);
   Eigen::SparseMatrix<double> reduced_matrix();
   SubdomainSystem sys_;
   std::shared_ptr<const Eigen::SparseMatrix<double>> shared_K_;  // K_i when interned (sys_.K empty)

@@ -565,6 +565,12 @@ SolveOutput solve(std::shared_ptr<const Model> model_ptr, const SolveOptions& op
                          : solve_without_contact(dual, ops, lambda, options, red, progress);
   t_solve = seconds_now() - t_solve;
   const double peak_mb_solve = peak_rss_mb();
+  // A contact solve that did not converge may have had no solution to find: a body the load
+  // pulls away from its obstacles. Then the input is at fault (exit 2), not the solver.
+  if (!qs.converged && dual.has_inequalities()) {
+    const std::string why = dual.unbounded_motion();
+    if (!why.empty()) throw std::invalid_argument(why);
+  }
 
   double t_rec = seconds_now();
   require_finite(comm, lambda.allFinite(), "the multipliers lambda at the end of the solve");

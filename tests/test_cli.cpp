@@ -855,3 +855,48 @@ TEST_F(Cli, StoppingTestDoesNotDependOnTheUnits) {
     }
   }
 }
+
+// A contact problem without a solution is refused with exit 2 and the reason, not run to the
+// iteration limit (reliability round 3, item 13): a square on a floor, held by nothing else, lifted
+// by its load, or tipped over a corner by a torque the downward load cannot balance. The same
+// square pushed down (or weighed down enough against the torque) solves with exit 0, and a
+// solvable problem stopped by the iteration limit keeps exit 3. Checked on 1 and 2 ranks.
+TEST_F(Cli, ContactProblemWithoutSolutionIsRefused) {
+  const auto square = [](const std::string& loads) {
+    return "[mesh]\ngenerator = \"box\"\nsize = [1.0, 1.0]\nelements = [8, 8]\nelement = "
+           "\"quad4\"\n[physics]\ntype = \"elasticity\"\nyoung = 1e3\npoisson = 0.3\n" +
+           loads +
+           "[[contact]]\ngroup = \"y0\"\ndirection = [0.0, -1.0]\ngap = 0.0\n"
+           "[decomposition]\nsubdomains = [2, 2]\n[output]\nvtu = false\n";
+  };
+  const std::string lift = "[[load]]\ngroup = \"y1\"\ntraction = [0.0, 10.0]\n";
+  const std::string push = "[[load]]\ngroup = \"y1\"\ntraction = [0.0, -10.0]\n";
+  const auto torque = [](const char* down) {
+    return "[[load]]\ngroup = \"x1\"\ntraction = [0.0, 10.0]\n[[load]]\ngroup = \"y1\"\n"
+           "traction = [0.0, " +
+           std::string(down) + "]\n";
+  };
+  for (const auto& [name, loads] :
+       {std::pair<std::string, std::string>{"lifted", lift}, {"tipped", torque("-15.0")}}) {
+    write_file("nosolution.toml", square(loads));
+    for (const std::string& mpi : {std::string(), mpiexec + " -n 2 "}) {
+      // (the check runs when SMALBE-M stops unconverged: 20 outer iterations keep the test short)
+      EXPECT_EQ(run(mpi + bin + " solve nosolution.toml --max-it 20 --report r.json"), 2)
+          << name << " " << mpi << stderr_text();
+      EXPECT_NE(stderr_text().find("the problem has no solution"), std::string::npos)
+          << name << ": " << stderr_text();
+      EXPECT_NE(stderr_text().find("away from every contact"), std::string::npos) << name;
+      EXPECT_FALSE(fs::exists("r.json")) << name;
+    }
+  }
+  for (const auto& loads : {push, torque("-25.0")}) {
+    write_file("solvable.toml", square(loads));
+    EXPECT_EQ(run(bin + " solve solvable.toml --report r.json"), 0) << stderr_text();
+    fs::remove("r.json");
+  }
+  // A floating membrane held by contact alone, stopped early: bounded, so exit 3 as before.
+  EXPECT_EQ(run(bin + " solve --problem membranes -n 64 --subdomains 4 --max-it 2 --no-vtu "
+                      "--report r.json"),
+            3)
+      << stderr_text();
+}

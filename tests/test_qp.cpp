@@ -6,6 +6,7 @@
 #include <limits>
 #include <random>
 
+#include "htfeti/linalg/nnls.hpp"
 #include "htfeti/qp/mprgp.hpp"
 #include "htfeti/qp/pcg.hpp"
 #include "htfeti/qp/power_norm.hpp"
@@ -473,4 +474,27 @@ TEST(QpTransforms, HomogenizeAndProjectGiveTheDualForm) {
   Vec short_x = Vec::Zero(n - 1);
   EXPECT_THROW(smalbe(base, 1.0, short_x, red, SmalbeOptions{}), std::invalid_argument);
   EXPECT_THROW(projected_cg(base, x, red, PcgOptions{}), std::invalid_argument);  // has bounds
+}
+
+// Nonnegative least squares (linalg/nnls.hpp), checked by hand: b inside the cone of M's columns
+// is fitted exactly with x >= 0; b outside leaves the residual r of the nearest cone point, with
+// M^T r <= 0 and b^T r = ||r||^2 (the Farkas certificate the contact check uses).
+TEST(Nnls, FitsInsideTheConeAndCertifiesOutside) {
+  Eigen::MatrixXd M(2, 3);
+  M << 1, 0, 1,  //
+      0, 1, 1;
+  Eigen::VectorXd b(2);
+  b << 2, 3;  // = 2 e1 + 3 e2 (or e1 + ... : any nonnegative combination)
+  auto in = htfeti::nnls(M, b);
+  ASSERT_TRUE(in.converged);
+  EXPECT_LT(in.r.norm(), 1e-14);
+  EXPECT_GE(in.x.minCoeff(), 0.0);
+  EXPECT_LT((M * in.x - b).norm(), 1e-14);
+  b << -1, 2;  // the nearest point of the cone {x >= 0, y >= 0} is (0, 2)
+  auto out = htfeti::nnls(M, b);
+  ASSERT_TRUE(out.converged);
+  EXPECT_NEAR(out.r[0], -1.0, 1e-14);
+  EXPECT_NEAR(out.r[1], 0.0, 1e-14);
+  EXPECT_LE((M.transpose() * out.r).maxCoeff(), 1e-14);
+  EXPECT_NEAR(b.dot(out.r), out.r.squaredNorm(), 1e-14);
 }

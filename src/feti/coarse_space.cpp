@@ -16,6 +16,7 @@
 #include "dual_setup.hpp"
 #include "htfeti/clock.hpp"
 #include "htfeti/feti/dual_problem.hpp"
+#include "htfeti/linalg/nnls.hpp"
 #include "htfeti/parallel/memory.hpp"
 
 namespace htfeti {
@@ -372,6 +373,76 @@ std::string DualProblem::describe_null(const Eigen::MatrixXd& Z) const {
   const bool one = layout_.num_clusters == layout_.num_subdomains;
   return std::to_string(Z.cols()) + " rigid motion(s) of " +
          (one ? "subdomain(s) " : "cluster(s) ") + s;
+}
+
+// Farkas' lemma on the rigid motions that no equality row restrains (the null space Z of
+// G~_E G~_E^T, the coarse matrix without the contact rows): the dual constraints
+// lambda_I >= 0, G~ lambda = e~ have no solution iff some motion y = Z t opens or keeps every
+// contact (A t <= 0, A = (G~^T Z)_I: B_I u for the rigid u = R~ Z t) while the load does positive
+// work along it (e~^T Z t > 0). Then the energy decreases without bound along y. The certificate
+// t is the residual of min ||A^T mu - Z^T e~||, mu >= 0 (nnls.hpp). Collective; every rank solves
+// the same small problem on the gathered contact rows (ordered by global index).
+std::string DualProblem::unbounded_motion() {
+  if (n_inequalities_ == 0) return "";
+  const int n_own = layout_dual_.n_owned();
+  std::vector<double> weight(n_own, 1.0);
+  for (int k = 0; k < n_own; ++k)
+    if (kind_[k] == MultiplierKind::contact) weight[k] = 0.0;
+  CoarseFactor equalities;
+  try {
+    assemble_coarse(weight, equalities);
+  } catch (const std::runtime_error&) {
+    return "";  // too large for the dense null space (kMaxDenseCoarse): no diagnosis
+  }
+  const Eigen::MatrixXd& Z = equalities.null;
+  const int k = static_cast<int>(Z.cols());
+  if (k == 0) return "";  // every rigid motion restrained by equalities: the QP is feasible
+  // Rows of A at the owned contact multipliers: (global index, k values), gathered to all.
+  std::vector<long long> mine_k;
+  std::vector<double> mine_v;
+  std::vector<Vec> cols(k);
+  for (int j = 0; j < k; ++j) {
+    Vec z = Z.col(j);
+    apply_Gt(z, cols[j]);
+  }
+  for (int e = 0; e < n_own; ++e)
+    if (kind_[e] == MultiplierKind::contact) {
+      mine_k.push_back(layout_dual_.global(e));
+      for (int j = 0; j < k; ++j) mine_v.push_back(cols[j][e]);
+    }
+  const MPI_Comm mc = comm_.raw();
+  const int P = comm_.size();
+  int nmine = static_cast<int>(mine_k.size());
+  std::vector<int> counts(P), disp(P + 1, 0), vcounts(P), vdisp(P + 1, 0);
+  MPI_Allgather(&nmine, 1, MPI_INT, counts.data(), 1, MPI_INT, mc);
+  for (int r = 0; r < P; ++r) {
+    disp[r + 1] = disp[r] + counts[r];
+    vcounts[r] = counts[r] * k;
+    vdisp[r + 1] = vdisp[r] + vcounts[r];
+  }
+  std::vector<long long> all_k(disp[P]);
+  std::vector<double> all_v(vdisp[P]);
+  MPI_Allgatherv(mine_k.data(), nmine, MPI_LONG_LONG, all_k.data(), counts.data(), disp.data(),
+                 MPI_LONG_LONG, mc);
+  MPI_Allgatherv(mine_v.data(), nmine * k, MPI_DOUBLE, all_v.data(), vcounts.data(), vdisp.data(),
+                 MPI_DOUBLE, mc);
+  std::vector<int> order(all_k.size());
+  for (size_t i = 0; i < order.size(); ++i) order[i] = static_cast<int>(i);
+  std::sort(order.begin(), order.end(), [&](int a, int b) { return all_k[a] < all_k[b]; });
+  Eigen::MatrixXd M(k, static_cast<Eigen::Index>(order.size()));  // M = A^T
+  for (size_t c = 0; c < order.size(); ++c)
+    for (int j = 0; j < k; ++j)
+      M(j, static_cast<Eigen::Index>(c)) = all_v[static_cast<size_t>(order[c]) * k + j];
+  const Eigen::VectorXd b = Z.transpose() * e_;
+  if (b.norm() == 0) return "";
+  const NnlsResult fit = nnls(M, b);
+  // Bounded iff the contact forces can balance the load on those motions (r = 0 to round-off).
+  if (fit.r.norm() <= 1e-8 * b.norm()) return "";
+  const Eigen::MatrixXd y = Z * (fit.r / fit.r.norm());
+  return "the problem has no solution: the load moves " + describe_null(y) +
+         " away from every contact (no Dirichlet condition holds them and no obstacle stops "
+         "them: the energy decreases without bound); add a Dirichlet condition, an obstacle on "
+         "the other side, or reverse the load";
 }
 
 }  // namespace htfeti

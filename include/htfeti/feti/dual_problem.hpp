@@ -213,6 +213,12 @@ class DualProblem {
   /// Lower bounds on the owned multipliers: 0 on contact rows, -infinity elsewhere.
   const Vec& lower_bounds() const { return lower_; }
   bool has_inequalities() const { return n_inequalities_ > 0; }
+  /// Why a contact problem has no solution, or "" when it has one (or the check cannot be made:
+  /// a coarse dimension over kMaxDenseCoarse): a rigid motion restrained by no equality that
+  /// opens every contact it touches while the load does work along it (Farkas' lemma on the
+  /// coarse space; coarse_space.cpp). Costs one coarse factorization (dense when singular);
+  /// called when SMALBE-M did not converge. Collective.
+  std::string unbounded_motion();
 
   /// Primal solution u = K~^+ (f - B~^T lambda) + R~ alpha, with alpha chosen so that the
   /// equality rows and the contact rows with lambda_i > 0 hold in the least-squares sense

@@ -2,6 +2,7 @@
 // docs/user-guide.md "Exit codes").
 #pragma once
 
+#include <new>
 #include <stdexcept>
 #include <string>
 
@@ -19,6 +20,35 @@ class NonFiniteError : public std::runtime_error {
 class IoError : public std::runtime_error {
  public:
   explicit IoError(const std::string& what) : std::runtime_error(what) {}
+};
+
+/// The first failure inside an OpenMP loop, kept for after the loop (no exception may leave the
+/// region): rethrow() throws std::bad_alloc for out of memory (so the program still reports "out
+/// of memory", exit 2, and not the text "std::bad_alloc" as a numerical failure),
+/// std::invalid_argument for an input error, std::runtime_error with the message otherwise.
+class RegionError {
+ public:
+  /// Call from a catch block inside the region (thread-safe); prefix goes before the message.
+  void record(const std::exception& e, const std::string& prefix = "") {
+    const bool oom = dynamic_cast<const std::bad_alloc*>(&e) != nullptr;
+    const bool input = dynamic_cast<const std::invalid_argument*>(&e) != nullptr;
+#pragma omp critical(htfeti_region_error)
+    {
+      message_ = prefix + e.what(), oom_ = oom_ || oom, input_ = input;
+      failed_ = true;
+    }
+  }
+  bool failed() const { return failed_; }
+  void rethrow() const {
+    if (!failed_) return;
+    if (oom_) throw std::bad_alloc();
+    if (input_) throw std::invalid_argument(message_);
+    throw std::runtime_error(message_);
+  }
+
+ private:
+  std::string message_;
+  bool oom_ = false, input_ = false, failed_ = false;
 };
 
 }  // namespace htfeti

@@ -9,6 +9,7 @@
 #include <string>
 
 #include "htfeti/clock.hpp"
+#include "htfeti/errors.hpp"
 
 namespace htfeti {
 
@@ -54,7 +55,7 @@ Cluster::Cluster(int id, std::vector<Subdomain*> subs, std::vector<std::vector<C
   } else {
     dual_ = std::make_unique<ImplicitClusterOperator>(*this, std::move(b), nmult);
   }
-  std::string error;
+  RegionError failure;
   // Parallel over the cluster's subdomains when the caller is not already parallel (few large
   // clusters per rank); nested inside a parallel loop over clusters this runs serially.
 #pragma omp parallel for schedule(dynamic) if (!omp_in_parallel() && s > 1)
@@ -73,11 +74,10 @@ Cluster::Cluster(int id, std::vector<Subdomain*> subs, std::vector<std::vector<C
         subs_[i]->factorize(ordering, cache);
       }
     } catch (const std::exception& e) {
-#pragma omp critical
-      error = "subdomain " + std::to_string(subs_[i]->id()) + ": " + e.what();
+      failure.record(e, "subdomain " + std::to_string(subs_[i]->id()) + ": ");
     }
   }
-  if (!error.empty()) throw std::runtime_error(error);
+  failure.rethrow();
 
   const double t0 = seconds_now();
   beta_offset_.assign(s + 1, 0);
@@ -228,7 +228,7 @@ void Cluster::release_factors() {
 
 void Cluster::refactor(Ordering ordering, SubdomainCache* cache, bool as_setup) {
   const int s = static_cast<int>(subs_.size());
-  std::string error;
+  RegionError failure;
 #pragma omp parallel for schedule(dynamic) if (!omp_in_parallel() && s > 1)
   for (int i = 0; i < s; ++i) {
     try {
@@ -238,11 +238,10 @@ void Cluster::refactor(Ordering ordering, SubdomainCache* cache, bool as_setup) 
         subs_[i]->factorize(ordering, cache);
       subs_[i]->release_matrix();
     } catch (const std::exception& e) {
-#pragma omp critical
-      error = e.what();
+      failure.record(e);
     }
   }
-  if (!error.empty()) throw std::runtime_error(error);
+  failure.rethrow();
 }
 
 long Cluster::explicit_bytes() const { return dual_->bytes(); }

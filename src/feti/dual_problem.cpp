@@ -16,6 +16,7 @@
 
 #include "dual_setup.hpp"
 #include "htfeti/clock.hpp"
+#include "htfeti/errors.hpp"
 #include "htfeti/parallel/key_numbering.hpp"
 #include "htfeti/parallel/memory.hpp"
 
@@ -136,8 +137,7 @@ void DualProblem::assemble_subdomains(const std::function<SubdomainInput(int)>& 
       // Each K_i goes to the cache as soon as it is assembled: a cluster's members are all made
       // before its primal constraints, and held unpooled they would all be in memory at once.
       std::vector<std::shared_ptr<const SubdomainCache::Matrix>> pooled(ms);
-      std::string inner_error;
-      bool inner_input = false;
+      RegionError inner_failure;
 #pragma omp parallel for schedule(dynamic) if (!omp_in_parallel() && ms > 1)
       for (int i = 0; i < ms; ++i) {
         try {
@@ -154,18 +154,11 @@ void DualProblem::assemble_subdomains(const std::function<SubdomainInput(int)>& 
             for (int k = 0; k < in[i].sharing.num_nodes(); ++k)
               nc.push_back(in[i].sharing.num_copies(k));
           }
-        } catch (const std::invalid_argument& e) {
-#pragma omp critical
-          inner_error = e.what(), inner_input = true;
         } catch (const std::exception& e) {
-#pragma omp critical
-          inner_error = e.what();
+          inner_failure.record(e);
         }
       }
-      if (!inner_error.empty()) {
-        if (inner_input) throw std::invalid_argument(inner_error);
-        throw std::runtime_error(inner_error);
-      }
+      inner_failure.rethrow();
       std::vector<const SubdomainInput*> ptrs;
       for (auto& x : in) ptrs.push_back(&x);
       primal[c] = cluster_primal_constraints(layout_, first_cluster_ + c, ptrs);
@@ -443,7 +436,7 @@ void DualProblem::set_up_clusters(Setup& st) {
       b_of_x(c);
       if (precond_kind_ != PreconditionerKind::none) {  // from K_i, before it is freed
         const double tp = seconds_now();
-        std::string perr;
+        RegionError perr;
 #pragma omp parallel for schedule(dynamic) if (!omp_in_parallel() && members(c) > 1)
         for (int i = 0; i < members(c); ++i) {
           const int s = sub_of(c, i);
@@ -455,11 +448,10 @@ void DualProblem::set_up_clusters(Setup& st) {
                 K, std::move(interface[s]), precond_kind_, precond_dense_, ordering_,
                 &subs_[s]->kernel(), factor_cache());
           } catch (const std::exception& e) {
-#pragma omp critical
-            perr = e.what();
+            perr.record(e);
           }
         }
-        if (!perr.empty()) throw std::runtime_error(perr);
+        perr.rethrow();
 #pragma omp atomic
         setup_.preconditioner += seconds_now() - tp;
       }

@@ -11,6 +11,7 @@
 #include <stdexcept>
 
 #include "htfeti/clock.hpp"
+#include "htfeti/errors.hpp"
 #include "htfeti/feti/dual_problem.hpp"
 #include "htfeti/parallel/memory.hpp"
 
@@ -20,17 +21,16 @@ namespace htfeti {
 template <class Body>
 void DualProblem::for_each_cluster(Body body) {
   const int nc = static_cast<int>(clusters_.size());
-  std::string error;
+  RegionError failure;
 #pragma omp parallel for schedule(dynamic) if (outer_parallel_)
   for (int c = 0; c < nc; ++c) {
     try {
       body(c);
     } catch (const std::exception& e) {
-#pragma omp critical
-      error = e.what();
+      failure.record(e);
     }
   }
-  if (!error.empty()) throw std::runtime_error(error);
+  failure.rethrow();
 }
 
 void DualProblem::apply_B(const std::vector<Vec>& u, Vec& out) {
@@ -46,6 +46,7 @@ std::vector<DualProblem::Vec> DualProblem::reconstruct(const Vec& lambda) {
   gather_to_ext(lambda);
   std::vector<Vec> u(subs_.size());
   std::string error;
+  bool input_error = false;
   try {
     for_each_cluster([&](int c) {
       // Freed factors are rebuilt plain (ordering_, no interface last): solve() is all the
@@ -57,10 +58,12 @@ std::vector<DualProblem::Vec> DualProblem::reconstruct(const Vec& lambda) {
       for (int i = 0; i < members(c); ++i) u[sub_of(c, i)] = x_[c][i];
       if (released_[c]) clusters_[c]->release_factors();
     });
+  } catch (const std::bad_alloc&) {
+    error = "out of memory in the reconstruction", input_error = true;
   } catch (const std::exception& e) {
     error = e.what();
   }
-  comm_.agree(error);
+  comm_.agree(error, input_error);
   // B u0 = d + c - F lambda; alpha solves G~ D G~^T alpha = G~ D (c - B u0), D masking the
   // contact rows with lambda_i = 0 (paper, (10)).
   Vec r;

@@ -2,6 +2,8 @@
 // docs/user-guide.md "Exit codes").
 #pragma once
 
+#include <cstdlib>
+#include <cstring>
 #include <new>
 #include <stdexcept>
 #include <string>
@@ -21,6 +23,21 @@ class IoError : public std::runtime_error {
  public:
   explicit IoError(const std::string& what) : std::runtime_error(what) {}
 };
+
+/// A test hook: with HTFETI_INJECT_FAILURE="<stage>:<rank>" in the environment, the named rank
+/// throws std::bad_alloc at that stage of the setup (assembly, factorization) or in the
+/// reconstruction, as if an allocation had failed there on that rank alone; the tests check that
+/// every rank then ends with "out of memory" (exit 2) and none waits for the others
+/// (Cli.AllocationFailureOnOneRankEndsEveryRank). Not for users; read once per call.
+inline void inject_failure(const char* stage, int rank) {
+  const char* v = std::getenv("HTFETI_INJECT_FAILURE");
+  if (!v) return;
+  const char* colon = std::strchr(v, ':');
+  if (!colon || static_cast<size_t>(colon - v) != std::strlen(stage) ||
+      std::strncmp(v, stage, std::strlen(stage)) != 0)
+    return;
+  if (std::atoi(colon + 1) == rank) throw std::bad_alloc();
+}
 
 /// The first failure inside an OpenMP loop, kept for after the loop (no exception may leave the
 /// region): rethrow() throws std::bad_alloc for out of memory (so the program still reports "out

@@ -141,6 +141,7 @@ void DualProblem::assemble_subdomains(const std::function<SubdomainInput(int)>& 
 #pragma omp parallel for schedule(dynamic) if (!omp_in_parallel() && ms > 1)
       for (int i = 0; i < ms; ++i) {
         try {
+          if (c == 0 && i == 0) inject_failure("assembly", comm_.rank());
           SubdomainInput made = make_input(layout_.cluster_first[first_cluster_ + c] + i);
           Eigen::SparseMatrix<double> K;  // moved by swap: Eigen's SparseMatrix copies on move
           K.swap(made.system.K);
@@ -427,6 +428,7 @@ void DualProblem::set_up_clusters(Setup& st) {
       nmult.push_back(static_cast<int>(mult_[s].size()));
     }
     try {
+      if (c == 0) inject_failure("factorization", comm_.rank());
       clusters_[c] = std::make_unique<Cluster>(
           first_cluster_ + c, std::move(ptrs), std::move(primal[c]), ordering_, std::move(b),
           std::move(nmult), explicit_, factor_cache(), options.explicit_precision);

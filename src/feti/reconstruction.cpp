@@ -49,6 +49,7 @@ std::vector<DualProblem::Vec> DualProblem::reconstruct(const Vec& lambda) {
   bool input_error = false;
   try {
     for_each_cluster([&](int c) {
+      if (c == 0) inject_failure("reconstruction", comm_.rank());
       // Freed factors are rebuilt plain (ordering_, no interface last): solve() is all the
       // reconstruction needs, and that factor is cheaper (docs/method.md); u then
       // agrees with the kept factors' u to round-off.

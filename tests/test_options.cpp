@@ -43,7 +43,7 @@ std::string other_value(const OptionSpec& o, const nlohmann::json& def) {
     case OptionType::integer:
       return def.get<long long>() == 1 ? "2" : "1";
     case OptionType::number:
-      for (const char* c : {"0.5", "1.5", "3.0"}) {  // the first the row accepts
+      for (const char* c : {"0.5", "1.5", "3.0", "1e-4"}) {  // the first the row accepts
         RunOptions scratch;
         try {
           o.set(scratch, parse_option_text(o, c));

@@ -436,8 +436,9 @@ std::string DualProblem::unbounded_motion() {
   const Eigen::VectorXd b = Z.transpose() * e_;
   if (b.norm() == 0) return "";
   const NnlsResult fit = nnls(M, b);
-  // Bounded iff the contact forces can balance the load on those motions (r = 0 to round-off).
-  if (fit.r.norm() <= 1e-8 * b.norm()) return "";
+  // Bounded iff the contact forces can balance the load on those motions (r = 0 to round-off);
+  // an NNLS that did not finish proves nothing, and nothing is claimed.
+  if (!fit.converged || fit.r.norm() <= 1e-8 * b.norm()) return "";
   const Eigen::MatrixXd y = Z * (fit.r / fit.r.norm());
   return "the problem has no solution: the load moves " + describe_null(y) +
          " away from every contact (no Dirichlet condition holds them and no obstacle stops "

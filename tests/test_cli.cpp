@@ -904,9 +904,10 @@ TEST_F(Cli, ContactProblemWithoutSolutionIsRefused) {
 // An allocation failing on one rank alone ends every rank with "out of memory" (exit 2), nothing
 // written, within the test's timeout: the failure is agreed on by all ranks (reliability round 3:
 // no hang in any failure path). Injected (HTFETI_INJECT_FAILURE, errors.hpp) on the last rank of
-// 2 and 3 in the assembly, the factorization and the reconstruction, and on one rank alone.
+// 2 and 3 in the assembly, the factorization, the coarse factor and the reconstruction, and on
+// one rank alone.
 TEST_F(Cli, AllocationFailureOnOneRankEndsEveryRank) {
-  for (const char* stage : {"assembly", "factorization", "reconstruction"})
+  for (const char* stage : {"assembly", "factorization", "coarse", "reconstruction"})
     for (int ranks : {1, 2, 3}) {
       const std::string what = std::string(stage) + " on rank " + std::to_string(ranks - 1) +
                                " of " + std::to_string(ranks);

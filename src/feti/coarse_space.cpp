@@ -15,6 +15,7 @@
 
 #include "dual_setup.hpp"
 #include "htfeti/clock.hpp"
+#include "htfeti/errors.hpp"
 #include "htfeti/feti/dual_problem.hpp"
 #include "htfeti/linalg/nnls.hpp"
 #include "htfeti/parallel/memory.hpp"
@@ -319,7 +320,7 @@ void DualProblem::assemble_coarse(const std::vector<double>& weight, CoarseFacto
   factor.sparse = SparseCholesky(Ordering::amd);
   factor.use_dense = false;
   factor.null.resize(0, 0);
-  bool singular = false;
+  bool singular = false, oom = false;
   {
     // BLAS on one thread: called outside a parallel region, OpenBLAS's OpenMP flavour would
     // use every thread, and its threaded blocks round differently per thread count (the coarse
@@ -328,12 +329,18 @@ void DualProblem::assemble_coarse(const std::vector<double>& weight, CoarseFacto
     const int threads = omp_get_max_threads();
     omp_set_num_threads(1);
     try {
+      inject_failure("coarse", comm_.rank());
       factor.sparse.factorize(GGt);
+    } catch (const std::bad_alloc&) {
+      oom = true;  // this rank alone, maybe: agreed on below
     } catch (const std::exception&) {
       singular = true;  // the same on every rank: every rank factors the same matrix
     }
     omp_set_num_threads(threads);
   }
+  // Every rank factors the same matrix, so a singular one is singular everywhere; running out of
+  // memory is not, and is agreed on before the ranks' paths could part.
+  comm_.agree(oom ? "out of memory while factoring the coarse problem" : "", true);
   if (!singular) return;
   const int nc = coarse_dimension();
   if (nc > kMaxDenseCoarse)
@@ -341,16 +348,21 @@ void DualProblem::assemble_coarse(const std::vector<double>& weight, CoarseFacto
         "the coarse problem G G^T is singular: some rigid motion of a subdomain or cluster is "
         "restrained by no Dirichlet condition or contact row (coarse dimension " +
         std::to_string(nc) + " is too large to name it)");
-  const Eigen::MatrixXd upper(GGt);  // entries (a, b) with a <= b
-  Eigen::MatrixXd A = upper.selfadjointView<Eigen::Upper>();
-  Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(A);
-  const auto& ev = eig.eigenvalues();
-  const double top = std::max(ev.cwiseAbs().maxCoeff(), 1e-300);
-  int nnull = 0;
-  while (nnull < nc && ev[nnull] <= 1e-10 * top) ++nnull;
-  factor.null = eig.eigenvectors().leftCols(nnull);
-  A.noalias() += factor.null * factor.null.transpose();
-  factor.dense.compute(A);
+  try {
+    const Eigen::MatrixXd upper(GGt);  // entries (a, b) with a <= b
+    Eigen::MatrixXd A = upper.selfadjointView<Eigen::Upper>();
+    Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(A);
+    const auto& ev = eig.eigenvalues();
+    const double top = std::max(ev.cwiseAbs().maxCoeff(), 1e-300);
+    int nnull = 0;
+    while (nnull < nc && ev[nnull] <= 1e-10 * top) ++nnull;
+    factor.null = eig.eigenvectors().leftCols(nnull);
+    A.noalias() += factor.null * factor.null.transpose();
+    factor.dense.compute(A);
+  } catch (const std::bad_alloc&) {
+    oom = true;
+  }
+  comm_.agree(oom ? "out of memory while factoring the singular coarse problem densely" : "", true);
   factor.use_dense = true;
   if (factor.dense.info() != Eigen::Success)
     throw std::runtime_error("the coarse problem G G^T could not be factored");

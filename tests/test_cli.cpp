@@ -925,3 +925,21 @@ TEST_F(Cli, AllocationFailureOnOneRankEndsEveryRank) {
       fs::remove("r.json"), fs::remove("u.vtu"), fs::remove("u.pvtu");
     }
 }
+
+// PCG asked for more than round-off allows (issue 28): on a coefficient jump of 1e4 with the
+// Dirichlet preconditioner its residual reaches about 3e-11 of ||P d|| and then grows again. It
+// stops when the residual has grown a thousandfold (exit 3, stop_reason "diverged") and returns
+// the iterate with the smallest residual, instead of running to the iteration limit and returning
+// the last, 1e-6 off.
+TEST_F(Cli, PcgReturnsItsBestIterateWhenRoundOffTakesOver) {
+  ASSERT_EQ(run(bin + " solve " + std::string(HTFETI_SOURCE_DIR) +
+                "/examples/heterogeneous.toml --rtol 1e-13 --no-vtu --report r.json"),
+            3)
+      << stderr_text();
+  std::ifstream f("r.json");
+  const auto r = nlohmann::json::parse(f);
+  EXPECT_EQ(r["stop_reason"], "diverged");
+  EXPECT_LT(r["outer_iterations"].get<int>(), 1000);
+  const auto& s = r["solver"];
+  EXPECT_LT(s["projected_residual"].get<double>(), 1e-9 * s["projected_rhs"].get<double>());
+}

@@ -1,5 +1,6 @@
 #include "htfeti/qp/pcg.hpp"
 
+#include <limits>
 #include <stdexcept>
 
 namespace htfeti::qp {
@@ -16,6 +17,14 @@ PcgResult projected_cg(const QuadraticProgram& qp, Vec& x, const Reducer& red,
   PcgResult res;
   const Eigen::Index n = b.size();
   Vec r(n), w(n), p(n), q(n), z(Z ? n : 0);
+  Vec best(n);  // the iterate with the smallest projected residual so far
+  double best_residual = std::numeric_limits<double>::infinity();
+  // Ends a run that cannot improve: the iterate with the smallest residual, and that residual.
+  const auto take_best = [&](StopReason why) {
+    res.reason = why;
+    if (best_residual < res.projected_residual) x = best, res.projected_residual = best_residual;
+    return res;
+  };
   P.apply(b, w);
   res.projected_rhs = red.norm(w);
   const double tol = opt.rtol * (res.projected_rhs > 0 ? res.projected_rhs : 1.0);
@@ -39,10 +48,13 @@ PcgResult projected_cg(const QuadraticProgram& qp, Vec& x, const Reducer& red,
       res.reason = StopReason::converged;
       return res;
     }
-    if (it >= opt.max_iterations) {
-      res.reason = StopReason::max_iterations;
-      return res;
+    if (res.projected_residual < best_residual) {
+      best_residual = res.projected_residual;
+      best = x;
+    } else if (res.projected_residual > kDivergence * best_residual) {
+      return take_best(StopReason::diverged);
     }
+    if (it >= opt.max_iterations) return take_best(StopReason::max_iterations);
     if (!(wz > 0)) {  // a preconditioner that is not positive definite on Ker G
       res.reason = StopReason::breakdown;
       return res;

@@ -71,7 +71,9 @@ class SerialReducer final : public Reducer {
 };
 
 /// Why a solver stopped. Non-convergence is a result, not an exception.
-enum class StopReason { converged, max_iterations, breakdown };
+/// diverged: PCG's residual grew a thousandfold above the smallest it had reached (round-off has
+/// taken over; the iterate with the smallest residual is returned).
+enum class StopReason { converged, max_iterations, breakdown, diverged };
 inline std::string to_string(StopReason r) {
   switch (r) {
     case StopReason::converged:
@@ -80,6 +82,8 @@ inline std::string to_string(StopReason r) {
       return "max_iterations";
     case StopReason::breakdown:
       return "breakdown";
+    case StopReason::diverged:
+      return "diverged";
   }
   return "?";
 }

@@ -560,14 +560,13 @@ SolveOutput solve(std::shared_ptr<const Model> model_ptr, const SolveOptions& op
       std::fprintf(stderr, "  it %5d  ||P r||/||P b|| %.3e  %.2f s\n", it, gp,
                    seconds_now() - t_solve);
   };
-  const QpSolve qs = dual.has_inequalities()
-                         ? solve_with_contact(dual, ops, lambda, options, red, progress, merged)
-                         : solve_without_contact(dual, ops, lambda, options, red, progress);
+  const QpSolve qs = contact ? solve_with_contact(dual, ops, lambda, options, red, progress, merged)
+                             : solve_without_contact(dual, ops, lambda, options, red, progress);
   t_solve = seconds_now() - t_solve;
   const double peak_mb_solve = peak_rss_mb();
   // A contact solve that did not converge may have had no solution to find: a body the load
   // pulls away from its obstacles. Then the input is at fault (exit 2), not the solver.
-  if (!qs.converged && dual.has_inequalities()) {
+  if (!qs.converged && contact) {
     const std::string why = dual.unbounded_motion();
     if (!why.empty()) throw std::invalid_argument(why);
   }

@@ -32,14 +32,11 @@ SmalbeResult smalbe(const QuadraticProgram& qp, double normA, Vec& x, const Redu
   // tol = max(rtol ||b||, kRoundoffFloor eps (||b|| + ||A|| ||lambda||)), all in the units of b.
   const double floor_rel = kRoundoffFloor * std::numeric_limits<double>::epsilon();
   const bool shifted = qp.shift.size() == n;
-  Vec lam(n);
+  Vec lam(shifted ? n : 0);         // lambda = shift + x (x itself without a shift)
   double grad_tol = 0, eq_tol = 0;  // eq_tol = grad_tol / ||A||: ||G x||'s bound, units of x
   const auto set_tolerances = [&]() {
-    if (shifted)
-      lam = qp.shift + x;
-    else
-      lam = x;
-    res.multiplier_norm = red.norm(lam);
+    if (shifted) lam = qp.shift + x;
+    res.multiplier_norm = red.norm(shifted ? lam : x);
     const double floor = floor_rel * (res.rhs_norm + normA * res.multiplier_norm);
     grad_tol = std::max(opt.rtol * bnorm, floor);
     eq_tol = grad_tol / normA;

@@ -463,12 +463,48 @@ int run(int argc, char** argv, const Comm& comm) {
   return out.converged ? 0 : 3;
 }
 
+// Every rank leaves through here. A failure that one rank saw alone, outside an agreement (an
+// allocation that failed between two collectives, say), leaves the other ranks waiting for it in
+// a collective they will never complete. So the ranks meet in a barrier on a communicator of
+// their own before they finish: when every rank arrives (a success, or a failure agreed on or
+// seen by all alike) the run ends normally; when a rank that failed has waited kExitWaitSeconds
+// for the others, it prints its message and ends the whole job with its exit code (MPI_Abort).
+// A rank that succeeded waits: any rank that keeps it waiting is one that failed and will end
+// the job. (Cli.AddressSpaceLimitEndsEveryRankWithoutHanging.)
+constexpr double kExitWaitSeconds = 10;
+
+void meet_at_exit(MPI_Comm exit_comm, int code, const std::string& failure) {
+  int size = 1, rank = 0;
+  MPI_Comm_size(exit_comm, &size);
+  MPI_Comm_rank(exit_comm, &rank);
+  if (size == 1) return;
+  MPI_Request request;
+  MPI_Ibarrier(exit_comm, &request);
+  const double t0 = seconds_now();
+  for (int done = 0;;) {
+    MPI_Test(&request, &done, MPI_STATUS_IGNORE);
+    if (done) return;
+    if (code != 0 && seconds_now() - t0 > kExitWaitSeconds) {
+      std::fprintf(
+          stderr,
+          "htfeti: error on rank %d: %s (the other ranks did not reach the end within "
+          "%.0f s: ending the job)\n",
+          rank, failure.empty() ? ("exit code " + std::to_string(code)).c_str() : failure.c_str(),
+          kExitWaitSeconds);
+      std::fflush(stderr);
+      MPI_Abort(MPI_COMM_WORLD, code);
+    }
+    usleep(1000);
+  }
+}
+
 }  // namespace
 
 // Exit codes: 0 solved, 2 bad input (or it does not fit), 3 not converged (the report is
 // written), 4 a numerical failure, 5 a value that is not finite (an overflow), 6 an output
 // that could not be written (nothing is left behind). Errors raised by the library are agreed on by
-// every rank, so every rank leaves through the same path; anything else aborts the MPI job.
+// every rank, so every rank leaves through the same path; a failure one rank saw alone ends the
+// job after kExitWaitSeconds (meet_at_exit); anything else aborts the MPI job.
 int main(int argc, char** argv) {
   // Blocks of 1 MiB and more (matrices, factors, dense blocks) are mapped and unmapped
   // directly. glibc's default raises this threshold to the largest block freed so far, after
@@ -481,26 +517,31 @@ int main(int argc, char** argv) {
   int provided = 0;
   MPI_Init_thread(&argc, &argv, MPI_THREAD_FUNNELED, &provided);
   init_threads();
+  MPI_Comm exit_comm;
+  MPI_Comm_dup(MPI_COMM_WORLD, &exit_comm);
   int code = 0;
+  std::string failure;
   {
     const Comm comm(MPI_COMM_WORLD);
     try {
       code = run(argc, argv, comm);
     } catch (const std::invalid_argument& e) {
-      code = fail(comm, e.what(), 2);
+      code = fail(comm, failure = e.what(), 2);
     } catch (const std::bad_alloc&) {
-      code = fail(comm, "out of memory", 2);
+      code = fail(comm, failure = "out of memory", 2);
     } catch (const NonFiniteError& e) {
-      code = fail(comm, e.what(), 5);
+      code = fail(comm, failure = e.what(), 5);
     } catch (const IoError& e) {
-      code = fail(comm, e.what(), 6);
+      code = fail(comm, failure = e.what(), 6);
     } catch (const std::runtime_error& e) {
-      code = fail(comm, e.what(), 4);
+      code = fail(comm, failure = e.what(), 4);
     } catch (const std::exception& e) {
       std::fprintf(stderr, "htfeti: internal error on rank %d: %s\n", comm.rank(), e.what());
       MPI_Abort(MPI_COMM_WORLD, 1);
     }
   }
+  meet_at_exit(exit_comm, code, failure);
+  MPI_Comm_free(&exit_comm);
   MPI_Finalize();
   return code;
 }

@@ -3,11 +3,16 @@
 
 #include <cstdio>
 #include <nlohmann/json.hpp>
+#include <stdexcept>
 #include <string>
+
+#include "htfeti/parallel/blas_buffers.hpp"
 
 namespace htfeti {
 
 int run_spectrum(int m, int n, const std::string& element, bool json) {
+  if (const std::string error = reserve_blas_buffers(); !error.empty())
+    throw std::invalid_argument(error);
   const ClusterSpectrum s = cluster_spectrum(m, n, parse_element(element));
   if (json) {
     nlohmann::json j = {{"m", s.m},

@@ -15,6 +15,7 @@
 #include "htfeti/feti/dual_reducer.hpp"
 #include "htfeti/memory_estimate.hpp"
 #include "htfeti/options.hpp"
+#include "htfeti/parallel/blas_buffers.hpp"
 #include "htfeti/parallel/memory.hpp"
 #include "htfeti/qp/pcg.hpp"
 #include "htfeti/qp/power_norm.hpp"
@@ -491,6 +492,7 @@ SolveOutput solve(const SolveOptions& options, const Comm& comm) {
 SolveOutput solve(std::shared_ptr<const Model> model_ptr, const SolveOptions& options,
                   const Comm& comm) {
   validate_solver(options);
+  comm.agree(reserve_blas_buffers(), true);  // before anything fills the address space
   SolveOutput out;
   out.model = std::move(model_ptr);
   const Model& model = *out.model;

@@ -926,6 +926,38 @@ TEST_F(Cli, AllocationFailureOnOneRankEndsEveryRank) {
     }
 }
 
+// An address-space limit (ulimit -v) on every rank (issue 29, #2): OpenBLAS retried its work
+// buffer's mapping forever once the limit was reached, and both ranks hung at any problem size.
+// Over a sweep of limits from below what the program maps at its start to enough for the
+// solve, every run ends within the timeout with exit 0, or with exit 2 and a message that says
+// so (the limit named, or "out of memory"), and leaves no output behind.
+TEST_F(Cli, AddressSpaceLimitEndsEveryRankWithoutHanging) {
+  int refused = 0, solved = 0;
+  for (int mib = 600; mib <= 1400; mib += 100) {
+    const std::string cmd = "ulimit -v " + std::to_string(mib * 1024) + " && timeout 120 " +
+                            mpiexec + " -n 2 " + bin +
+                            " solve --problem membranes -n 1024 --subdomains 8 --report r.json "
+                            "--vtu u.vtu";
+    const int code = run("sh -c '" + cmd + "'");
+    const std::string what = std::to_string(mib) + " MiB: " + stderr_text();
+    ASSERT_TRUE(code == 0 || code == 2) << "exit " << code << " at " << what;
+    if (code == 2) {
+      ++refused;
+      EXPECT_TRUE(stderr_text().find("out of memory") != std::string::npos ||
+                  stderr_text().find("address-space limit (ulimit -v") != std::string::npos)
+          << what;
+      EXPECT_FALSE(fs::exists("r.json")) << what;
+      EXPECT_FALSE(fs::exists("u.pvtu")) << what;
+    } else {
+      ++solved;
+    }
+    fs::remove("r.json"), fs::remove("u.pvtu");
+    for (int r = 0; r < 2; ++r) fs::remove("u_" + std::to_string(r) + ".vtu");
+  }
+  EXPECT_GT(refused, 0);  // (the lowest limit is below what MPI and the libraries map)
+  std::printf("address-space sweep: %d refused, %d solved\n", refused, solved);
+}
+
 // PCG asked for more than round-off allows (issue 28): on a coefficient jump of 1e4 with the
 // Dirichlet preconditioner its residual reaches about 3e-11 of ||P d|| and then grows again. It
 // stops when the residual has grown a thousandfold (exit 3, stop_reason "diverged") and returns

@@ -13,6 +13,17 @@ extern "C" void dpotri_(const char* uplo, const int* n, double* a, const int* ld
 
 namespace htfeti {
 
+namespace {
+// A CHOLMOD call failed: out of memory (CHOLMOD_OUT_OF_MEMORY, or CHOLMOD_TOO_LARGE for a size
+// beyond its integers) is std::bad_alloc, so the run ends with "out of memory" (exit 2) as any
+// other allocation failure; anything else is a numerical failure with the status in the message.
+[[noreturn]] void cholmod_failed(const cholmod_common& c, const char* what) {
+  if (c.status == CHOLMOD_OUT_OF_MEMORY || c.status == CHOLMOD_TOO_LARGE) throw std::bad_alloc();
+  throw std::runtime_error(std::string(what) + " (CHOLMOD status " + std::to_string(c.status) +
+                           ")");
+}
+}  // namespace
+
 Ordering parse_ordering(const std::string& name) {
   return parse_name(kOrderingNames, name, "ordering");
 }
@@ -287,7 +298,7 @@ static cholmod_factor* analyze_with_last(cholmod_sparse& view,
   if (method == 0) {
     // Constrained AMD: set 0 first, then set 1 (`last`).
     if (!cholmod_camd(&view, nullptr, 0, cmember.data(), perm.data(), &c))
-      throw std::runtime_error("CHOLMOD: constrained ordering failed");
+      cholmod_failed(c, "CHOLMOD: constrained ordering failed");
   } else {
     // METIS nested dissection of the rows not in `last`, then `last`.
     std::vector<int> inner, index(n, -1);
@@ -305,8 +316,10 @@ static cholmod_factor* analyze_with_last(cholmod_sparse& view,
     std::vector<int> pi(ni);
     if (ni > 0) {
       std::lock_guard<std::mutex> lock(metis_mutex);
-      if (!cholmod_metis(&vi, nullptr, 0, 1, pi.data(), &c))
-        throw std::runtime_error("CHOLMOD: METIS ordering failed");
+      // The matrix is a valid symmetric pattern built here, so METIS fails only when its own
+      // allocations do (it reports METIS_ERROR, which CHOLMOD passes on as CHOLMOD_INVALID):
+      // out of memory, as measured under an address-space limit.
+      if (!cholmod_metis(&vi, nullptr, 0, 1, pi.data(), &c)) throw std::bad_alloc();
     }
     int k = 0;
     for (int q = 0; q < ni; ++q) perm[k++] = inner[pi[q]];
@@ -333,7 +346,7 @@ static cholmod_factor* analyze_with_last(cholmod_sparse& view,
   c.nmethods = saved_nmethods;
   c.method[0].ordering = saved_ordering;
   c.postorder = saved_postorder;
-  if (!factor) throw std::runtime_error("CHOLMOD analysis failed");
+  if (!factor) cholmod_failed(c, "CHOLMOD analysis failed");
   return factor;
 }
 
@@ -384,6 +397,7 @@ void SparseCholesky::factorize_impl(const Eigen::SparseMatrix<double>& A,
       e->numeric = impl_->shared;
     } else {
       e->L = cholmod_copy_factor(impl_->factor, &e->common);
+      if (!e->L) throw std::bad_alloc();
     }
     return e;
   };
@@ -455,7 +469,7 @@ void SparseCholesky::factorize_impl(const Eigen::SparseMatrix<double>& A,
   } else {
     impl_->factor = cholmod_analyze(&view, &c);
   }
-  if (!impl_->factor) throw std::runtime_error("CHOLMOD analysis failed");
+  if (!impl_->factor) cholmod_failed(c, "CHOLMOD analysis failed");
   if (cache && !reused) {
     std::lock_guard<std::mutex> lock(cache->mutex_);
     bool known = false;  // another thread may have added the same pattern meanwhile
@@ -470,7 +484,7 @@ void SparseCholesky::factorize_impl(const Eigen::SparseMatrix<double>& A,
   cholmod_factorize(&view, impl_->factor, &c);
   if (c.status == CHOLMOD_NOT_POSDEF || impl_->factor->minor < impl_->factor->n)
     throw std::runtime_error("CHOLMOD: matrix is not positive definite");
-  if (c.status < 0) throw std::runtime_error("CHOLMOD factorization failed");
+  if (c.status < 0) cholmod_failed(c, "CHOLMOD factorization failed");
   impl_->n = static_cast<int>(A.rows());
   cholmod_free_work(&c);  // the analysis workspace is O(n) per factor: do not keep it
   const auto t2 = clock::now();
@@ -511,7 +525,7 @@ void SparseCholesky::solve(const double* b, double* out) {
   rhs.dtype = CHOLMOD_DOUBLE;
   if (!cholmod_solve2(CHOLMOD_A, impl_->factor, &rhs, nullptr, &impl_->x, nullptr, &impl_->y,
                       &impl_->e, &c))
-    throw std::runtime_error("CHOLMOD solve failed");
+    cholmod_failed(c, "CHOLMOD solve failed");
   std::memcpy(out, impl_->x->x, sizeof(double) * impl_->n);
 }
 
@@ -557,7 +571,7 @@ void SparseCholesky::solve_many(double* X, int ncols) {
   cholmod_free_dense(&x, &c);
   cholmod_free_dense(&y, &c);
   cholmod_free_dense(&e, &c);
-  if (!ok) throw std::runtime_error("CHOLMOD solve failed");
+  if (!ok) cholmod_failed(c, "CHOLMOD solve failed");
   if (slot) {
     std::lock_guard<std::mutex> lock(slot->mutex);
     if (static_cast<int>(slot->solves.size()) < SharedFactor::kMaxSolves) {
@@ -696,7 +710,7 @@ long SparseCholesky::symbolic_factor_bytes(const Eigen::SparseMatrix<double>& A,
     std::lock_guard<std::mutex> lock(metis_mutex);  // (METIS: see metis_mutex)
     chol.impl_->factor = cholmod_analyze(&view, &c);
   }
-  if (!chol.impl_->factor) throw std::runtime_error("CHOLMOD analysis failed");
+  if (!chol.impl_->factor) cholmod_failed(c, "CHOLMOD analysis failed");
   return chol.factor_bytes();
 }
 

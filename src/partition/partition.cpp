@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <array>
 #include <map>
+#include <new>
 #include <numeric>
 #include <stdexcept>
 #include <string>
@@ -27,6 +28,7 @@ FacetKey facet_key(const int* nodes, int n) {
 }
 
 void metis_check(int status, const char* what) {
+  if (status == METIS_ERROR_MEMORY) throw std::bad_alloc();  // "out of memory", exit 2
   if (status != METIS_OK)
     throw std::runtime_error(std::string("METIS failed while partitioning the ") + what);
 }

@@ -742,6 +742,32 @@ TEST_F(Cli, InvalidElementsAreRefused) {
   }
 }
 
+// A node tag given twice in a mesh file (reliability round 3, item 8): the Gmsh SDK keeps one of
+// the two points and the mesh solved with exit 0; it is refused naming the tag. The same
+// mesh with the tag once solves.
+TEST_F(Cli, RepeatedNodeTagsAreRefused) {
+  auto mesh = [](const std::string& extra) {
+    const int count = 6 + (extra.empty() ? 0 : 1);
+    return "$MeshFormat\n2.2 0 8\n$EndMeshFormat\n$PhysicalNames\n2\n1 1 \"left\"\n2 2 "
+           "\"body\"\n$EndPhysicalNames\n$Nodes\n" +
+           std::to_string(count) + "\n1 0 0 0\n2 1 0 0\n3 2 0 0\n4 0 1 0\n5 1 1 0\n6 2 1 0\n" +
+           extra +
+           "$EndNodes\n$Elements\n3\n1 1 2 1 1 1 4\n2 3 2 2 1 1 2 5 4\n3 3 2 2 1 2 3 6 5\n"
+           "$EndElements\n";
+  };
+  write_file("m.toml",
+             "[mesh]\nfile = \"m.msh\"\n[physics]\ntype = \"laplace\"\nsource = 1.0\n"
+             "[[dirichlet]]\ngroup = \"left\"\nvalue = 0.0\n[decomposition]\nsubdomains = 1\n"
+             "[output]\nvtu = false\n");
+  write_file("m.msh", mesh(""));
+  EXPECT_EQ(run(bin + " solve m.toml --report r.json"), 0) << stderr_text();
+  fs::remove("r.json");
+  write_file("m.msh", mesh("5 1.5 1 0\n"));
+  EXPECT_EQ(run(bin + " solve m.toml --report r.json"), 2) << stderr_text();
+  EXPECT_NE(stderr_text().find("node 5 is given twice"), std::string::npos) << stderr_text();
+  EXPECT_FALSE(fs::exists("r.json"));
+}
+
 // Messages name the input and the limit (reliability round 3, item 15).
 TEST_F(Cli, MessagesNameTheInputAndTheLimit) {
   fs::create_directory("dir.toml");

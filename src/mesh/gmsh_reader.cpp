@@ -2,6 +2,7 @@
 #include <omp.h>
 
 #include <algorithm>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <mutex>
@@ -59,6 +60,50 @@ std::string gmsh_type_name(int type) {
 
 std::mutex gmsh_mutex;  // the Gmsh SDK keeps global state
 
+// A node tag that an ASCII .msh file gives twice in its $Nodes section, or 0 (also for binary
+// files). The Gmsh SDK keeps one of the two points without a word, so a repeated tag shows only
+// here. MSH 2: one "tag x y z" line per node; MSH 4: blocks of "dim entity parametric count",
+// then count tags, then count coordinate lines. Costs one pass over the node section.
+std::size_t repeated_node_tag(const std::string& path) {
+  std::ifstream in(path);
+  std::string line;
+  std::getline(in, line);  // $MeshFormat
+  double version = 0;
+  int file_type = 1;
+  if (!(in >> version >> file_type) || file_type != 0) return 0;
+  while (std::getline(in, line) && line.rfind("$Nodes", 0) != 0) {
+  }
+  if (!in) return 0;
+  std::vector<std::size_t> tags;
+  if (version < 3) {
+    long long count = 0;
+    if (!(in >> count) || count < 0) return 0;
+    tags.reserve(static_cast<std::size_t>(count));
+    std::getline(in, line);
+    for (long long i = 0; i < count && std::getline(in, line); ++i)
+      tags.push_back(std::strtoull(line.c_str(), nullptr, 10));
+  } else {
+    long long blocks = 0, count = 0, min_tag = 0, max_tag = 0;
+    if (!(in >> blocks >> count >> min_tag >> max_tag) || count < 0) return 0;
+    tags.reserve(static_cast<std::size_t>(count));
+    for (long long b = 0; b < blocks; ++b) {
+      long long dim = 0, entity = 0, parametric = 0, n = 0;
+      if (!(in >> dim >> entity >> parametric >> n)) return 0;
+      for (long long i = 0; i < n; ++i) {
+        std::size_t tag = 0;
+        if (!(in >> tag)) return 0;
+        tags.push_back(tag);
+      }
+      std::getline(in, line);
+      for (long long i = 0; i < n && std::getline(in, line); ++i) {
+      }
+    }
+  }
+  std::sort(tags.begin(), tags.end());
+  const auto twice = std::adjacent_find(tags.begin(), tags.end());
+  return twice == tags.end() ? 0 : *twice;
+}
+
 }  // namespace
 
 Mesh read_gmsh(const std::string& path) {
@@ -74,6 +119,9 @@ Mesh read_gmsh(const std::string& path) {
       throw std::invalid_argument("mesh file '" + path +
                                   "' is not a Gmsh .msh file (no $MeshFormat header)");
   }
+  if (const std::size_t tag = repeated_node_tag(path))
+    throw std::invalid_argument("mesh file '" + path + "': node " + std::to_string(tag) +
+                                " is given twice in $Nodes (which coordinates are meant?)");
   std::lock_guard<std::mutex> lock(gmsh_mutex);
   Mesh mesh;
   // gmsh::initialize() sets OpenMP's thread count to its own default (1): restore ours after.

@@ -1,14 +1,16 @@
 #!/usr/bin/env python3
 """SMALBE-M's parameters measured over the benchmark set (issue 28): the penalty rho = rho_factor
-||PFP||, the initial bound M_0 = M0_factor ||PFP|| and eta = eta_factor ||b||, over the contact
+||PFP||, the initial bound M_0 = M0_factor ||PFP||, eta = eta_factor ||b|| and the late penalty
+factor rho_update_late (smalbe.hpp, step 4), over the contact
 cases of Table 3 reduced (membranes, H_s/h = 16, m = 1, 2, 4, 8), the Table 4 row 1x1x1 (TFETI
 and H-TFETI-DP, no preconditioner, as in the table), the contact examples, the cube-obstacle
 with partial contact (amplitude 20), ESPRESO's default cube at rtol 1e-10 and the plate with an
 inactive contact at rtol 1e-6. Robustness first: a setting is ranked by its failures (not
 converged within 200 outer iterations), then by the geometric mean over the cases of its
-Hessian products relative to the defaults' (rho 1.1, M_0 100, eta 0.1).
+Hessian products relative to the defaults' (rho 1.1, M_0 100, eta 0.1, late factor 2).
 
-Usage: bench/smalbe_sweep.py [--rho 1.1 3] [--M0 1 10 100] [--eta 0.01 0.1 1] [--threads 2]
+Usage: bench/smalbe_sweep.py [--rho 1.1 3] [--M0 1 10 100] [--eta 0.01 0.1 1] [--late 2]
+       [--threads 2]
        [--out smalbe_sweep.json]
 Writes bench/results/OUT and prints the settings best first."""
 import argparse
@@ -22,6 +24,7 @@ p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
 p.add_argument("--rho", type=float, nargs="+", default=[1.1, 3.0])
 p.add_argument("--M0", type=float, nargs="+", default=[1.0, 10.0, 100.0])
 p.add_argument("--eta", type=float, nargs="+", default=[0.01, 0.1, 1.0])
+p.add_argument("--late", type=float, nargs="+", default=[2.0])
 p.add_argument("--threads", type=int, default=2)
 p.add_argument("--out", default="smalbe_sweep.json")
 a = p.parse_args()
@@ -44,22 +47,22 @@ CASES += [("Table 4 1x1x1 TFETI", ["--problem", "cube-obstacle", "--elements", 4
           ("plate hole inactive contact rtol 1e-6",
            [os.path.join(ROOT, "bench", "cases", "plate_hole_inactive_contact.toml")])]
 
-settings = list(itertools.product(a.rho, a.M0, a.eta))
-default = (1.1, 100.0, 0.1)
+settings = list(itertools.product(a.rho, a.M0, a.eta, a.late))
+default = (1.1, 100.0, 0.1, 2.0)
 if default not in settings:
     settings.insert(0, default)
 results = {}
-for rho, M0, eta in settings:
+for rho, M0, eta, late in settings:
     runs = []
     for name, args in CASES:
         r = solve([*args, "--rho-factor", rho, "--M0-factor", M0, "--eta-factor", eta,
-                   "--max-it", 200], threads=a.threads)
+                   "--rho-update-late", late, "--max-it", 200], threads=a.threads)
         runs.append({"case": name, "converged": r["converged"],
                      "outer_iterations": r["outer_iterations"], "products": r["matvecs"],
                      "energy": r["objective"]})
-    results[(rho, M0, eta)] = runs
+    results[(rho, M0, eta, late)] = runs
     fails = sum(not x["converged"] for x in runs)
-    print(f"rho {rho:g} M0 {M0:g} eta {eta:g}: {fails} failures, products "
+    print(f"rho {rho:g} M0 {M0:g} eta {eta:g} late {late:g}: {fails} failures, products "
           f"{' '.join(str(x['products']) for x in runs)}", flush=True)
 
 base = {x["case"]: x["products"] for x in results[default]}
@@ -68,15 +71,18 @@ for key, runs in results.items():
     fails = sum(not x["converged"] for x in runs)
     gm = math.exp(sum(math.log(x["products"] / base[x["case"]]) for x in runs) / len(runs))
     rows.append({"rho_factor": key[0], "M0_factor": key[1], "eta_factor": key[2],
+                 "rho_update_late": key[3],
                  "failures": fails, "relative_products_geomean": gm,
                  "total_products": sum(x["products"] for x in runs), "runs": runs})
 rows.sort(key=lambda r: (r["failures"], r["relative_products_geomean"]))
-print("\n| rho_factor | M0_factor | eta_factor | failures | products / default's (geo. mean) | "
-      "total products |")
-print("|---:|---:|---:|---:|---:|---:|")
+print("\n| rho_factor | M0_factor | eta_factor | late | failures | products / default's "
+      "(geo. mean) | total products |")
+print("|---:|---:|---:|---:|---:|---:|---:|")
 for r in rows:
-    print(f"| {r['rho_factor']:g} | {r['M0_factor']:g} | {r['eta_factor']:g} | {r['failures']} | "
+    print(f"| {r['rho_factor']:g} | {r['M0_factor']:g} | {r['eta_factor']:g} | "
+          f"{r['rho_update_late']:g} | {r['failures']} | "
           f"{r['relative_products_geomean']:.3f} | {r['total_products']} |")
 cmd = (f"bench/smalbe_sweep.py --rho {' '.join(map(str, a.rho))} --M0 {' '.join(map(str, a.M0))}"
-       f" --eta {' '.join(map(str, a.eta))} --threads {a.threads}")
+       f" --eta {' '.join(map(str, a.eta))} --late {' '.join(map(str, a.late))}"
+       f" --threads {a.threads}")
 print("\n" + save(a.out, {"command": cmd, "cases": [c[0] for c in CASES], "settings": rows}))

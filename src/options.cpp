@@ -224,6 +224,14 @@ void add_qp_options(std::vector<OptionSpec>& t) {
         return x > 1 && x <= 1e6 ? nullptr : "must lie in (1, 1e6]";
       }));
   t.push_back(number(
+      "rho_update_late", "--rho-update-late",
+      "SMALBE-M: once only the equality test is left, rho is multiplied by this after each "
+      "outer iteration (1: rho stays fixed)",
+      [](RunOptions& r) -> double& { return r.solve.smalbe.rho_update_late; },
+      [](double x) -> const char* {
+        return x >= 1 && x <= 1e3 ? nullptr : "must lie in [1, 1e3]";
+      }));
+  t.push_back(number(
       "gamma", "--gamma", "MPRGP proportioning parameter Gamma",
       [](RunOptions& r) -> double& { return r.solve.smalbe.gamma; }, positive));
   t.push_back(boolean("solver", "progress", "--progress", "",

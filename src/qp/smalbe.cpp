@@ -18,7 +18,8 @@ SmalbeResult smalbe(const QuadraticProgram& qp, double normA, Vec& x, const Redu
   const Vec& b = qp.linear;
   const Vec& l = bounds->lower();
   const Eigen::Index n = b.size();
-  const double rho = opt.rho_factor * normA;
+  const double rho0 = opt.rho_factor * normA;
+  double rho = rho0;  // raised by the late penalty update (smalbe.hpp, step 4)
   ComplementOperator Q(qp.equality_projector);  // Q = I - P
   Vec qx(n);
   // H_rho = A + rho Q; the image Q v of every argument is left in H.image(), from which MPRGP
@@ -44,7 +45,6 @@ SmalbeResult smalbe(const QuadraticProgram& qp, double normA, Vec& x, const Redu
     res.roundoff_floor = floor > opt.rtol * bnorm;
   };
   set_tolerances();
-  res.rho = rho;
   res.alpha = 2.0 / (opt.norm_safety * std::max(normA, rho));
 
   FunctionOperator Z([&](const Vec& v, Vec& y) { hooks.preconditioner(v, rho, y); });
@@ -61,6 +61,7 @@ SmalbeResult smalbe(const QuadraticProgram& qp, double normA, Vec& x, const Redu
   double L_prev = 0;
   double qnorm = 0;
   bool global_stop = false;
+  bool late = false;  // an inner solve has met the gradient test: only feasibility is left
   // The inner stopping test with ||G x|| = ||Q x|| from the tracked image (no projection); the
   // inner solve's last x is checked with Q x applied afresh below.
   const MprgpStop stop = [&](const Vec&, const Vec&, double gp) {
@@ -107,7 +108,19 @@ SmalbeResult smalbe(const QuadraticProgram& qp, double normA, Vec& x, const Redu
     g += rho * qx;   // the gradient of L moves with nu; x does not change
     if (k > 0 && L < L_prev + 0.5 * rho * qnorm * qnorm) M /= opt.beta;
     L_prev = L;
+    // Step 4: the late penalty update.
+    late = late || inner.projected_gradient <= grad_tol;
+    if (late && opt.rho_update_late > 1 && normA * qnorm >= inner.projected_gradient &&
+        rho * opt.rho_update_late <= kMaxRhoGrowth * rho0) {
+      const double next = rho * opt.rho_update_late;
+      g += (next - rho) * qx;  // H_rho x moves by (rho' - rho) Q x
+      rho = next;
+      H.set_rho(rho);
+      mo.alpha = res.alpha = 2.0 / (opt.norm_safety * std::max(normA, rho));
+      ++res.rho_updates;
+    }
   }
+  res.rho = rho;
   res.hessian_applications = H.count();
   return res;
 }

@@ -117,6 +117,8 @@ class PenalizedOperator final : public Operator {
                     PenalizedHessian fused = {})
       : A_(A), Q_(Q), rho_(rho), qx_(n), fused_(std::move(fused)) {}
   double rho() const { return rho_; }
+  /// A new penalty (SMALBE-M's late update); the next application uses it.
+  void set_rho(double rho) { rho_ = rho; }
   /// Q x of the vector this operator was applied to last.
   const Vec& image() const { return qx_; }
 

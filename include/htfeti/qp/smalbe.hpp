@@ -9,7 +9,14 @@
 //   1. MPRGP finds x^k >= l with ||g^P(x^k, mu^k, rho)|| <= min(M_k ||G x^k||, eta), where
 //      g = H_rho x - b + nu (the gradient of the augmented Lagrangian L);
 //   2. nu^{k+1} = nu^k + rho Q x^k;
-//   3. if L(x^k, mu^k) < L(x^{k-1}, mu^{k-1}) + rho/2 ||G x^k||^2, then M_{k+1} = M_k / beta.
+//   3. if L(x^k, mu^k) < L(x^{k-1}, mu^{k-1}) + rho/2 ||G x^k||^2, then M_{k+1} = M_k / beta;
+//   4. late penalty update (PERMON's SMALXE, rho_update_late): once an inner solve has ended
+//      with the gradient test ||g^P|| <= tol met and only the equality test left, rho is
+//      multiplied by rho_update_late after every outer iteration whose equality residual
+//      ||A|| ||G x^k|| is at least ||g^P|| (the feasibility is then what is left to gain; a
+//      larger rho shrinks ||G x|| faster per multiplier update, and H_rho = A + rho Q keeps its
+//      conditioning on Im Q, where it is rho I), up to kMaxRhoGrowth times the first rho.
+//      rho_update_late = 1 turns it off. The gradient g moves with rho by (rho' - rho) Q x.
 // Stops when both hold (the paper's relative precision eps = rtol):
 //   ||g^P|| <= tol  and  ||A|| ||G x|| <= tol,  tol = rtol ||b||,
 // which are Dostal's tests ||g^P|| <= eps ||b||, ||G x|| <= eps ||b|| for the problem scaled to
@@ -37,15 +44,19 @@ namespace htfeti::qp {
 
 /// The round-off floor of the stopping tests, in units of the machine epsilon (64 eps = 1.4e-14).
 inline constexpr double kRoundoffFloor = 64.0;
+/// The late penalty update never takes rho beyond this multiple of its first value (the
+/// expansion step length of MPRGP, 2 / max(||A||, rho), shrinks with rho).
+inline constexpr double kMaxRhoGrowth = 1024.0;
 
 struct SmalbeOptions {
-  double rtol = 1e-4;        ///< relative precision eps (paper: 1e-4)
-  double rho_factor = 1.1;   ///< rho = rho_factor * ||A|| (theory: rho close to ||F~||)
-  double M0_factor = 100.0;  ///< M_0 = M0_factor * ||A||
-  double eta_factor = 0.1;   ///< eta = eta_factor * ||b||
-  double beta = 2.0;         ///< M is divided by beta when the Lagrangian grows too little
-  double norm_safety = 1.1;  ///< the expansion step is alpha = 2 / (norm_safety * ||H||_est)
-  double gamma = 1.0;        ///< MPRGP proportioning parameter Gamma
+  double rtol = 1e-4;            ///< relative precision eps (paper: 1e-4)
+  double rho_factor = 1.1;       ///< rho = rho_factor * ||A|| (theory: rho close to ||F~||)
+  double M0_factor = 100.0;      ///< M_0 = M0_factor * ||A||
+  double eta_factor = 0.1;       ///< eta = eta_factor * ||b||
+  double beta = 2.0;             ///< M is divided by beta when the Lagrangian grows too little
+  double rho_update_late = 2.0;  ///< rho's factor in the late phase (step 4; 1: off)
+  double norm_safety = 1.1;      ///< the expansion step is alpha = 2 / (norm_safety * ||H||_est)
+  double gamma = 1.0;            ///< MPRGP proportioning parameter Gamma
   int max_outer = 200;
   int max_inner = 100000;  ///< total MPRGP iterations over all outer iterations
 };
@@ -55,14 +66,15 @@ struct SmalbeResult {
   int outer_iterations = 0;
   int inner_iterations = 0;
   int cg_steps = 0, expansion_steps = 0, proportioning_steps = 0;
-  long hessian_applications = 0;  ///< of H_rho (the products the paper counts)
-  double projected_gradient = 0;  ///< ||g^P|| at exit
-  double equality_residual = 0;   ///< ||G x|| at exit
-  double rhs_norm = 0;            ///< ||b||
-  double multiplier_norm = 0;     ///< ||lambda|| = ||shift + x|| at exit
-  double tolerance = 0;           ///< tol = max(rtol ||b||, round-off floor) at exit
-  bool roundoff_floor = false;    ///< the round-off floor, not rtol ||b||, set tol
-  double rho = 0, M = 0, alpha = 0;
+  long hessian_applications = 0;     ///< of H_rho (the products the paper counts)
+  double projected_gradient = 0;     ///< ||g^P|| at exit
+  double equality_residual = 0;      ///< ||G x|| at exit
+  double rhs_norm = 0;               ///< ||b||
+  double multiplier_norm = 0;        ///< ||lambda|| = ||shift + x|| at exit
+  double tolerance = 0;              ///< tol = max(rtol ||b||, round-off floor) at exit
+  bool roundoff_floor = false;       ///< the round-off floor, not rtol ||b||, set tol
+  double rho = 0, M = 0, alpha = 0;  ///< at exit
+  int rho_updates = 0;               ///< late penalty updates made (step 4)
 };
 
 /// y = Z_rho x (the preconditioner in face, which depends on rho).

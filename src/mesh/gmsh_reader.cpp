@@ -104,6 +104,137 @@ std::size_t repeated_node_tag(const std::string& path) {
   return twice == tags.end() ? 0 : *twice;
 }
 
+// The steps of read_gmsh on the model the Gmsh SDK has open. Node and cell numbers of the mesh
+// are positions: nodes in increasing tag order, cells in Gmsh's order.
+using TagIndex = std::unordered_map<std::size_t, int>;
+
+// The cells of the highest dimension (3, else 2): their type, the node tags of each (returned)
+// and their Gmsh tags (mesh.cell_tags).
+std::vector<std::size_t> read_cells(const std::string& path, Mesh& mesh) {
+  int dim = -1;
+  std::vector<int> types;
+  std::vector<std::vector<std::size_t>> tags, nodes;
+  for (int d = 3; d >= 2 && dim < 0; --d) {
+    gmsh::model::mesh::getElements(types, tags, nodes, d, -1);
+    for (size_t i = 0; i < types.size(); ++i)
+      if (!tags[i].empty()) dim = d;
+  }
+  if (dim < 0) throw std::invalid_argument("mesh file '" + path + "' has no 2D or 3D cells");
+  int type = -1;
+  for (size_t i = 0; i < types.size(); ++i) {
+    if (tags[i].empty()) continue;
+    const bool ok = dim == 2 ? (types[i] == 2 || types[i] == 3) : (types[i] == 4 || types[i] == 5);
+    if (!ok)
+      throw std::invalid_argument("mesh file '" + path + "' has cells of type '" +
+                                  gmsh_type_name(types[i]) +
+                                  "'; htfeti supports linear tri3 and quad4 (2D), tet4 and hex8 "
+                                  "(3D)");
+    if (type >= 0 && type != types[i])
+      throw std::invalid_argument("mesh file '" + path +
+                                  "' mixes cell types; use one of tri3/quad4 (2D) or "
+                                  "tet4/hex8 (3D)");
+    type = types[i];
+  }
+  mesh.dim = dim;
+  mesh.type = cell_type_of(type);
+  std::vector<std::size_t> cell_node_tags;
+  for (size_t i = 0; i < types.size(); ++i) {
+    if (types[i] != type) continue;
+    cell_node_tags.insert(cell_node_tags.end(), nodes[i].begin(), nodes[i].end());
+    mesh.cell_tags.insert(mesh.cell_tags.end(), tags[i].begin(), tags[i].end());
+  }
+  return cell_node_tags;
+}
+
+// The nodes the cells use, numbered by tag (mesh.coords), and the cells in those numbers
+// (mesh.cells). Returns the tag -> node map.
+TagIndex read_nodes(const std::string& path, const std::vector<std::size_t>& cell_node_tags,
+                    Mesh& mesh) {
+  std::vector<std::size_t> node_tags;
+  std::vector<double> coord, param;
+  gmsh::model::mesh::getNodes(node_tags, coord, param, -1, -1, false, false);
+  std::vector<std::size_t> used(cell_node_tags);
+  std::sort(used.begin(), used.end());
+  used.erase(std::unique(used.begin(), used.end()), used.end());
+  TagIndex index;
+  index.reserve(used.size() * 2);
+  for (size_t i = 0; i < used.size(); ++i) index[used[i]] = static_cast<int>(i);
+  mesh.coords.assign(3 * used.size(), 0.0);
+  std::vector<char> seen(used.size(), 0);
+  for (size_t i = 0; i < node_tags.size(); ++i) {
+    auto it = index.find(node_tags[i]);
+    if (it == index.end()) continue;
+    for (int d = 0; d < 3; ++d) mesh.coords[3 * it->second + d] = coord[3 * i + d];
+    seen[it->second] = 1;
+  }
+  if (std::find(seen.begin(), seen.end(), 0) != seen.end())
+    throw std::invalid_argument("mesh file '" + path + "' has cells with undefined nodes");
+  mesh.cells.resize(cell_node_tags.size());
+  for (size_t i = 0; i < cell_node_tags.size(); ++i) mesh.cells[i] = index.at(cell_node_tags[i]);
+  return index;
+}
+
+// The elements of one physical group `name` (dimension gd) on one of its entities: cells of the
+// mesh's dimension into mesh.cell_groups, facets one dimension lower into mesh.facet_groups.
+void read_group_entity(const std::string& path, const std::string& name, int gd, int entity,
+                       const TagIndex& index, const TagIndex& cell_index, Mesh& mesh) {
+  std::vector<int> et;
+  std::vector<std::vector<std::size_t>> etags, enodes;
+  gmsh::model::mesh::getElements(et, etags, enodes, gd, entity);
+  for (size_t i = 0; i < et.size(); ++i) {
+    if (gd == mesh.dim) {
+      auto& cg = mesh.cell_groups[name];
+      for (std::size_t t : etags[i]) {
+        auto it = cell_index.find(t);
+        if (it != cell_index.end()) cg.push_back(it->second);
+      }
+    } else if (gd == mesh.dim - 1) {
+      const int fn = gmsh_cell_nodes(et[i]);
+      if (fn == 0) continue;
+      auto& fg = mesh.facet_groups[name];
+      if (fg.facet_nodes != 0 && fg.facet_nodes != fn)
+        throw std::invalid_argument("mesh file '" + path + "': boundary group '" + name +
+                                    "' mixes facet types");
+      fg.facet_nodes = fn;
+      for (std::size_t t : enodes[i]) {
+        auto it = index.find(t);
+        if (it == index.end())
+          throw std::invalid_argument("mesh file '" + path + "': boundary group '" + name +
+                                      "' has a facet off the mesh");
+        fg.nodes.push_back(it->second);
+      }
+    }
+  }
+}
+
+// The physical groups: nodes of every group (mesh.node_groups, unnamed groups by their
+// number), and cells or facets by read_group_entity.
+void read_groups(const std::string& path, const TagIndex& index, Mesh& mesh) {
+  TagIndex cell_index;
+  for (size_t i = 0; i < mesh.cell_tags.size(); ++i)
+    cell_index[mesh.cell_tags[i]] = static_cast<int>(i);
+  gmsh::vectorpair groups;
+  gmsh::model::getPhysicalGroups(groups, -1);
+  for (const auto& [gd, gt] : groups) {
+    std::string name;
+    gmsh::model::getPhysicalName(gd, gt, name);
+    if (name.empty()) name = std::to_string(gt);
+    std::vector<std::size_t> gnodes;
+    std::vector<double> gcoord;
+    gmsh::model::mesh::getNodesForPhysicalGroup(gd, gt, gnodes, gcoord);
+    auto& ng = mesh.node_groups[name];
+    for (std::size_t t : gnodes) {
+      auto it = index.find(t);
+      if (it != index.end()) ng.push_back(it->second);
+    }
+    std::sort(ng.begin(), ng.end());
+    ng.erase(std::unique(ng.begin(), ng.end()), ng.end());
+    std::vector<int> ents;
+    gmsh::model::getEntitiesForPhysicalGroup(gd, gt, ents);
+    for (int e : ents) read_group_entity(path, name, gd, e, index, cell_index, mesh);
+  }
+}
+
 }  // namespace
 
 Mesh read_gmsh(const std::string& path) {
@@ -138,121 +269,9 @@ Mesh read_gmsh(const std::string& path) {
   gmsh::option::setNumber("General.Verbosity", 0);
   try {
     gmsh::open(path);
-    int dim = -1;
-    std::vector<int> types;
-    std::vector<std::vector<std::size_t>> tags, nodes;
-    for (int d = 3; d >= 2 && dim < 0; --d) {
-      gmsh::model::mesh::getElements(types, tags, nodes, d, -1);
-      for (size_t i = 0; i < types.size(); ++i)
-        if (!tags[i].empty()) dim = d;
-    }
-    if (dim < 0) throw std::invalid_argument("mesh file '" + path + "' has no 2D or 3D cells");
-    int type = -1;
-    size_t cell_count = 0;
-    for (size_t i = 0; i < types.size(); ++i) {
-      if (tags[i].empty()) continue;
-      const bool ok =
-          dim == 2 ? (types[i] == 2 || types[i] == 3) : (types[i] == 4 || types[i] == 5);
-      const std::string name = gmsh_type_name(types[i]);
-      if (!ok)
-        throw std::invalid_argument("mesh file '" + path + "' has cells of type '" + name +
-                                    "'; htfeti supports linear tri3 and quad4 (2D), tet4 and hex8 "
-                                    "(3D)");
-      if (type >= 0 && type != types[i])
-        throw std::invalid_argument("mesh file '" + path +
-                                    "' mixes cell types; use one of tri3/quad4 (2D) or "
-                                    "tet4/hex8 (3D)");
-      type = types[i];
-      cell_count += tags[i].size();
-    }
-    mesh.dim = dim;
-    mesh.type = cell_type_of(type);
-    const int nc = gmsh_cell_nodes(type);
-    // Cells and their Gmsh tags.
-    std::vector<std::size_t> cell_nodes_tags, cell_tags;
-    for (size_t i = 0; i < types.size(); ++i) {
-      if (types[i] != type) continue;
-      cell_nodes_tags.insert(cell_nodes_tags.end(), nodes[i].begin(), nodes[i].end());
-      cell_tags.insert(cell_tags.end(), tags[i].begin(), tags[i].end());
-    }
-    // Nodes: the ones used by cells, numbered by tag.
-    std::vector<std::size_t> node_tags;
-    std::vector<double> coord, param;
-    gmsh::model::mesh::getNodes(node_tags, coord, param, -1, -1, false, false);
-    std::vector<std::size_t> used(cell_nodes_tags);
-    std::sort(used.begin(), used.end());
-    used.erase(std::unique(used.begin(), used.end()), used.end());
-    std::unordered_map<std::size_t, int> index;
-    index.reserve(used.size() * 2);
-    for (size_t i = 0; i < used.size(); ++i) index[used[i]] = static_cast<int>(i);
-    mesh.coords.assign(3 * used.size(), 0.0);
-    std::vector<char> seen(used.size(), 0);
-    for (size_t i = 0; i < node_tags.size(); ++i) {
-      auto it = index.find(node_tags[i]);
-      if (it == index.end()) continue;
-      for (int d = 0; d < 3; ++d) mesh.coords[3 * it->second + d] = coord[3 * i + d];
-      seen[it->second] = 1;
-    }
-    if (std::find(seen.begin(), seen.end(), 0) != seen.end())
-      throw std::invalid_argument("mesh file '" + path + "' has cells with undefined nodes");
-    mesh.cells.resize(cell_nodes_tags.size());
-    for (size_t i = 0; i < cell_nodes_tags.size(); ++i)
-      mesh.cells[i] = index.at(cell_nodes_tags[i]);
-    mesh.cell_tags = cell_tags;
-    std::unordered_map<std::size_t, int> cell_index;
-    for (size_t i = 0; i < cell_tags.size(); ++i) cell_index[cell_tags[i]] = static_cast<int>(i);
-    (void)nc;
-    (void)cell_count;
-
-    // Physical groups.
-    gmsh::vectorpair groups;
-    gmsh::model::getPhysicalGroups(groups, -1);
-    for (const auto& [gd, gt] : groups) {
-      std::string name;
-      gmsh::model::getPhysicalName(gd, gt, name);
-      if (name.empty()) name = std::to_string(gt);  // unnamed groups by their number
-      std::vector<std::size_t> gnodes;
-      std::vector<double> gcoord;
-      gmsh::model::mesh::getNodesForPhysicalGroup(gd, gt, gnodes, gcoord);
-      auto& ng = mesh.node_groups[name];
-      for (std::size_t t : gnodes) {
-        auto it = index.find(t);
-        if (it != index.end()) ng.push_back(it->second);
-      }
-      std::sort(ng.begin(), ng.end());
-      ng.erase(std::unique(ng.begin(), ng.end()), ng.end());
-      std::vector<int> ents;
-      gmsh::model::getEntitiesForPhysicalGroup(gd, gt, ents);
-      for (int e : ents) {
-        std::vector<int> et;
-        std::vector<std::vector<std::size_t>> etags, enodes;
-        gmsh::model::mesh::getElements(et, etags, enodes, gd, e);
-        for (size_t i = 0; i < et.size(); ++i) {
-          if (gd == dim) {
-            auto& cg = mesh.cell_groups[name];
-            for (std::size_t t : etags[i]) {
-              auto it = cell_index.find(t);
-              if (it != cell_index.end()) cg.push_back(it->second);
-            }
-          } else if (gd == dim - 1) {
-            const int fn = gmsh_cell_nodes(et[i]);
-            if (fn == 0) continue;
-            auto& fg = mesh.facet_groups[name];
-            if (fg.facet_nodes != 0 && fg.facet_nodes != fn)
-              throw std::invalid_argument("mesh file '" + path + "': boundary group '" + name +
-                                          "' mixes facet types");
-            fg.facet_nodes = fn;
-            for (std::size_t t : enodes[i]) {
-              auto it = index.find(t);
-              if (it == index.end())
-                throw std::invalid_argument("mesh file '" + path + "': boundary group '" + name +
-                                            "' has a facet off the mesh");
-              fg.nodes.push_back(it->second);
-            }
-          }
-        }
-      }
-    }
+    const std::vector<std::size_t> cell_node_tags = read_cells(path, mesh);
+    const TagIndex index = read_nodes(path, cell_node_tags, mesh);
+    read_groups(path, index, mesh);
   } catch (const std::invalid_argument&) {
     throw;
   } catch (const std::exception& e) {

@@ -84,7 +84,7 @@ MemoryEstimate estimate_memory(const Model& model, const FetiOptions& options, c
   const double explicit_bytes = subdomains * value_bytes * nmult * (nmult + 1) / 2;
   const bool is_explicit =
       options.dual_operator == DualOperator::explicit_ ||
-      (options.dual_operator == DualOperator::automatic && nodes >= kExplicitMinNodes &&
+      (options.dual_operator == DualOperator::automatic && explicit_for_speed(layout.dim, nodes) &&
        explicit_bytes <= options.explicit_budget_bytes);
   const Ordering ordering = options.ordering == Ordering::automatic
                                 ? (layout.dim == 3 || is_explicit ? Ordering::metis : Ordering::amd)

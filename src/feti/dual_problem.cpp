@@ -334,7 +334,8 @@ void DualProblem::choose_operator(Setup& st) {
   }
   explicit_bytes = comm_.max(explicit_bytes);
   explicit_ = options.dual_operator == DualOperator::explicit_ ||
-              (options.dual_operator == DualOperator::automatic && min_nodes >= kExplicitMinNodes &&
+              (options.dual_operator == DualOperator::automatic &&
+               explicit_for_speed(layout_.dim, min_nodes) &&
                explicit_bytes <= options.explicit_budget_bytes);
 
   // automatic: METIS in 3D, and for the explicit operator's interface-last factors (nested

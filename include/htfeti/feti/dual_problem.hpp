@@ -37,8 +37,8 @@ namespace htfeti {
 
 struct FetiOptions {
   Ordering ordering = Ordering::automatic;  ///< fill-reducing ordering of the subdomain factors
-  /// implicit, explicit, or automatic: explicit when every subdomain has at least
-  /// kExplicitMinNodes nodes (docs/performance.md: measured break-even).
+  /// implicit, explicit, or automatic: explicit_for_speed() when its blocks fit
+  /// explicit_budget_bytes, and explicit when only it fits in memory (check_memory).
   DualOperator dual_operator = DualOperator::automatic;
   /// With the explicit operator the subdomain factors are needed only for d (setup) and the
   /// primal reconstruction. A cluster frees them right after its setup, and factors again for
@@ -87,6 +87,16 @@ struct FetiOptions {
 };
 
 constexpr int kExplicitMinNodes = 25;
+/// The automatic operator's rule for speed: explicit in 2D when every subdomain has at least
+/// kExplicitMinNodes nodes (the packed F_i are 45 times faster per F than the factor sweeps and
+/// pay for their setup after about 20 applications), implicit in 3D, where the F_i over large
+/// interfaces are no faster per F than the sweeps and cost 8 times a factorization to form
+/// (`bench/operator_choice.py`: 2.4-4x faster runs with the implicit operator on the cube, box
+/// and METIS split). The explicit operator is still taken in 3D when the implicit one does not
+/// fit in memory (check_memory: its factors can be freed after setup).
+inline bool explicit_for_speed(int dim, double min_nodes) {
+  return dim == 2 && min_nodes >= kExplicitMinNodes;
+}
 /// Automatic factor release: clusters keep their factors while the available memory stays above
 /// this fraction of what was available at the start of the setup (FetiOptions::keep_factors).
 constexpr double kFactorReserve = 0.3;

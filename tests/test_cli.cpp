@@ -345,6 +345,26 @@ TEST_F(Cli, ContactResultsAreIdenticalOnOneToFourRanks) {
   }
 }
 
+// The automatic operator's speed rule (explicit_for_speed, bench/operator_choice.py): explicit in
+// 2D, implicit in 3D, where forming the F_i cost 2-4 times the whole run with the implicit one.
+TEST_F(Cli, AutomaticOperatorIsExplicitIn2DAndImplicitIn3D) {
+  auto op = [](const char* file) {
+    std::ifstream f(file);
+    const auto r = nlohmann::json::parse(f);
+    return r["dual_operator"].get<std::string>() + " " +
+           r["dual_operator_reason"].get<std::string>();
+  };
+  ASSERT_EQ(run(bin + " solve --problem membranes -n 64 --subdomains 4 --no-vtu --report a.json"),
+            0)
+      << stderr_text();
+  EXPECT_EQ(op("a.json"), "explicit automatic");
+  ASSERT_EQ(run(bin + " solve --problem cube-obstacle --elements 8,8,8 --subdomains 2,2,2 "
+                      "--no-vtu --report b.json"),
+            0)
+      << stderr_text();
+  EXPECT_EQ(op("b.json"), "implicit automatic");
+}
+
 // The automatic dual operator under a memory limit: with the explicit blocks over their budget
 // it is the implicit operator, which keeps every factor; when that does not fit in the limit but
 // the explicit operator (factors freed) does, the explicit one is taken, and the solution is the

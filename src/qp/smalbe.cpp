@@ -18,13 +18,12 @@ SmalbeResult smalbe(const QuadraticProgram& qp, double normA, Vec& x, const Redu
   const Vec& b = qp.linear;
   const Vec& l = bounds->lower();
   const Eigen::Index n = b.size();
-  const double rho0 = opt.rho_factor * normA;
-  double rho = rho0;  // raised by the late penalty update (smalbe.hpp, step 4)
+  const double rho0 = opt.rho_factor * normA;   // H.rho(): raised by the late update (step 4)
   ComplementOperator Q(qp.equality_projector);  // Q = I - P
   Vec qx(n);
   // H_rho = A + rho Q; the image Q v of every argument is left in H.image(), from which MPRGP
   // keeps Q x up to date for the stopping test (TrackedImage).
-  PenalizedOperator H(*qp.hessian, Q, rho, n, hooks.fused_hessian);
+  PenalizedOperator H(*qp.hessian, Q, rho0, n, hooks.fused_hessian);
   res.rhs_norm = red.norm(b);
   const double bnorm = res.rhs_norm > 0 ? res.rhs_norm : 1.0;
   const double eta = opt.eta_factor * bnorm;
@@ -45,9 +44,11 @@ SmalbeResult smalbe(const QuadraticProgram& qp, double normA, Vec& x, const Redu
     res.roundoff_floor = floor > opt.rtol * bnorm;
   };
   set_tolerances();
-  res.alpha = 2.0 / (opt.norm_safety * std::max(normA, rho));
+  // MPRGP's expansion step length for ||H_rho|| = max(||A||, rho).
+  const auto step_length = [&]() { return 2.0 / (opt.norm_safety * std::max(normA, H.rho())); };
+  res.alpha = step_length();
 
-  FunctionOperator Z([&](const Vec& v, Vec& y) { hooks.preconditioner(v, rho, y); });
+  FunctionOperator Z([&](const Vec& v, Vec& y) { hooks.preconditioner(v, H.rho(), y); });
   MprgpOptions mo;
   mo.gamma = opt.gamma;
   mo.alpha = res.alpha;
@@ -104,6 +105,7 @@ SmalbeResult smalbe(const QuadraticProgram& qp, double normA, Vec& x, const Redu
     // L(x^k, mu^k) = 1/2 x'(g - b + nu) with g = H x - b + nu.
     lag = g - b + nu;  // (into a vector of the solve: nothing is allocated per iteration)
     const double L = 0.5 * red.dot(x, lag);
+    const double rho = H.rho();
     nu += rho * qx;  // mu^{k+1} = mu^k + rho G x^k, kept as nu = G' mu
     g += rho * qx;   // the gradient of L moves with nu; x does not change
     if (k > 0 && L < L_prev + 0.5 * rho * qnorm * qnorm) M /= opt.beta;
@@ -114,13 +116,12 @@ SmalbeResult smalbe(const QuadraticProgram& qp, double normA, Vec& x, const Redu
         rho * opt.rho_update_late <= kMaxRhoGrowth * rho0) {
       const double next = rho * opt.rho_update_late;
       g += (next - rho) * qx;  // H_rho x moves by (rho' - rho) Q x
-      rho = next;
-      H.set_rho(rho);
-      mo.alpha = res.alpha = 2.0 / (opt.norm_safety * std::max(normA, rho));
+      H.set_rho(next);
+      mo.alpha = res.alpha = step_length();
       ++res.rho_updates;
     }
   }
-  res.rho = rho;
+  res.rho = H.rho();
   res.hessian_applications = H.count();
   return res;
 }

@@ -91,8 +91,8 @@ constexpr int kExplicitMinNodes = 25;
 /// kExplicitMinNodes nodes (the packed F_i are 45 times faster per F than the factor sweeps and
 /// pay for their setup after about 20 applications), implicit in 3D, where the F_i over large
 /// interfaces are no faster per F than the sweeps and cost 8 times a factorization to form
-/// (`bench/operator_choice.py`: 2.4-4x faster runs with the implicit operator on the cube, box
-/// and METIS split). The explicit operator is still taken in 3D when the implicit one does not
+/// (`bench/operator_choice.py`: 2.1-4.2x faster runs with the implicit operator on the cube,
+/// box and METIS split). The explicit operator is still taken in 3D when the implicit one does not
 /// fit in memory (check_memory: its factors can be freed after setup).
 inline bool explicit_for_speed(int dim, double min_nodes) {
   return dim == 2 && min_nodes >= kExplicitMinNodes;

@@ -33,7 +33,7 @@
 #include <string>
 
 #include "htfeti/clock.hpp"
-#include "htfeti/feti/dual_problem.hpp"
+#include "htfeti/feti/coarse_space.hpp"
 #include "htfeti/parallel/memory.hpp"
 
 namespace htfeti {
@@ -111,21 +111,21 @@ std::vector<std::vector<int>> cluster_graph(const std::vector<std::vector<int>>&
 // Step 1 of build_coarse_image: per owned multiplier, the clusters touching it (sorted), from
 // (global multiplier, cluster) pairs of each rank's clusters sent to the multipliers' owners.
 // Collective.
-std::vector<std::vector<int>> DualProblem::clusters_touching_owned_rows() const {
-  const int P = comm_.size(), n_own = layout_dual_.n_owned();
+std::vector<std::vector<int>> CoarseSpace::clusters_touching_owned_rows() const {
+  const int P = comm_.size(), n_own = m_.layout.n_owned();
   const MPI_Comm mc = comm_.raw();
   std::vector<std::vector<long long>> out(P);
   {
     std::vector<int> ks;
-    for (size_t c = 0; c < clusters_.size(); ++c) {
+    for (size_t c = 0; c < rows_.size(); ++c) {
       ks.clear();
       for (int i = 0; i < members(static_cast<int>(c)); ++i)
-        for (int k : mult_[sub_of(static_cast<int>(c), i)]) ks.push_back(k);
+        for (int k : m_.of_subdomain[sub_of(static_cast<int>(c), i)]) ks.push_back(k);
       std::sort(ks.begin(), ks.end());
       ks.erase(std::unique(ks.begin(), ks.end()), ks.end());
       for (int k : ks) {
-        out[owner_[k]].push_back(layout_dual_.global(k));
-        out[owner_[k]].push_back(clusters_[c]->id());
+        out[m_.owner_rank[k]].push_back(m_.layout.global(k));
+        out[m_.owner_rank[k]].push_back(first_cluster_ + c);
       }
     }
   }
@@ -142,7 +142,7 @@ std::vector<std::vector<int>> DualProblem::clusters_touching_owned_rows() const 
   sbuf = {};
   std::vector<std::vector<int>> touching(n_own);
   for (size_t i = 0; i < rbuf.size(); i += 2) {
-    const int e = layout_dual_.ext_index(rbuf[i]);
+    const int e = m_.layout.ext_index(rbuf[i]);
     if (e < 0 || e >= n_own) throw std::logic_error("coarse image: a pair for an unowned row");
     touching[e].push_back(static_cast<int>(rbuf[i + 1]));
   }
@@ -154,18 +154,18 @@ std::vector<std::vector<int>> DualProblem::clusters_touching_owned_rows() const 
 // Step 4 of build_coarse_image: C = G~ E. At each owned multiplier, G~'s column times E's row;
 // partial sums per owner cluster in multiplier order, then in cluster order (as the coarse matrix
 // G~ G~^T). Collective.
-void DualProblem::assemble_image_coarse_matrix() {
+void CoarseSpace::assemble_image_coarse_matrix() {
   auto& im = image_;
   const std::vector<GItem> gcol = g_columns_at_owners();
   const std::vector<CoarseTriplet> mine =
       owner_cluster_sums(gcol, [&](size_t i, size_t j, std::vector<CoarseTriplet>& products) {
-        const int e = layout_dual_.ext_index(gcol[i].k);
+        const int e = m_.layout.ext_index(gcol[i].k);
         for (size_t a = i; a < j; ++a)
           for (int q = im.e_ptr[e]; q < im.e_ptr[e + 1]; ++q)
             products.push_back({gcol[i].k, gcol[a].row, im.e_col[q], gcol[a].g * im.e_val[q]});
       });
   const std::vector<CoarseTriplet> all = allgather_sorted(mine);
-  const int nc = coarse_dimension();
+  const int nc = dimension();
   im.c_ptr.assign(nc + 1, 0);
   im.c_col.clear(), im.c_val.clear();
   for (size_t p = 0; p < all.size();) {
@@ -179,9 +179,10 @@ void DualProblem::assemble_image_coarse_matrix() {
   for (int a = 0; a < nc; ++a) im.c_ptr[a + 1] += im.c_ptr[a];
 }
 
-void DualProblem::build_coarse_image(double memory_limit_mb) {
+void CoarseSpace::build_image(const std::function<void(const Vec&, Vec&)>& apply_F,
+                              double memory_limit_mb) {
   const double t0 = seconds_now();
-  const int n_own = layout_dual_.n_owned(), ncl = layout_.num_clusters;
+  const int n_own = m_.layout.n_owned(), ncl = layout_.num_clusters;
   const MPI_Comm mc = comm_.raw();
 
   // 1. The clusters touching each owned multiplier.
@@ -209,7 +210,7 @@ void DualProblem::build_coarse_image(double memory_limit_mb) {
   std::vector<int> dim(ncl);
   int kmax = 0;
   for (int j = 0; j < ncl; ++j) {
-    dim[j] = coarse_first_[j + 1] - coarse_first_[j];
+    dim[j] = first_[j + 1] - first_[j];
     kmax = std::max(kmax, dim[j]);
   }
   auto& im = image_;
@@ -234,14 +235,14 @@ void DualProblem::build_coarse_image(double memory_limit_mb) {
   im.e_col.assign(im.e_ptr[n_own], 0);
   im.e_val.assign(im.e_ptr[n_own], 0.0);
   std::vector<int> fill(im.e_ptr.begin(), im.e_ptr.end() - 1);
-  Vec z(coarse_dimension()), w, y;
+  Vec z(dimension()), w, y;
   int applications = 0;
   for (int g = 0; g < ncolours; ++g)
     for (int t = 0; t < kmax; ++t) {
       z.setZero();
       bool any = false;
       for (int j = 0; j < ncl; ++j)
-        if (colour[j] == g && dim[j] > t) z[coarse_first_[j] + t] = 1.0, any = true;
+        if (colour[j] == g && dim[j] > t) z[first_[j] + t] = 1.0, any = true;
       if (!any) continue;
       apply_Gt(z, w);
       apply_F(w, y);
@@ -254,7 +255,7 @@ void DualProblem::build_coarse_image(double memory_limit_mb) {
             break;
           }
         if (col >= 0 && dim[col] > t) {
-          im.e_col[fill[e]] = coarse_first_[col] + t;
+          im.e_col[fill[e]] = first_[col] + t;
           im.e_val[fill[e]++] = y[e];
         } else if (y[e] != 0.0) {
           throw std::logic_error(
@@ -276,12 +277,12 @@ void DualProblem::build_coarse_image(double memory_limit_mb) {
 
   // 4. C = G~ E.
   assemble_image_coarse_matrix();
-  im.ab = Vec::Zero(2 * coarse_dimension());
-  im.z1 = Vec::Zero(coarse_dimension());
-  im.z2 = Vec::Zero(coarse_dimension());
-  im.ext_in_second = Vec::Zero(layout_dual_.n_ext());
-  im.ext_out_second = Vec::Zero(layout_dual_.n_ext());
-  im.gflat_second = Vec::Zero(gflat_.size());
+  im.ab = Vec::Zero(2 * dimension());
+  im.z1 = Vec::Zero(dimension());
+  im.z2 = Vec::Zero(dimension());
+  im.ext_in_second = Vec::Zero(m_.layout.n_ext());
+  im.ext_out_second = Vec::Zero(m_.layout.n_ext());
+  im.pairs_second = Vec::Zero(pairs_.size());
   im.stats.colours = ncolours;
   im.stats.F_applications = applications;
   im.stats.E_nonzeros = comm_.sum(static_cast<long long>(im.e_col.size()));
@@ -290,57 +291,58 @@ void DualProblem::build_coarse_image(double memory_limit_mb) {
   im.stats.seconds = seconds_now() - t0;
 }
 
-void DualProblem::apply_coarse_image(const Vec& z, Vec& y) const {
+void CoarseSpace::apply_image(const Vec& z, Vec& y) const {
   if (!image_.built) throw std::logic_error("apply_coarse_image before build_coarse_image");
-  const int n = layout_dual_.n_owned();
+  const int n = m_.layout.n_owned();
   y.resize(n);
 #pragma omp parallel for schedule(static) if (n > 50000 && !omp_in_parallel())
   for (int e = 0; e < n; ++e) y[e] = image_row(e, z);
 }
 
-void DualProblem::hessian_from_Fv(const Vec& v, const Vec& fv, double rho, Vec& y, Vec& qv) {
+void CoarseSpace::hessian_from_Fv(const Vec& v, const Vec& fv, double rho, Vec& y, Vec& qv) {
   if (!image_.built) throw std::logic_error("hessian_from_Fv before build_coarse_image");
   auto& im = image_;
-  const int nc = coarse_dimension(), n = layout_dual_.n_owned();
+  const int nc = dimension(), n = m_.layout.n_owned();
   // [G~ v; G~ F v]: the rank's rows in one pass over G~, then one reduction of both.
-  const int ncl = static_cast<int>(clusters_.size());
-  gather_to_ext(v);
+  const int ncl = local_clusters();
+  m_.gather(v);
   im.ext_in_second.head(n) = fv;
-  layout_dual_.forward(im.ext_in_second.data());
+  m_.layout.forward(im.ext_in_second.data());
   im.ab.setZero();
   double* a = im.ab.data();
   double* b = a + nc;
 #pragma omp parallel for schedule(dynamic, 16) if (outer_parallel_)
   for (int c = 0; c < ncl; ++c) {
-    const int base = coarse_first_[clusters_[c]->id()];
-    for (size_t j = 0; j < g_rows_[c].size(); ++j) {
+    const int base = first_[first_cluster_ + c];
+    for (size_t j = 0; j < rows_[c].size(); ++j) {
       double s = 0, t = 0;
-      for (const auto& [k, g] : g_rows_[c][j]) s += g * ext_in_[k], t += g * im.ext_in_second[k];
+      for (const auto& [k, g] : rows_[c][j]) s += g * m_.ext_in[k], t += g * im.ext_in_second[k];
       a[base + static_cast<int>(j)] = s, b[base + static_cast<int>(j)] = t;
     }
   }
   comm_.sum_in_place(im.ab.data(), 2 * nc);
   im.z1 = im.ab.head(nc);
-  coarse_solve(im.z1);
+  solve(im.z1);
   for (int row = 0; row < nc; ++row) {  // b - C z1
     double s = b[row];
     for (int q = im.c_ptr[row]; q < im.c_ptr[row + 1]; ++q) s -= im.c_val[q] * im.z1[im.c_col[q]];
     im.z2[row] = s;
   }
-  coarse_solve(im.z2);
-  // G~^T z1 (into ext_out_) and G~^T z2 (into ext_out_second) in one pass over G~.
+  solve(im.z2);
+  // G~^T z1 (into m_.ext_out) and G~^T z2 (into ext_out_second) in one pass over G~.
 #pragma omp parallel for schedule(dynamic, 16) if (outer_parallel_)
   for (int c = 0; c < ncl; ++c) {
-    for (int p = g_first_[c]; p < g_first_[c + 1]; ++p) gflat_[p] = 0.0, im.gflat_second[p] = 0.0;
-    const int base = coarse_first_[clusters_[c]->id()];
-    for (size_t j = 0; j < g_pairs_[c].size(); ++j) {
+    for (int p = pair_first_[c]; p < pair_first_[c + 1]; ++p)
+      pairs_[p] = 0.0, im.pairs_second[p] = 0.0;
+    const int base = first_[first_cluster_ + c];
+    for (size_t j = 0; j < row_pairs_[c].size(); ++j) {
       const double s = im.z1[base + static_cast<int>(j)], t = im.z2[base + static_cast<int>(j)];
-      for (const auto& [p, g] : g_pairs_[c][j]) gflat_[p] += g * s, im.gflat_second[p] += g * t;
+      for (const auto& [p, g] : row_pairs_[c][j]) pairs_[p] += g * s, im.pairs_second[p] += g * t;
     }
   }
-  clu_sum_.combine(gflat_.data(), ext_out_.data());
-  clu_sum_.combine(im.gflat_second.data(), im.ext_out_second.data());
-  qv = ext_out_.head(n);
+  cluster_sum_.combine(pairs_.data(), m_.ext_out.data());
+  cluster_sum_.combine(im.pairs_second.data(), im.ext_out_second.data());
+  qv = m_.ext_out.head(n);
   y.resize(n);
 #pragma omp parallel for schedule(static) if (n > 50000 && !omp_in_parallel())
   for (int e = 0; e < n; ++e)

@@ -4,7 +4,10 @@
 // of unrestrained rigid motions), and the projector P = I - G~^T (G~ G~^T)^{-1} G~. Cost of one
 // projection: one pass of G~ and of G~^T over the owned multipliers, one allreduce of a coarse
 // vector, one sparse coarse solve on every rank.
+#include "htfeti/feti/coarse_space.hpp"
+
 #include <mpi.h>
+#include <omp.h>
 
 #include <algorithm>
 #include <array>
@@ -13,24 +16,24 @@
 #include <stdexcept>
 #include <string>
 
-#include "dual_setup.hpp"
-#include "htfeti/clock.hpp"
 #include "htfeti/errors.hpp"
-#include "htfeti/feti/dual_problem.hpp"
 #include "htfeti/linalg/nnls.hpp"
 #include "htfeti/parallel/memory.hpp"
 
 namespace htfeti {
 
-void DualProblem::set_up_coarse_space(Setup& st) {
-  const int P = st.P, ncl = st.ncl;
-  const int n_ext = layout_dual_.n_ext();
-  // 4. Coarse space: the kernel dimension of every cluster (allgathered), G~ rows
-  //    (G~)_{(c,j),k} = R~_{c,j} . b_k, the coarse matrix, e~ and lambda~.
-  st.coarse_start = seconds_now();
+void CoarseSpace::set_up(const std::vector<std::unique_ptr<Cluster>>& clusters, int first_cluster,
+                         std::vector<int> sub_first, bool threads_over_clusters) {
+  first_cluster_ = first_cluster;
+  sub_first_ = std::move(sub_first);
+  outer_parallel_ = threads_over_clusters;
+  const int P = comm_.size(), ncl = static_cast<int>(clusters.size());
+  const int n_ext = m_.n_ext();
+  // The kernel dimension of every cluster (allgathered), then the rows of G~:
+  // (G~)_{(c,j),k} = R~_{c,j} . b_k.
   {
     std::vector<int> dims(ncl), counts(P), displs(P + 1, 0), all(layout_.num_clusters);
-    for (int c = 0; c < ncl; ++c) dims[c] = clusters_[c]->kernel_dimension();
+    for (int c = 0; c < ncl; ++c) dims[c] = clusters[c]->kernel_dimension();
     for (int r = 0; r < P; ++r) {
       const auto [a, b] = layout_.cluster_range(r, P);
       counts[r] = b - a;
@@ -38,28 +41,28 @@ void DualProblem::set_up_coarse_space(Setup& st) {
     }
     MPI_Allgatherv(dims.data(), ncl, MPI_INT, all.data(), counts.data(), displs.data(), MPI_INT,
                    comm_.raw());
-    coarse_first_.assign(layout_.num_clusters + 1, 0);
-    for (int c = 0; c < layout_.num_clusters; ++c) coarse_first_[c + 1] = coarse_first_[c] + all[c];
+    first_.assign(layout_.num_clusters + 1, 0);
+    for (int c = 0; c < layout_.num_clusters; ++c) first_[c + 1] = first_[c] + all[c];
   }
-  g_rows_.resize(ncl);
+  rows_.resize(ncl);
   std::vector<double> acc(n_ext, 0.0);
   std::vector<int> hit;
   for (int c = 0; c < ncl; ++c) {
-    const int dk = clusters_[c]->kernel_dimension();
-    g_rows_[c].resize(dk);
+    const int dk = clusters[c]->kernel_dimension();
+    rows_[c].resize(dk);
     for (int j = 0; j < dk; ++j) {
       hit.clear();
       for (int i = 0; i < members(c); ++i)
-        for (const auto& r : rows_[sub_of(c, i)]) {
+        for (const auto& r : m_.rows[sub_of(c, i)]) {
           if (acc[r.k] == 0.0) hit.push_back(r.k);
-          acc[r.k] += r.value * clusters_[c]->kernel_entry(i, r.dof, j);
+          acc[r.k] += r.value * clusters[c]->kernel_entry(i, r.dof, j);
         }
       std::sort(hit.begin(), hit.end(), [&](int a, int b) {  // global order, as on one rank
-        return layout_dual_.global(a) < layout_dual_.global(b);
+        return m_.layout.global(a) < m_.layout.global(b);
       });
       hit.erase(std::unique(hit.begin(), hit.end()), hit.end());
       for (int k : hit) {
-        if (acc[k] != 0.0) g_rows_[c][j].push_back({k, acc[k]});
+        if (acc[k] != 0.0) rows_[c][j].push_back({k, acc[k]});
         acc[k] = 0.0;
       }
     }
@@ -67,116 +70,78 @@ void DualProblem::set_up_coarse_space(Setup& st) {
   {  // G~^T by ordered sums over clusters: one pair per (cluster, multiplier)
     std::vector<int> pk;
     std::vector<long long> pc;
-    g_pairs_.resize(ncl);
-    g_first_.assign(ncl + 1, 0);
+    row_pairs_.resize(ncl);
+    pair_first_.assign(ncl + 1, 0);
     for (int c = 0; c < ncl; ++c) {
       std::vector<int> ks;
-      for (const auto& row : g_rows_[c])
+      for (const auto& row : rows_[c])
         for (const auto& [k, g] : row) ks.push_back(k);
       std::sort(ks.begin(), ks.end());
       ks.erase(std::unique(ks.begin(), ks.end()), ks.end());
       const int base = static_cast<int>(pk.size());
       for (int k : ks) pk.push_back(k), pc.push_back(first_cluster_ + c);
-      g_pairs_[c].resize(g_rows_[c].size());
-      for (size_t j = 0; j < g_rows_[c].size(); ++j)
-        for (const auto& [k, g] : g_rows_[c][j])
-          g_pairs_[c][j].push_back(
+      row_pairs_[c].resize(rows_[c].size());
+      for (size_t j = 0; j < rows_[c].size(); ++j)
+        for (const auto& [k, g] : rows_[c][j])
+          row_pairs_[c][j].push_back(
               {base + static_cast<int>(std::lower_bound(ks.begin(), ks.end(), k) - ks.begin()), g});
-      g_first_[c + 1] = static_cast<int>(pk.size());
+      pair_first_[c + 1] = static_cast<int>(pk.size());
     }
-    clu_sum_ = OrderedSum(comm_, layout_dual_, pk, pc, owner_);
-    gflat_ = Vec::Zero(static_cast<int>(pk.size()));
+    cluster_sum_ = OrderedSum(comm_, m_.layout, pk, pc, m_.owner_rank);
+    pairs_ = Vec::Zero(static_cast<int>(pk.size()));
   }
-  ext_in_ = Vec::Zero(n_ext);
-  ext_out_ = Vec::Zero(n_ext);
-  coarse_work_ = Vec::Zero(coarse_dimension());
+  work_ = Vec::Zero(dimension());
 }
 
-void DualProblem::finish_setup(Setup& st) {
-  const int ncl = st.ncl, nsub = st.nsub;
-  const int n_own = layout_dual_.n_owned();
-  auto& rho = st.rho;
-  assemble_coarse(std::vector<double>(n_own, 1.0), coarse_factor_);
-
-  scatter_contrib();  // d: the clusters' parts were computed with their setup
-  contrib_ = {};      // needed for nothing else
-  d_ = ext_out_.head(n_own) - c_;
-  e_ = Vec::Zero(coarse_dimension());
-  for (int c = 0; c < ncl; ++c)
-    for (int i = 0; i < members(c); ++i)
-      clusters_[c]->kernel_dot(i, subs_[sub_of(c, i)]->f(), &e_[coarse_first_[first_cluster_ + c]]);
-  comm_.sum_in_place(e_.data(), static_cast<int>(e_.size()));
-  if (coarse_factor_.null_dimension() > 0) {
-    // Solvable only if the load has no component along the unrestrained rigid motions
-    // (e = R~^T f must lie in the range of G~).
-    const Eigen::VectorXd along = coarse_factor_.null.transpose() * e_;
-    if (along.norm() > 1e-10 * std::max(e_.norm(), 1e-300) || (e_.norm() == 0 && along.norm() > 0))
-      throw std::invalid_argument(
-          "the problem has no solution: the load has a resultant along " +
-          describe_null(coarse_factor_.null) +
-          " that no Dirichlet condition or contact restrains (add a Dirichlet condition or "
-          "balance the load)");
-  }
-  coarse_work_ = e_;
-  coarse_solve(coarse_work_);
-  lambda_tilde_.resize(n_own);
-  apply_Gt(coarse_work_, lambda_tilde_);
-  lower_.resize(n_own);
-  for (int k = 0; k < n_own; ++k)
-    lower_[k] =
-        kind_[k] == MultiplierKind::contact ? 0.0 : -std::numeric_limits<double>::infinity();
-  if (precond_kind_ != PreconditionerKind::none) {
-    pin_.resize(nsub), pout_.resize(nsub);
-    for (int s = 0; s < nsub; ++s)
-      pin_[s] = Vec::Zero(precond_[s]->size()), pout_[s] = Vec::Zero(precond_[s]->size());
-    if (scaling_ == Scaling::stiffness) build_scaling(rho);
-  }
-  setup_.coarse = seconds_now() - st.coarse_start;
-  setup_.peak_mb_coarse = peak_rss_mb();
-}
-
-// G~ and G~^T: every cluster has its own rows of the coarse vector and its own pairs of gflat_,
+// G~ and G~^T: every cluster has its own rows of the coarse vector and its own pairs of pairs_,
 // so threads take clusters and each value is formed in the same order as by one thread.
-void DualProblem::apply_G(const Vec& lambda, Vec& coarse) {
-  gather_to_ext(lambda);
-  coarse.setZero(coarse_dimension());
-  const int nc = static_cast<int>(clusters_.size());
+void CoarseSpace::apply_G(const Vec& lambda, Vec& coarse) {
+  m_.gather(lambda);
+  coarse.setZero(dimension());
+  const int nc = local_clusters();
 #pragma omp parallel for schedule(dynamic, 16) if (outer_parallel_)
   for (int c = 0; c < nc; ++c) {
-    const int base = coarse_first_[clusters_[c]->id()];
-    for (size_t j = 0; j < g_rows_[c].size(); ++j) {
+    const int base = first_[first_cluster_ + c];
+    for (size_t j = 0; j < rows_[c].size(); ++j) {
       double s = 0;
-      for (const auto& [k, g] : g_rows_[c][j]) s += g * ext_in_[k];
+      for (const auto& [k, g] : rows_[c][j]) s += g * m_.ext_in[k];
       coarse[base + static_cast<int>(j)] = s;
     }
   }
   comm_.sum_in_place(coarse.data(), static_cast<int>(coarse.size()));
 }
 
-void DualProblem::gt_into_ext(const Vec& coarse) {
-  const int nc = static_cast<int>(clusters_.size());
+void CoarseSpace::gt_into_ext(const Vec& coarse) {
+  const int nc = local_clusters();
 #pragma omp parallel for schedule(dynamic, 16) if (outer_parallel_)
   for (int c = 0; c < nc; ++c) {
-    for (int p = g_first_[c]; p < g_first_[c + 1]; ++p) gflat_[p] = 0.0;
-    const int base = coarse_first_[clusters_[c]->id()];
-    for (size_t j = 0; j < g_pairs_[c].size(); ++j) {
+    for (int p = pair_first_[c]; p < pair_first_[c + 1]; ++p) pairs_[p] = 0.0;
+    const int base = first_[first_cluster_ + c];
+    for (size_t j = 0; j < row_pairs_[c].size(); ++j) {
       const double z = coarse[base + static_cast<int>(j)];
-      for (const auto& [p, g] : g_pairs_[c][j]) gflat_[p] += g * z;
+      for (const auto& [p, g] : row_pairs_[c][j]) pairs_[p] += g * z;
     }
   }
-  clu_sum_.combine(gflat_.data(), ext_out_.data());
+  cluster_sum_.combine(pairs_.data(), m_.ext_out.data());
 }
 
-void DualProblem::apply_Gt(const Vec& coarse, Vec& lambda) {
+void CoarseSpace::apply_Gt(const Vec& coarse, Vec& lambda) {
   gt_into_ext(coarse);
-  lambda = ext_out_.head(layout_dual_.n_owned());
+  lambda = m_.ext_out.head(m_.layout.n_owned());
 }
 
-void DualProblem::project(const Vec& x, Vec& y) {
-  apply_G(x, coarse_work_);    // G~ x
-  coarse_solve(coarse_work_);  // (G~ G~^T)^{-1} G~ x
-  gt_into_ext(coarse_work_);   // G~^T (G~ G~^T)^{-1} G~ x, owned part in ext_out_
-  y = x - ext_out_.head(layout_dual_.n_owned());
+void CoarseSpace::project(const Vec& x, Vec& y) {
+  apply_G(x, work_);   // G~ x
+  solve(work_);        // (G~ G~^T)^{-1} G~ x
+  gt_into_ext(work_);  // G~^T (G~ G~^T)^{-1} G~ x, owned part in m_.ext_out
+  y = x - m_.ext_out.head(m_.layout.n_owned());
+}
+
+int CoarseSpace::solve_weighted(const std::vector<double>& weight, Vec& coarse) {
+  Factor factor;
+  assemble(weight, factor);
+  factor.solve(coarse);
+  return factor.null_dimension();
 }
 
 namespace {
@@ -195,7 +160,7 @@ MPI_Datatype struct_type(const std::array<MPI_Aint, N>& disp,
 }
 }  // namespace
 
-std::vector<DualProblem::GItem> DualProblem::g_columns_at_owners() const {
+std::vector<CoarseSpace::GItem> CoarseSpace::g_columns_at_owners() const {
   // Every cluster sends (k, coarse row, g) for its nonzeros of G~ to the owner of k. Counts are
   // in items (MPI datatypes), not bytes.
   MPI_Datatype item_type =
@@ -203,11 +168,11 @@ std::vector<DualProblem::GItem> DualProblem::g_columns_at_owners() const {
                             {MPI_LONG_LONG, MPI_INT, MPI_DOUBLE});
   const int P = comm_.size();
   std::vector<std::vector<GItem>> out(P);
-  for (size_t c = 0; c < clusters_.size(); ++c) {
-    const int base = coarse_first_[clusters_[c]->id()];
-    for (size_t j = 0; j < g_rows_[c].size(); ++j)
-      for (const auto& [k, g] : g_rows_[c][j])
-        out[owner_[k]].push_back({layout_dual_.global(k), base + static_cast<int>(j), g});
+  for (size_t c = 0; c < rows_.size(); ++c) {
+    const int base = first_[first_cluster_ + c];
+    for (size_t j = 0; j < rows_[c].size(); ++j)
+      for (const auto& [k, g] : rows_[c][j])
+        out[m_.owner_rank[k]].push_back({m_.layout.global(k), base + static_cast<int>(j), g});
   }
   std::vector<int> scount(P), rcount(P), sdisp(P + 1, 0), rdisp(P + 1, 0);
   for (int r = 0; r < P; ++r) scount[r] = static_cast<int>(out[r].size());
@@ -227,7 +192,7 @@ std::vector<DualProblem::GItem> DualProblem::g_columns_at_owners() const {
   return rbuf;
 }
 
-std::vector<DualProblem::CoarseTriplet> DualProblem::allgather_sorted(
+std::vector<CoarseSpace::CoarseTriplet> CoarseSpace::allgather_sorted(
     const std::vector<CoarseTriplet>& mine) const {
   MPI_Datatype trip_type =
       struct_type<CoarseTriplet, 4>({offsetof(CoarseTriplet, k), offsetof(CoarseTriplet, a),
@@ -249,7 +214,7 @@ std::vector<DualProblem::CoarseTriplet> DualProblem::allgather_sorted(
   return all;
 }
 
-std::vector<DualProblem::CoarseTriplet> DualProblem::owner_cluster_sums(
+std::vector<CoarseSpace::CoarseTriplet> CoarseSpace::owner_cluster_sums(
     const std::vector<GItem>& gcol, const ProductsOf& products_of) const {
   // Products summed per owner cluster of the multiplier (all of a cluster's multipliers live on
   // one rank whatever the rank count), in multiplier order; the caller adds the partial sums in
@@ -259,7 +224,7 @@ std::vector<DualProblem::CoarseTriplet> DualProblem::owner_cluster_sums(
   std::vector<std::pair<int, size_t>> groups;  // (owner cluster, first item of the multiplier)
   for (size_t i = 0; i < gcol.size(); ++i)
     if (i == 0 || gcol[i].k != gcol[i - 1].k)
-      groups.push_back({block_[layout_dual_.ext_index(gcol[i].k)], i});
+      groups.push_back({m_.owner_cluster[m_.layout.ext_index(gcol[i].k)], i});
   std::stable_sort(groups.begin(), groups.end(),
                    [](const auto& x, const auto& y) { return x.first < y.first; });
   std::vector<CoarseTriplet> mine, products;
@@ -292,14 +257,14 @@ std::vector<DualProblem::CoarseTriplet> DualProblem::owner_cluster_sums(
   return mine;
 }
 
-void DualProblem::assemble_coarse(const std::vector<double>& weight, CoarseFactor& factor) {
+void CoarseSpace::assemble(const std::vector<double>& weight, Factor& factor) {
   // (G~ W G~^T)_{ab} = sum_k w_k g_ak g_bk. The owners of the multipliers form the products and
   // sum equal entries; the summed triplets are shared (every rank factors the coarse matrix).
   using Triplet = CoarseTriplet;
   std::vector<GItem> rbuf = g_columns_at_owners();
   std::vector<Triplet> mine =
       owner_cluster_sums(rbuf, [&](size_t i, size_t j, std::vector<Triplet>& products) {
-        const double w = weight[layout_dual_.ext_index(rbuf[i].k)];
+        const double w = weight[m_.layout.ext_index(rbuf[i].k)];
         if (w != 0.0)
           for (size_t a = i; a < j; ++a)
             for (size_t b = a; b < j; ++b) {
@@ -315,7 +280,7 @@ void DualProblem::assemble_coarse(const std::vector<double>& weight, CoarseFacto
   std::vector<Eigen::Triplet<double>> trip;
   trip.reserve(all.size());
   for (const auto& t : all) trip.emplace_back(t.a, t.b, t.v);
-  Eigen::SparseMatrix<double> GGt(coarse_dimension(), coarse_dimension());
+  Eigen::SparseMatrix<double> GGt(dimension(), dimension());
   GGt.setFromTriplets(trip.begin(), trip.end());
   factor.sparse = SparseCholesky(Ordering::amd);
   factor.use_dense = false;
@@ -342,8 +307,8 @@ void DualProblem::assemble_coarse(const std::vector<double>& weight, CoarseFacto
   // memory is not, and is agreed on before the ranks' paths could part.
   comm_.agree(oom ? "out of memory while factoring the coarse problem" : "", true);
   if (!singular) return;
-  const int nc = coarse_dimension();
-  if (nc > kMaxDenseCoarse)
+  const int nc = dimension();
+  if (nc > kMaxDense)
     throw std::runtime_error(
         "the coarse problem G G^T is singular: some rigid motion of a subdomain or cluster is "
         "restrained by no Dirichlet condition or contact row (coarse dimension " +
@@ -368,14 +333,13 @@ void DualProblem::assemble_coarse(const std::vector<double>& weight, CoarseFacto
     throw std::runtime_error("the coarse problem G G^T could not be factored");
 }
 
-std::string DualProblem::describe_null(const Eigen::MatrixXd& Z) const {
+std::string CoarseSpace::describe_null(const Eigen::MatrixXd& Z) const {
   // Clusters carrying the null directions (largest coefficients), by global cluster id.
   std::vector<int> clusters;
   const double top = Z.size() ? Z.cwiseAbs().maxCoeff() : 0.0;
   for (int c = 0; c < layout_.num_clusters; ++c) {
     double m = 0;
-    for (int j = coarse_first_[c]; j < coarse_first_[c + 1]; ++j)
-      m = std::max(m, Z.row(j).cwiseAbs().maxCoeff());
+    for (int j = first_[c]; j < first_[c + 1]; ++j) m = std::max(m, Z.row(j).cwiseAbs().maxCoeff());
     if (m > 1e-3 * top) clusters.push_back(c);
   }
   std::string s;
@@ -394,17 +358,17 @@ std::string DualProblem::describe_null(const Eigen::MatrixXd& Z) const {
 // work along it (e~^T Z t > 0). Then the energy decreases without bound along y. The certificate
 // t is the residual of min ||A^T mu - Z^T e~||, mu >= 0 (nnls.hpp). Collective; every rank solves
 // the same small problem on the gathered contact rows (ordered by global index).
-std::string DualProblem::unbounded_motion() {
-  if (n_inequalities_ == 0) return "";
-  const int n_own = layout_dual_.n_owned();
+std::string CoarseSpace::unbounded_motion(const Vec& e) {
+  if (m_.inequalities == 0) return "";
+  const int n_own = m_.layout.n_owned();
   std::vector<double> weight(n_own, 1.0);
   for (int k = 0; k < n_own; ++k)
-    if (kind_[k] == MultiplierKind::contact) weight[k] = 0.0;
-  CoarseFactor equalities;
+    if (m_.kind[k] == MultiplierKind::contact) weight[k] = 0.0;
+  Factor equalities;
   try {
-    assemble_coarse(weight, equalities);
+    assemble(weight, equalities);
   } catch (const std::runtime_error&) {
-    return "";  // too large for the dense null space (kMaxDenseCoarse): no diagnosis
+    return "";  // too large for the dense null space (kMaxDense): no diagnosis
   }
   const Eigen::MatrixXd& Z = equalities.null;
   const int k = static_cast<int>(Z.cols());
@@ -418,8 +382,8 @@ std::string DualProblem::unbounded_motion() {
     apply_Gt(z, cols[j]);
   }
   for (int e = 0; e < n_own; ++e)
-    if (kind_[e] == MultiplierKind::contact) {
-      mine_k.push_back(layout_dual_.global(e));
+    if (m_.kind[e] == MultiplierKind::contact) {
+      mine_k.push_back(m_.layout.global(e));
       for (int j = 0; j < k; ++j) mine_v.push_back(cols[j][e]);
     }
   const MPI_Comm mc = comm_.raw();
@@ -445,7 +409,7 @@ std::string DualProblem::unbounded_motion() {
   for (size_t c = 0; c < order.size(); ++c)
     for (int j = 0; j < k; ++j)
       M(j, static_cast<Eigen::Index>(c)) = all_v[static_cast<size_t>(order[c]) * k + j];
-  const Eigen::VectorXd b = Z.transpose() * e_;
+  const Eigen::VectorXd b = Z.transpose() * e;
   if (b.norm() == 0) return "";
   const NnlsResult fit = nnls(M, b);
   // Bounded iff the contact forces can balance the load on those motions (r = 0 to round-off);

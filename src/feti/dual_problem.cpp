@@ -95,7 +95,6 @@ DualProblem::DualProblem(const FetiLayout& layout,
                                             options.numeric_cache_bytes);
   assemble_subdomains(make_input, st);  // 1.
   number_multipliers(st);               // 2.
-  number_local_rows(st);
   choose_operator(st);
   plan_preconditioner(st);
   set_up_clusters(st);      // 3.
@@ -115,17 +114,7 @@ void DualProblem::assemble_subdomains(const std::function<SubdomainInput(int)>& 
   //    primal constraints, while the dof sharing is at hand; then drop the sharing.
   const double t = seconds_now();
   subs_.resize(nsub);
-  // Exact stiffness scaling on the nodes needs their copy counts. Copies joined primally (corner
-  // glue) form groups, for which the identity used there does not hold: those runs weight each
-  // per-node row over its own entries instead (build_scaling).
-  exact_node_scaling_ =
-      options.preconditioner != PreconditionerKind::none && options.scaling == Scaling::stiffness;
-  if (exact_node_scaling_) {
-    bool groups = false;
-    for (int c = 0; c < layout_.num_clusters; ++c) groups |= layout_.cluster_size(c) > 1;
-    exact_node_scaling_ = layout_.glue == Glue::averages || !groups;
-  }
-  if (exact_node_scaling_) node_copies_.resize(nsub);
+  preconditioner_.start(options, layout_, nsub);  // and the node copies it needs
   outer_parallel_ = omp_get_max_threads() > 1 && ncl >= omp_get_max_threads();
   std::string error;
   bool input_error = false;
@@ -150,8 +139,8 @@ void DualProblem::assemble_subdomains(const std::function<SubdomainInput(int)>& 
           if (in[i].system.K.rows() == in[i].system.f.size())
             pooled[i] = cache_->intern_matrix(in[i].system.K);  // leaves system.K empty
           subdomain_rows(layout_, in[i], local_rows[sub_of(c, i)]);
-          if (!node_copies_.empty()) {
-            auto& nc = node_copies_[sub_of(c, i)];
+          if (preconditioner_.collects_node_copies()) {
+            auto& nc = preconditioner_.node_copies(sub_of(c, i));
             for (int k = 0; k < in[i].sharing.num_nodes(); ++k)
               nc.push_back(in[i].sharing.num_copies(k));
           }
@@ -185,128 +174,11 @@ void DualProblem::assemble_subdomains(const std::function<SubdomainInput(int)>& 
 }
 
 void DualProblem::number_multipliers(Setup& st) {
-  const int P = st.P, me = st.me, nsub = st.nsub;
-  auto& local_rows = st.local_rows;
-  // 2. Global numbering of the rows by key, owners, and the extended dual layout.
+  // 2. The rows of B~ numbered globally by key, owners, the extended layout, the local rows.
   const double t = seconds_now();
-  std::vector<NumberingKey> keys;
-  std::vector<int> key_owner;
-  std::vector<const LocalRow*> key_row;
-  {
-    std::vector<std::pair<RowKey, const LocalRow*>> all;
-    for (int s = 0; s < nsub; ++s)
-      for (const auto& r : local_rows[s]) all.push_back({r.key, &r});
-    std::sort(all.begin(), all.end(),
-              [](const auto& x, const auto& y) { return x.first < y.first; });
-    for (size_t i = 0; i < all.size(); ++i)
-      if (i == 0 || all[i].first != all[i - 1].first) {
-        keys.push_back(all[i].first);
-        key_owner.push_back(layout_.rank_of_subdomain(all[i].second->owner_subdomain, P));
-        key_row.push_back(all[i].second);
-      }
-  }
-  // Bucket position: per-node rows by their node, object rows after all nodes by cluster.
-  const long long nodes = layout_.num_nodes;
-  const std::vector<long long> index = number_keys(
-      comm_, keys, nodes + layout_.num_clusters,
-      [nodes](const NumberingKey& k) { return k[0] == 0 ? k[1] : nodes + k[1]; }, n_dual_);
-  {
-    std::vector<long long> touched(index);
-    std::vector<int> owner(key_owner);
-    std::vector<size_t> perm(index.size());
-    std::iota(perm.begin(), perm.end(), 0);
-    std::sort(perm.begin(), perm.end(), [&](size_t a, size_t b) { return index[a] < index[b]; });
-    for (size_t i = 0; i < perm.size(); ++i)
-      touched[i] = index[perm[i]], owner[i] = key_owner[perm[i]];
-    layout_dual_ = DualLayout(comm_, touched, owner);
-  }
-  const int n_ext = layout_dual_.n_ext(), n_own = layout_dual_.n_owned();
-  owner_.assign(n_ext, me);
-  kind_.assign(n_own, MultiplierKind::gluing);
-  c_ = Vec::Zero(n_own);
-  contact_scale_.assign(n_own, 1.0);
-  contact_gap_.assign(n_own, 0.0);
-  contact_point_.assign(n_own, {0, 0, 0});
-  long long my_inequalities = 0;
-  block_.assign(n_own, 0);
-  for (size_t i = 0; i < keys.size(); ++i) {
-    const int k = layout_dual_.ext_index(index[i]);
-    owner_[k] = key_owner[i];
-    if (k < n_own) {
-      const LocalRow& r = *key_row[i];
-      block_[k] = layout_.cluster_of(r.owner_subdomain);
-      kind_[k] = r.kind;
-      c_[k] = r.rhs;
-      contact_scale_[k] = r.scale;
-      contact_gap_[k] = r.gap;
-      contact_point_[k] = r.point;
-      if (r.kind == MultiplierKind::contact) ++my_inequalities;
-    }
-  }
-  n_inequalities_ = comm_.sum(my_inequalities);
-  rows_.resize(nsub);
-  for (int s = 0; s < nsub; ++s) {
-    auto& lr = local_rows[s];
-    std::vector<std::pair<int, const LocalRow*>> ordered;
-    for (const auto& r : lr) {
-      const size_t i = std::lower_bound(keys.begin(), keys.end(), r.key) - keys.begin();
-      ordered.push_back({layout_dual_.ext_index(index[i]), &r});
-    }
-    // Rows in global order (the order of the ext indices of owned entries, then ghosts, is the
-    // global order within each part; sort by global index for a fixed accumulation order).
-    std::sort(ordered.begin(), ordered.end(), [&](const auto& x, const auto& y) {
-      return layout_dual_.global(x.first) < layout_dual_.global(y.first);
-    });
-    for (const auto& [k, r] : ordered) {
-      const RowClass cls = r->kind != MultiplierKind::gluing ? RowClass::other
-                           : r->key[0] == 0                  ? RowClass::node
-                                                             : RowClass::object;
-      const auto side = static_cast<std::int8_t>(r->side);
-      for (const auto& [dof, v] : r->entries) rows_[s].push_back({k, -1, dof, side, cls, v});
-    }
-    lr = {};
-  }
-  local_rows = {};
+  st.local_b = multipliers_.number(layout_, comm_, st.local_rows, st.s0);
   setup_.constraints = seconds_now() - t;
   setup_.peak_mb_constraints = peak_rss_mb();
-}
-
-void DualProblem::number_local_rows(Setup& st) {
-  const int nsub = st.nsub, s0 = st.s0;
-  const int n_ext = layout_dual_.n_ext();
-  auto& local_b = st.local_b;
-  // Local numbering of the rows of B~ on each subdomain (distinct multipliers in extended order).
-  mult_.resize(nsub);
-  local_b.resize(nsub);
-  {
-    std::vector<int> local_of(n_ext, -1);
-    for (int s = 0; s < nsub; ++s) {
-      for (const auto& r : rows_[s]) mult_[s].push_back(r.k);
-      // By global index (not extended index, whose owned/ghost split depends on the ranks): the
-      // local numbering fixes the summation order of the dense blocks F_i.
-      std::sort(mult_[s].begin(), mult_[s].end(),
-                [&](int a, int b) { return layout_dual_.global(a) < layout_dual_.global(b); });
-      mult_[s].erase(std::unique(mult_[s].begin(), mult_[s].end()), mult_[s].end());
-      for (size_t j = 0; j < mult_[s].size(); ++j) local_of[mult_[s][j]] = static_cast<int>(j);
-      for (auto& r : rows_[s]) {
-        r.j = local_of[r.k];
-        local_b[s].push_back({r.j, r.dof, r.value});
-      }
-    }
-  }
-  // Ordered sums over subdomains (F, B u, d) and the owner cluster of every owned entry.
-  {
-    std::vector<int> pk;
-    std::vector<long long> pc;
-    flat_off_.assign(nsub + 1, 0);
-    for (int s = 0; s < nsub; ++s) {
-      for (int k : mult_[s]) pk.push_back(k), pc.push_back(s0 + s);
-      flat_off_[s + 1] = static_cast<int>(pk.size());
-    }
-    sub_sum_ = OrderedSum(comm_, layout_dual_, pk, pc, owner_);
-    flat_ = Vec::Zero(static_cast<int>(pk.size()));
-    partial_.assign(layout_.num_clusters, 0.0);
-  }
 }
 
 void DualProblem::choose_operator(Setup& st) {
@@ -329,7 +201,7 @@ void DualProblem::choose_operator(Setup& st) {
   packed_bytes.assign(nsub, 0.0);  // F_i of each subdomain, packed
   double explicit_bytes = 0;
   for (int s = 0; s < nsub; ++s) {
-    const double m = static_cast<double>(mult_[s].size());
+    const double m = static_cast<double>(multipliers_.of_subdomain[s].size());
     explicit_bytes += packed_bytes[s] = value_bytes * m * (m + 1) / 2;
   }
   explicit_bytes = comm_.max(explicit_bytes);
@@ -348,47 +220,8 @@ void DualProblem::choose_operator(Setup& st) {
 }
 
 void DualProblem::plan_preconditioner(Setup& st) {
-  const FetiOptions& options = st.options;
-  const int nsub = st.nsub;
-  auto& interface = st.interface;
-  auto& rho = st.rho;
-  // The preconditioner's interface per subdomain: the dofs its rows of B~ touch (sorted), and
-  // per row entry the position of its dof there. Dense Dirichlet blocks when they fit.
-  if (options.preconditioner == PreconditionerKind::automatic ||
-      options.scaling == Scaling::automatic)
-    throw std::logic_error("DualProblem: resolve the automatic preconditioner first");
-  precond_kind_ = options.preconditioner;
-  scaling_ = options.scaling;
-  interface.resize(precond_kind_ != PreconditionerKind::none ? nsub : 0);
-  rho.resize(precond_kind_ != PreconditionerKind::none && scaling_ == Scaling::stiffness ? nsub
-                                                                                         : 0);
-  if (precond_kind_ != PreconditionerKind::none) {
-    double dense_bytes = 0;
-    ipos_.resize(nsub);
-    for (int s = 0; s < nsub; ++s) {
-      auto& in = interface[s];
-      for (const auto& r : rows_[s]) in.push_back(r.dof);
-      std::sort(in.begin(), in.end());
-      in.erase(std::unique(in.begin(), in.end()), in.end());
-      for (const auto& r : rows_[s])
-        ipos_[s].push_back(
-            static_cast<int>(std::lower_bound(in.begin(), in.end(), r.dof) - in.begin()));
-      dense_bytes += 8.0 * in.size() * in.size();
-    }
-    const bool fits = comm_.max(dense_bytes) <= options.dirichlet_dense_budget_bytes;
-    if (precond_kind_ == PreconditionerKind::dirichlet && options.dirichlet_storage == 0 && !fits &&
-        options.dirichlet_fallback != PreconditionerKind::dirichlet) {
-      precond_kind_ = options.dirichlet_fallback;
-      if (precond_kind_ == PreconditionerKind::none) {
-        interface.clear(), rho.clear(), ipos_.clear();
-        exact_node_scaling_ = false;
-        node_copies_ = {};
-      }
-    }
-    precond_dense_ = precond_kind_ == PreconditionerKind::dirichlet &&
-                     (options.dirichlet_storage == 1 || (options.dirichlet_storage == 0 && fits));
-    if (precond_kind_ != PreconditionerKind::none) precond_.resize(nsub);
-  }
+  st.interface = preconditioner_.plan(st.options, multipliers_, comm_);
+  st.rho.resize(preconditioner_.wants_diagonal() ? st.nsub : 0);
 }
 
 void DualProblem::set_up_clusters(Setup& st) {
@@ -407,7 +240,7 @@ void DualProblem::set_up_clusters(Setup& st) {
                                std::move(cluster_explicit_mb));
   released_.assign(ncl, 0);
   contrib_.resize(nsub);
-  for (int s = 0; s < nsub; ++s) contrib_[s].assign(rows_[s].size(), 0.0);
+  for (int s = 0; s < nsub; ++s) contrib_[s].assign(multipliers_.rows[s].size(), 0.0);
   x_.resize(ncl);
   for (int c = 0; c < ncl; ++c)
     for (int i = 0; i < members(c); ++i) x_[c].push_back(Vec::Zero(subs_[sub_of(c, i)]->size()));
@@ -426,7 +259,7 @@ void DualProblem::set_up_clusters(Setup& st) {
       const int s = sub_of(c, i);
       ptrs.push_back(subs_[s].get());
       b.push_back(std::move(local_b[s]));
-      nmult.push_back(static_cast<int>(mult_[s].size()));
+      nmult.push_back(static_cast<int>(multipliers_.of_subdomain[s].size()));
     }
     try {
       if (c == 0) inject_failure("factorization", comm_.rank());
@@ -437,7 +270,7 @@ void DualProblem::set_up_clusters(Setup& st) {
       cluster_rhs_from_ext(c, true, 0.0);
       clusters_[c]->solve(x_[c]);
       b_of_x(c);
-      if (precond_kind_ != PreconditionerKind::none) {  // from K_i, before it is freed
+      if (preconditioner_.built()) {  // from K_i, before it is freed
         const double tp = seconds_now();
         RegionError perr;
 #pragma omp parallel for schedule(dynamic) if (!omp_in_parallel() && members(c) > 1)
@@ -446,10 +279,9 @@ void DualProblem::set_up_clusters(Setup& st) {
           try {
             const Eigen::SparseMatrix<double>& K = subs_[s]->K();
             if (!rho.empty())
-              for (const auto& r : rows_[s]) rho[s].push_back(K.coeff(r.dof, r.dof));
-            precond_[s] = std::make_unique<LocalPreconditioner>(
-                K, std::move(interface[s]), precond_kind_, precond_dense_, ordering_,
-                &subs_[s]->kernel(), factor_cache());
+              for (const auto& r : multipliers_.rows[s]) rho[s].push_back(K.coeff(r.dof, r.dof));
+            preconditioner_.set_up_subdomain(s, K, std::move(interface[s]), ordering_,
+                                             &subs_[s]->kernel(), factor_cache());
           } catch (const std::exception& e) {
             perr.record(e);
           }
@@ -513,14 +345,59 @@ void DualProblem::set_up_clusters(Setup& st) {
   out_.resize(ncl);
   for (int c = 0; c < ncl; ++c)
     for (int i = 0; i < members(c); ++i) {
-      lam_[c].push_back(Vec::Zero(mult_[sub_of(c, i)].size()));
-      out_[c].push_back(Vec::Zero(mult_[sub_of(c, i)].size()));
+      lam_[c].push_back(Vec::Zero(multipliers_.of_subdomain[sub_of(c, i)].size()));
+      out_[c].push_back(Vec::Zero(multipliers_.of_subdomain[sub_of(c, i)].size()));
     }
 }
 
-void DualProblem::gather_to_ext(const Vec& owned) {
-  ext_in_.head(layout_dual_.n_owned()) = owned;
-  layout_dual_.forward(ext_in_.data());
+void DualProblem::set_up_coarse_space(Setup& st) {
+  // 4. The coarse space: cluster kernel dimensions, the rows of G~, the pairs of G~^T.
+  st.coarse_start = seconds_now();
+  coarse_.set_up(clusters_, first_cluster_, sub_first_, outer_parallel_);
+}
+
+void DualProblem::finish_setup(Setup& st) {
+  const int ncl = st.ncl, nsub = st.nsub;
+  const int n_own = multipliers_.layout.n_owned();
+  auto& rho = st.rho;
+  coarse_.factor();
+
+  multipliers_.combine_row_entries(
+      contrib_);  // d: the clusters' parts were computed with their setup
+  contrib_ = {};  // needed for nothing else
+  d_ = multipliers_.ext_out.head(n_own) - multipliers_.rhs;
+  e_ = Vec::Zero(coarse_dimension());
+  for (int c = 0; c < ncl; ++c)
+    for (int i = 0; i < members(c); ++i)
+      clusters_[c]->kernel_dot(i, subs_[sub_of(c, i)]->f(), &e_[coarse_.first(first_cluster_ + c)]);
+  comm_.sum_in_place(e_.data(), static_cast<int>(e_.size()));
+  if (coarse_.null_dimension() > 0) {
+    // Solvable only if the load has no component along the unrestrained rigid motions
+    // (e = R~^T f must lie in the range of G~).
+    const Eigen::VectorXd along = coarse_.null_space().transpose() * e_;
+    if (along.norm() > 1e-10 * std::max(e_.norm(), 1e-300) || (e_.norm() == 0 && along.norm() > 0))
+      throw std::invalid_argument(
+          "the problem has no solution: the load has a resultant along " +
+          coarse_.describe_null(coarse_.null_space()) +
+          " that no Dirichlet condition or contact restrains (add a Dirichlet condition or "
+          "balance the load)");
+  }
+  Vec coarse_work = e_;
+  coarse_solve(coarse_work);
+  lambda_tilde_.resize(n_own);
+  apply_Gt(coarse_work, lambda_tilde_);
+  lower_.resize(n_own);
+  for (int k = 0; k < n_own; ++k)
+    lower_[k] = multipliers_.kind[k] == MultiplierKind::contact
+                    ? 0.0
+                    : -std::numeric_limits<double>::infinity();
+  {
+    std::vector<int> dofs_per_node(nsub);
+    for (int s = 0; s < nsub; ++s) dofs_per_node[s] = subs_[s]->dofs_per_node();
+    preconditioner_.finish(multipliers_, rho, dofs_per_node);
+  }
+  setup_.coarse = seconds_now() - st.coarse_start;
+  setup_.peak_mb_coarse = peak_rss_mb();
 }
 
 void DualProblem::cluster_rhs_from_ext(int c, bool add_f, double sign) {
@@ -531,70 +408,37 @@ void DualProblem::cluster_rhs_from_ext(int c, bool add_f, double sign) {
     else
       x.setZero();
     if (sign != 0.0)
-      for (const auto& r : rows_[sub_of(c, i)]) x[r.dof] += sign * r.value * ext_in_[r.k];
+      for (const auto& r : multipliers_.rows[sub_of(c, i)])
+        x[r.dof] += sign * r.value * multipliers_.ext_in[r.k];
   }
 }
 
 void DualProblem::b_of_x(int c) {
   for (int i = 0; i < members(c); ++i) {
     const Vec& x = x_[c][i];
-    const auto& rows = rows_[sub_of(c, i)];
+    const auto& rows = multipliers_.rows[sub_of(c, i)];
     double* out = contrib_[sub_of(c, i)].data();
     for (size_t j = 0; j < rows.size(); ++j) out[j] = rows[j].value * x[rows[j].dof];
   }
 }
 
-void DualProblem::scatter_contrib() {
-  flat_.setZero();
-  for (size_t s = 0; s < subs_.size(); ++s) {
-    const auto& rows = rows_[s];
-    const double* in = contrib_[s].data();
-    for (size_t j = 0; j < rows.size(); ++j) flat_[flat_off_[s] + rows[j].j] += in[j];
-  }
-  combine_subdomains();
-}
-
-void DualProblem::combine_subdomains() { sub_sum_.combine(flat_.data(), ext_out_.data()); }
-
-double DualProblem::reduce_blocks(std::vector<double>& partial) const {
-  // Every cluster's partial sum is non-zero on one rank only, so the allreduce adds exact zeros;
-  // the partial sums are then added in cluster order on every rank.
-  if (comm_.size() > 1)
-    MPI_Allreduce(MPI_IN_PLACE, partial.data(), static_cast<int>(partial.size()), MPI_DOUBLE,
-                  MPI_SUM, comm_.raw());
-  double s = 0;
-  for (double v : partial) s += v;
-  return s;
-}
-
-double DualProblem::dot(const Vec& a, const Vec& b) const {
-  std::fill(partial_.begin(), partial_.end(), 0.0);
-  for (Eigen::Index i = 0; i < a.size(); ++i) partial_[block_[i]] += a[i] * b[i];
-  return reduce_blocks(partial_);
-}
-
-double DualProblem::sum(const Vec& v) const {
-  std::fill(partial_.begin(), partial_.end(), 0.0);
-  for (Eigen::Index i = 0; i < v.size(); ++i) partial_[block_[i]] += v[i];
-  return reduce_blocks(partial_);
-}
-
 void DualProblem::apply_F(const Vec& lambda, Vec& y) {
-  gather_to_ext(lambda);
+  multipliers_.gather(lambda);
   const int nc = static_cast<int>(clusters_.size());
 #pragma omp parallel for schedule(dynamic) if (outer_parallel_)
   for (int c = 0; c < nc; ++c) {
     for (int i = 0; i < members(c); ++i) {  // the cluster's part of lambda
-      const auto& mult = mult_[sub_of(c, i)];
+      const auto& mult = multipliers_.of_subdomain[sub_of(c, i)];
       Vec& l = lam_[c][i];
-      for (size_t j = 0; j < mult.size(); ++j) l[j] = ext_in_[mult[j]];
+      for (size_t j = 0; j < mult.size(); ++j) l[j] = multipliers_.ext_in[mult[j]];
     }
     clusters_[c]->apply_dual(lam_[c], out_[c]);  // the bottleneck
-    for (int i = 0; i < members(c); ++i)         // each subdomain's own segment of flat_
-      flat_.segment(flat_off_[sub_of(c, i)], out_[c][i].size()) = out_[c][i];
+    for (int i = 0; i < members(c); ++i)  // each subdomain's own segment of multipliers_.pairs
+      multipliers_.pairs.segment(multipliers_.pair_first[sub_of(c, i)], out_[c][i].size()) =
+          out_[c][i];
   }
-  combine_subdomains();  // F lambda, summed over subdomains in a fixed order
-  y = ext_out_.head(layout_dual_.n_owned());
+  multipliers_.combine_subdomains();  // F lambda, summed over subdomains in a fixed order
+  y = multipliers_.ext_out.head(multipliers_.layout.n_owned());
 }
 
 long DualProblem::factor_nonzeros() const {

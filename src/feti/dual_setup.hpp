@@ -1,5 +1,5 @@
 // Internal to the FETI layer: what DualProblem's setup stages hand to each other (the
-// constructor in dual_problem.cpp runs stages 1-3, coarse_space.cpp stage 4). Dropped when the
+// constructor in dual_problem.cpp runs the stages in order). Dropped when the
 // constructor returns.
 #pragma once
 

@@ -34,16 +34,17 @@ void DualProblem::for_each_cluster(Body body) {
 }
 
 void DualProblem::apply_B(const std::vector<Vec>& u, Vec& out) {
-  flat_.setZero();
+  multipliers_.pairs.setZero();
   for (size_t s = 0; s < subs_.size(); ++s)
-    for (const auto& r : rows_[s]) flat_[flat_off_[s] + r.j] += r.value * u[s][r.dof];
-  combine_subdomains();
-  out = ext_out_.head(layout_dual_.n_owned());
+    for (const auto& r : multipliers_.rows[s])
+      multipliers_.pairs[multipliers_.pair_first[s] + r.j] += r.value * u[s][r.dof];
+  multipliers_.combine_subdomains();
+  out = multipliers_.ext_out.head(multipliers_.layout.n_owned());
 }
 
 std::vector<DualProblem::Vec> DualProblem::reconstruct(const Vec& lambda) {
-  const int n_own = layout_dual_.n_owned();
-  gather_to_ext(lambda);
+  const int n_own = multipliers_.layout.n_owned();
+  multipliers_.gather(lambda);
   std::vector<Vec> u(subs_.size());
   std::string error;
   bool input_error = false;
@@ -69,11 +70,11 @@ std::vector<DualProblem::Vec> DualProblem::reconstruct(const Vec& lambda) {
   // contact rows with lambda_i = 0 (paper, (10)).
   Vec r;
   apply_B(u, r);
-  r = c_ - r;
+  r = multipliers_.rhs - r;
   std::vector<double> weight(n_own, 1.0);
   bool masked = false;
   for (int k = 0; k < n_own; ++k)
-    if (kind_[k] == MultiplierKind::contact && !(lambda[k] > 0.0)) {
+    if (multipliers_.kind[k] == MultiplierKind::contact && !(lambda[k] > 0.0)) {
       weight[k] = 0.0;
       r[k] = 0.0;
       masked = true;
@@ -81,15 +82,12 @@ std::vector<DualProblem::Vec> DualProblem::reconstruct(const Vec& lambda) {
   Vec alpha;
   apply_G(r, alpha);
   if (comm_.max(masked ? 1.0 : 0.0) > 0.0) {
-    CoarseFactor masked_factor;
-    assemble_coarse(weight, masked_factor);
-    reconstruction_null_ = masked_factor.null_dimension();
-    masked_factor.solve(alpha);
+    reconstruction_null_ = coarse_.solve_weighted(weight, alpha);
   } else {
     coarse_solve(alpha);
   }
   for (size_t c = 0; c < clusters_.size(); ++c) {
-    const double* a = &alpha[coarse_first_[clusters_[c]->id()]];
+    const double* a = &alpha[coarse_.first(clusters_[c]->id())];
     for (int i = 0; i < members(static_cast<int>(c)); ++i)
       clusters_[c]->kernel_add(i, a, u[sub_of(static_cast<int>(c), i)]);
   }
@@ -117,15 +115,16 @@ DualProblem::Kkt DualProblem::kkt(const std::vector<Vec>& u, const Vec& lambda) 
   apply_B(u, bu);
   double viol = 0, minmult = std::numeric_limits<double>::infinity(), compl_ = 0;
   bool any_contact = false;
-  Vec sq = Vec::Zero(layout_dual_.n_owned());
-  for (int k = 0; k < layout_dual_.n_owned(); ++k) {
-    if (kind_[k] != MultiplierKind::contact) {
-      sq[k] = (bu[k] - c_[k]) * (bu[k] - c_[k]);
+  Vec sq = Vec::Zero(multipliers_.layout.n_owned());
+  for (int k = 0; k < multipliers_.layout.n_owned(); ++k) {
+    if (multipliers_.kind[k] != MultiplierKind::contact) {
+      sq[k] = (bu[k] - multipliers_.rhs[k]) * (bu[k] - multipliers_.rhs[k]);
       continue;
     }
     any_contact = true;
-    const double s = contact_scale_[k];
-    const double gap = (c_[k] - bu[k]) / s;  // gap - n.(u_a - u_b), >= 0 when feasible
+    const double s = multipliers_.contact_scale[k];
+    const double gap =
+        (multipliers_.rhs[k] - bu[k]) / s;  // gap - n.(u_a - u_b), >= 0 when feasible
     const double force = s * lambda[k];
     viol = std::max(viol, -gap);
     minmult = std::min(minmult, force);
@@ -141,23 +140,24 @@ DualProblem::Kkt DualProblem::kkt(const std::vector<Vec>& u, const Vec& lambda) 
 
 DualProblem::ContactData DualProblem::contact_data(const std::vector<Vec>& u, const Vec& lambda) {
   // n.(avg u_a) from the entries on node a (coefficients scale n_i / k_a), n.(avg u_b) likewise.
-  const int n_own = layout_dual_.n_owned();
-  Vec a = Vec::Zero(layout_dual_.n_ext()), b = Vec::Zero(layout_dual_.n_ext());
+  const int n_own = multipliers_.layout.n_owned();
+  Vec a = Vec::Zero(multipliers_.layout.n_ext()), b = Vec::Zero(multipliers_.layout.n_ext());
   for (int side : {1, -1}) {
-    flat_.setZero();
+    multipliers_.pairs.setZero();
     for (size_t s = 0; s < subs_.size(); ++s)
-      for (const auto& r : rows_[s])
-        if (r.side == side) flat_[flat_off_[s] + r.j] += side * r.value * u[s][r.dof];
-    combine_subdomains();
-    (side > 0 ? a : b).head(n_own) = ext_out_.head(n_own);
+      for (const auto& r : multipliers_.rows[s])
+        if (r.side == side)
+          multipliers_.pairs[multipliers_.pair_first[s] + r.j] += side * r.value * u[s][r.dof];
+    multipliers_.combine_subdomains();
+    (side > 0 ? a : b).head(n_own) = multipliers_.ext_out.head(n_own);
   }
   std::vector<double> mine;
   for (int k = 0; k < n_own; ++k)
-    if (kind_[k] == MultiplierKind::contact) {
-      const double s = contact_scale_[k];
-      const auto& p = contact_point_[k];
-      mine.insert(mine.end(),
-                  {p[0], p[1], p[2], a[k] / s, b[k] / s, contact_gap_[k], s * lambda[k]});
+    if (multipliers_.kind[k] == MultiplierKind::contact) {
+      const double s = multipliers_.contact_scale[k];
+      const auto& p = multipliers_.contact_point[k];
+      mine.insert(mine.end(), {p[0], p[1], p[2], a[k] / s, b[k] / s, multipliers_.contact_gap[k],
+                               s * lambda[k]});
     }
   constexpr int W = 7;
   const int P = comm_.size();
@@ -187,12 +187,12 @@ DualProblem::ContactData DualProblem::contact_data(const std::vector<Vec>& u, co
 }
 
 std::vector<DualProblem::Vec> DualProblem::contact_forces(const Vec& lambda) {
-  gather_to_ext(lambda);
+  multipliers_.gather(lambda);
   std::vector<Vec> out(subs_.size());
   for (size_t s = 0; s < subs_.size(); ++s) {
     out[s] = Vec::Zero(subs_[s]->size());
-    for (const auto& r : rows_[s])
-      if (r.side != 0) out[s][r.dof] -= r.value * ext_in_[r.k];
+    for (const auto& r : multipliers_.rows[s])
+      if (r.side != 0) out[s][r.dof] -= r.value * multipliers_.ext_in[r.k];
   }
   return out;
 }
@@ -200,16 +200,17 @@ std::vector<DualProblem::Vec> DualProblem::contact_forces(const Vec& lambda) {
 std::vector<DualProblem::Vec> DualProblem::contact_gap_field(const std::vector<Vec>& u) {
   Vec bu;
   apply_B(u, bu);
-  const int n_own = layout_dual_.n_owned();
-  Vec rem = Vec::Zero(layout_dual_.n_ext());
+  const int n_own = multipliers_.layout.n_owned();
+  Vec rem = Vec::Zero(multipliers_.layout.n_ext());
   for (int k = 0; k < n_own; ++k)
-    if (kind_[k] == MultiplierKind::contact) rem[k] = (c_[k] - bu[k]) / contact_scale_[k];
-  layout_dual_.forward(rem.data());
+    if (multipliers_.kind[k] == MultiplierKind::contact)
+      rem[k] = (multipliers_.rhs[k] - bu[k]) / multipliers_.contact_scale[k];
+  multipliers_.layout.forward(rem.data());
   std::vector<Vec> out(subs_.size());
   for (size_t s = 0; s < subs_.size(); ++s) {
     const int dpn = subs_[s]->dofs_per_node();
     out[s] = Vec::Constant(subs_[s]->size() / dpn, std::numeric_limits<double>::quiet_NaN());
-    for (const auto& r : rows_[s])
+    for (const auto& r : multipliers_.rows[s])
       if (r.side != 0) {  // the smallest remaining gap of a node's rows
         double& g = out[s][r.dof / dpn];
         g = std::isnan(g) ? rem[r.k] : std::min(g, rem[r.k]);

@@ -12,6 +12,17 @@
 // by their keys (parallel/key_numbering.hpp) so that the numbering does not depend on the
 // number of ranks; the owner of a row is the rank of the lowest subdomain it touches.
 //
+// DualProblem is a small aggregate of parts, each with one job and its own state:
+//   Multipliers         the numbering of the rows of B~, their data, the exchange of dual
+//                       vectors and the fixed-order sums (multipliers.hpp);
+//   Cluster             per cluster K~^+ and the dual operator F_c, implicit or explicit
+//                       (ClusterDualOperator, cluster.hpp);
+//   CoarseSpace         G~, G~ G~^T and its factor, the projector, the coarse image
+//                       (coarse_space.hpp);
+//   DualPreconditioner  M^{-1} with its scaling (dual_preconditioner.hpp).
+// DualProblem itself runs the setup stages, owns the subdomains and clusters, applies F and
+// reconstructs the primal solution (reconstruction.cpp: u, energy, KKT checks, contact output).
+//
 // Vectors passed in and out are the rank's owned part of a dual vector (DualLayout).
 // Cost of one F: one forward and one reverse neighbour exchange, per cluster one K~^+ (see
 // cluster.hpp) and 2 nnz(B~) flops. Clusters run in parallel over OpenMP threads; each writes
@@ -28,7 +39,10 @@
 #include <vector>
 
 #include "htfeti/feti/cluster.hpp"
+#include "htfeti/feti/coarse_space.hpp"
 #include "htfeti/feti/constraints.hpp"
+#include "htfeti/feti/dual_preconditioner.hpp"
+#include "htfeti/feti/multipliers.hpp"
 #include "htfeti/feti/preconditioner.hpp"
 #include "htfeti/feti/sparse_cholesky.hpp"
 #include "htfeti/parallel/dual_layout.hpp"
@@ -135,56 +149,55 @@ class DualProblem {
   /// ranks and thrown on every rank (std::runtime_error, or std::invalid_argument for input).
   DualProblem(const FetiLayout& layout, const std::function<SubdomainInput(int)>& make_input,
               const Comm& comm, const FetiOptions& options = {});
+  // The parts refer to each other (coarse_ to multipliers_): a DualProblem stays where it is.
+  DualProblem(const DualProblem&) = delete;
+  DualProblem& operator=(const DualProblem&) = delete;
 
   const FetiLayout& layout() const { return layout_; }
   const Comm& comm() const { return comm_; }
-  int n_owned() const { return layout_dual_.n_owned(); }
-  long long dual_dimension() const { return n_dual_; }
-  long long equalities() const { return n_dual_ - n_inequalities_; }
-  long long inequalities() const { return n_inequalities_; }
-  int coarse_dimension() const { return coarse_first_.back(); }
+  int n_owned() const { return multipliers_.n_owned(); }
+  long long dual_dimension() const { return multipliers_.dimension; }
+  long long equalities() const { return multipliers_.dimension - multipliers_.inequalities; }
+  long long inequalities() const { return multipliers_.inequalities; }
+  int coarse_dimension() const { return coarse_.dimension(); }
   /// The kernel dimension of every cluster (all ranks): the rows of G~ it contributes.
-  std::vector<int> cluster_kernel_dimensions() const {
-    std::vector<int> d(coarse_first_.size() - 1);
-    for (size_t c = 0; c < d.size(); ++c) d[c] = coarse_first_[c + 1] - coarse_first_[c];
-    return d;
-  }
+  std::vector<int> cluster_kernel_dimensions() const { return coarse_.cluster_kernel_dimensions(); }
   /// Clusters [first, last) of this rank.
   std::pair<int, int> cluster_range() const { return {first_cluster_, end_cluster_}; }
   const SetupTimings& setup_timings() const { return setup_; }
   /// Global index of owned entry i.
-  long long global_index(int i) const { return layout_dual_.global(i); }
+  long long global_index(int i) const { return multipliers_.layout.global(i); }
 
   void apply_F(const Vec& lambda, Vec& y);
   /// y = M^{-1} x = B_D S B_D^T x (Dirichlet) or B_D K B_D^T x (lumped), summed over the
   /// subdomains in a fixed order (preconditioner.hpp; the caller projects: P M^{-1} P).
   /// Requires FetiOptions::preconditioner != none. Cost: one exchange each way and one
   /// LocalPreconditioner::apply per subdomain.
-  void apply_preconditioner(const Vec& x, Vec& y);
-  PreconditionerKind preconditioner() const { return precond_kind_; }
-  Scaling scaling() const { return scaling_; }
+  void apply_preconditioner(const Vec& x, Vec& y) { preconditioner_.apply(multipliers_, x, y); }
+  PreconditionerKind preconditioner() const { return preconditioner_.kind(); }
+  Scaling scaling() const { return preconditioner_.scaling(); }
   /// Whether the Dirichlet S_i are stored dense on every rank (false: implicit somewhere).
-  bool preconditioner_dense() const { return precond_dense_; }
-  long preconditioner_bytes() const;  ///< on this rank
+  bool preconditioner_dense() const { return preconditioner_.dense(); }
+  long preconditioner_bytes() const { return preconditioner_.bytes(); }  ///< on this rank
   /// Global sums that do not depend on the number of ranks: per owner cluster (the cluster of the
   /// lowest subdomain a multiplier touches) a partial sum over its entries in global order, the
   /// partial sums combined in cluster order. Collective.
-  double dot(const Vec& a, const Vec& b) const;
-  double sum(const Vec& v) const;
+  double dot(const Vec& a, const Vec& b) const { return multipliers_.dot(a, b); }
+  double sum(const Vec& v) const { return multipliers_.sum(v); }
   /// coarse = G~ lambda (all clusters, on every rank).
-  void apply_G(const Vec& lambda, Vec& coarse);
+  void apply_G(const Vec& lambda, Vec& coarse) { coarse_.apply_G(lambda, coarse); }
   /// lambda = G~^T coarse.
-  void apply_Gt(const Vec& coarse, Vec& lambda);
+  void apply_Gt(const Vec& coarse, Vec& lambda) { coarse_.apply_Gt(coarse, lambda); }
   /// coarse <- (G~ G~^T)^{-1} coarse.
-  void coarse_solve(Vec& coarse) { coarse_factor_.solve(coarse); }
+  void coarse_solve(Vec& coarse) { coarse_.solve(coarse); }
   /// Directions of the coarse space that no constraint row restrains (0 for a well-posed
-  /// problem; see CoarseFactor): the solution is unique up to these rigid motions, whose
+  /// problem; see CoarseSpace::Factor): the solution is unique up to these rigid motions, whose
   /// coefficients are chosen zero.
-  int unrestrained_rigid_motions() const { return coarse_factor_.null_dimension(); }
+  int unrestrained_rigid_motions() const { return coarse_.null_dimension(); }
   /// As above for the reconstruction, where the contact rows with a zero multiplier drop out.
   int unrestrained_at_solution() const { return reconstruction_null_; }
   /// y = P x (x and y may alias).
-  void project(const Vec& x, Vec& y);
+  void project(const Vec& x, Vec& y) { coarse_.project(x, y); }
 
   /// The coarse image of F, for one coarse step per Hessian product (docs/method.md, "One
   /// coarse step per Hessian product"): E = F G~^T, stored by owned rows, and the coarse matrix
@@ -194,25 +207,23 @@ class DualProblem {
   /// application per (colour, kernel vector). Collective. Throws std::invalid_argument on every
   /// rank when E would not fit in the memory usable on some rank (usable_memory_mb with
   /// memory_limit_mb, MiB per machine, 0: the machine's).
-  void build_coarse_image(double memory_limit_mb = 0);
-  bool has_coarse_image() const { return image_.built; }
-  struct CoarseImageStats {
-    int colours = 0;           ///< of the distance-3 colouring
-    int F_applications = 0;    ///< spent forming E
-    long long E_nonzeros = 0;  ///< summed over ranks
-    long long C_nonzeros = 0;
-    double seconds = 0;  ///< wall clock on this rank
-  };
-  const CoarseImageStats& coarse_image_stats() const { return image_.stats; }
+  void build_coarse_image(double memory_limit_mb = 0) {
+    coarse_.build_image([this](const Vec& x, Vec& y) { apply_F(x, y); }, memory_limit_mb);
+  }
+  bool has_coarse_image() const { return coarse_.has_image(); }
+  using CoarseImageStats = CoarseSpace::ImageStats;
+  const CoarseImageStats& coarse_image_stats() const { return coarse_.image_stats(); }
   /// y = E z (the owned rows of F G~^T z); requires build_coarse_image().
-  void apply_coarse_image(const Vec& z, Vec& y) const;
+  void apply_coarse_image(const Vec& z, Vec& y) const { coarse_.apply_image(z, y); }
   /// The second half of H_rho v = P F P v + rho Q v with one global reduction, given fv = F v
   /// (requires build_coarse_image()): [a, b] = [G~ v, G~ fv] summed in one allreduce,
   /// z1 = (G~ G~^T)^{-1} a, z2 = (G~ G~^T)^{-1} (b - C z1) (no communication between the two),
   /// qv = G~^T z1 = Q v and y = fv - E z1 - G~^T z2 + rho qv. Cost: one pass of G~ over two
   /// vectors and one of G~^T for two coarse vectors (each entry summed as by apply_G and
   /// apply_Gt), one of E, two sparse coarse solves and one product with C.
-  void hessian_from_Fv(const Vec& v, const Vec& fv, double rho, Vec& y, Vec& qv);
+  void hessian_from_Fv(const Vec& v, const Vec& fv, double rho, Vec& y, Vec& qv) {
+    coarse_.hessian_from_Fv(v, fv, rho, y, qv);
+  }
 
   /// d = B~ K~^+ f - c.
   const Vec& d() const { return d_; }
@@ -222,13 +233,15 @@ class DualProblem {
   const Vec& lambda_tilde() const { return lambda_tilde_; }
   /// Lower bounds on the owned multipliers: 0 on contact rows, -infinity elsewhere.
   const Vec& lower_bounds() const { return lower_; }
-  bool has_inequalities() const { return n_inequalities_ > 0; }
+  bool has_inequalities() const { return multipliers_.inequalities > 0; }
   /// Why a contact problem has no solution, or "" when it has one (or the check cannot be made:
   /// a coarse dimension over kMaxDenseCoarse): a rigid motion restrained by no equality that
   /// opens every contact it touches while the load does work along it (Farkas' lemma on the
   /// coarse space; coarse_space.cpp). Costs one coarse factorization (dense when singular);
   /// called when SMALBE-M did not converge. Collective.
-  std::string unbounded_motion();
+  std::string unbounded_motion() {
+    return multipliers_.inequalities ? coarse_.unbounded_motion(e_) : "";
+  }
 
   /// Primal solution u = K~^+ (f - B~^T lambda) + R~ alpha, with alpha chosen so that the
   /// equality rows and the contact rows with lambda_i > 0 hold in the least-squares sense
@@ -279,34 +292,16 @@ class DualProblem {
   int clusters_released() const;
   long explicit_bytes() const;         ///< bytes of the explicit blocks on this rank
   long cluster_dense_doubles() const;  ///< doubles in the clusters' K^+ C^T blocks and LUs
-  long coarse_factor_nonzeros() const {
-    return coarse_factor_.use_dense
-               ? static_cast<long>(coarse_dimension()) * (coarse_dimension() + 1) / 2
-               : coarse_factor_.sparse.factor_nonzeros();
-  }
+  long coarse_factor_nonzeros() const { return coarse_.factor_nonzeros(); }
 
  private:
-  // Per-node gluing row, averaged-object row, or a Dirichlet / contact row (for the scaling).
-  enum class RowClass : std::uint8_t { node, object, other };
-  // 24 bytes (a face average's rows have O(p log p) entries: H-TFETI-DP's constraint phase).
-  struct Row {
-    int k;  // extended dual index
-    int j;  // index among the subdomain's multipliers (mult_[s][j] == k)
-    int dof;
-    std::int8_t side;  // contact rows: +1 on node a, -1 on node b; 0 otherwise
-    RowClass cls;
-    double value;
-  };
-  static_assert(sizeof(Row) == 24);
   // The setup in stages (the constructor calls them in this order; Setup carries what one stage
-  // hands to the next and is dropped at the end). dual_problem.cpp, coarse_space.cpp.
+  // hands to the next and is dropped at the end). dual_problem.cpp.
   struct Setup;
   // 1. Per cluster: the subdomains assembled, their rows of B~ and the primal constraints.
   void assemble_subdomains(const std::function<SubdomainInput(int)>& make_input, Setup& st);
-  // 2. The multipliers numbered globally by key (owners, extended layout, row data) ...
+  // 2. The multipliers numbered globally by key, and on each subdomain (Multipliers::number).
   void number_multipliers(Setup& st);
-  // ... and on each subdomain (local rows of B~, the ordered sums over subdomains).
-  void number_local_rows(Setup& st);
   // The dual operator (implicit or explicit) and the ordering of the factors.
   void choose_operator(Setup& st);
   // The preconditioner's interfaces and its storage (dense or implicit Dirichlet blocks).
@@ -318,50 +313,21 @@ class DualProblem {
   void set_up_coarse_space(Setup& st);
   // The coarse factor, d, e~, lambda~, the bounds and the scaling.
   void finish_setup(Setup& st);
-  void gather_to_ext(const Vec& owned);                       // ext_in_ = [owned, ghosts]
-  void cluster_rhs_from_ext(int c, bool add_f, double sign);  // x_i = (f_i) + sign B_i^T ext_in_
-  void b_of_x(int c);                                         // contrib_ = B_i x_i, per row entry
-  void scatter_contrib();                                     // ext_out_ += contrib_, fixed order
+  void cluster_rhs_from_ext(int c, bool add_f,
+                            double sign);  // x_i = (f_i) + sign B_i^T multipliers_.ext_in
+  void b_of_x(int c);                      // contrib_ = B_i x_i, per row entry
   template <class Body>
-  void for_each_cluster(Body body);     // OpenMP over local clusters
-  void gt_into_ext(const Vec& coarse);  // ext_out_ = G~^T coarse (owners summed)
-  // The coarse matrix G~ W G~^T (W = diag(weight)) and its factor. Sparse Cholesky; if that
-  // finds the matrix singular (a floating body that no constraint restrains: a pure Neumann
-  // problem, or in the reconstruction a body whose contact rows all have zero multipliers),
-  // the matrix is formed densely (up to kMaxDenseCoarse), its null space Z found by a symmetric
-  // eigendecomposition, and G W G^T + Z Z^T factored instead: on the range of G W G^T that is
-  // the pseudo-inverse, and the coefficients along Z come out zero.
-  struct CoarseFactor {
-    SparseCholesky sparse;
-    Eigen::LLT<Eigen::MatrixXd> dense;
-    Eigen::MatrixXd null;  // Z (orthonormal columns); empty when the sparse factor is used
-    bool use_dense = false;
-    void solve(Vec& x) {
-      if (use_dense)
-        x = dense.solve(x);  // allocates: only for degenerate problems
-      else
-        sparse.solve(x.data(), x.data());
-    }
-    int null_dimension() const { return static_cast<int>(null.cols()); }
-  };
-  static constexpr int kMaxDenseCoarse = 4000;
-  std::string describe_null(const Eigen::MatrixXd& Z) const;
-  void assemble_coarse(const std::vector<double>& weight, CoarseFactor& factor);
+  void for_each_cluster(Body body);  // OpenMP over local clusters
   // B~ applied to per-subdomain vectors; sums are on owners afterwards (reverse_add done).
   void apply_B(const std::vector<Vec>& u, Vec& out);
-  // flat_ (one value per (subdomain, multiplier) pair) -> ext_out_ owned part, ordered sums.
-  void combine_subdomains();
-  double reduce_blocks(std::vector<double>& partial) const;
   int members(int c) const { return sub_first_[c + 1] - sub_first_[c]; }
   int sub_of(int c, int i) const { return sub_first_[c] + i; }
 
   FetiLayout layout_;
   const Comm& comm_;
   SetupTimings setup_;
-  long long n_dual_ = 0, n_inequalities_ = 0;
   int first_cluster_ = 0, end_cluster_ = 0;  // local clusters
   std::vector<int> sub_first_;               // per local cluster: first local subdomain index
-  std::vector<int> coarse_first_;  // per global cluster: first coarse index (num_clusters + 1)
   std::vector<std::unique_ptr<Subdomain>> subs_;
   std::vector<std::unique_ptr<Cluster>> clusters_;
   // Equal subdomains' matrices, analyses, factors and their results (sparse_cholesky.hpp).
@@ -370,92 +336,18 @@ class DualProblem {
   SubdomainCache* factor_cache() const {
     return cache_ && cache_->factors() ? cache_.get() : nullptr;
   }
-  std::vector<std::vector<Row>> rows_;  // B~ rows per local subdomain
-  DualLayout layout_dual_;
-  OrderedSum sub_sum_, clu_sum_;  // contributions by subdomain / by cluster (G~^T)
-  std::vector<int> flat_off_;     // per local subdomain: its first pair in flat_
-  Vec flat_, gflat_;              // work: one value per pair
-  std::vector<std::vector<std::vector<std::pair<int, double>>>> g_pairs_;  // G~ rows by pair
-  std::vector<int> g_first_;  // cluster c's pairs in gflat_: [g_first_[c], g_first_[c + 1])
-  std::vector<int> block_;    // per owned entry: its owner cluster
-  mutable std::vector<double> partial_;  // per cluster partial sums
-  std::vector<int> owner_;               // owner rank of each extended entry
-  std::vector<MultiplierKind> kind_;     // per owned entry
-  Vec c_;                                // per owned entry: right-hand side of B~ u (<)= c
-  std::vector<double> contact_scale_, contact_gap_;  // per owned entry (contact rows)
-  std::vector<std::array<double, 3>> contact_point_;
-  // G~ rows of each local cluster: per kernel vector, (extended index, value)
-  std::vector<std::vector<std::vector<std::pair<int, double>>>> g_rows_;
-  CoarseFactor coarse_factor_;
-  // build_coarse_image(): E by owned rows (CSR, columns sorted), C = G~ F G~^T (CSR, all ranks).
-  struct CoarseImage {
-    bool built = false;
-    std::vector<int> e_ptr, e_col, c_ptr, c_col;
-    std::vector<double> e_val, c_val;
-    Vec ab, z1, z2;  // work: [G~ v; G~ F v], the two coarse solutions
-    Vec ext_in_second, gflat_second,
-        ext_out_second;  // work: the second vector of the fused G~ and G~^T passes
-    CoarseImageStats stats;
-  } image_;
-  double image_row(int e, const Vec& z) const {  // (E z)_e, E's columns in increasing order
-    double s = 0;
-    for (int q = image_.e_ptr[e]; q < image_.e_ptr[e + 1]; ++q)
-      s += image_.e_val[q] * z[image_.e_col[q]];
-    return s;
-  }
-  // G~'s columns at the owned multipliers: (global multiplier, coarse row, value) for every
-  // nonzero of G~, sent to the multiplier's owner and sorted by (multiplier, row). Collective.
-  struct GItem {
-    long long k;
-    int row;
-    double g;
-  };
-  std::vector<GItem> g_columns_at_owners() const;
-  // build_coarse_image's steps 1 and 4 (coarse_image.cpp).
-  std::vector<std::vector<int>> clusters_touching_owned_rows() const;
-  void assemble_image_coarse_matrix();
-  // (key, a, b, value) partial sums of a coarse matrix, summed over ranks in (a, b, key) order.
-  struct CoarseTriplet {
-    long long k;
-    int a, b;
-    double v;
-  };
-  std::vector<CoarseTriplet> allgather_sorted(const std::vector<CoarseTriplet>& mine) const;
-  // Partial sums of a coarse matrix sum_k (products at multiplier k): products_of(i, j, out)
-  // appends the products of gcol[i, j) (one multiplier's items), which are summed per (a, b)
-  // over each owner cluster's multipliers in multiplier order (key: the owner cluster).
-  using ProductsOf = std::function<void(size_t, size_t, std::vector<CoarseTriplet>&)>;
-  std::vector<CoarseTriplet> owner_cluster_sums(const std::vector<GItem>& gcol,
-                                                const ProductsOf& products_of) const;
+  // The multipliers: numbering, rows of B~ per subdomain, row data and the exchange.
+  Multipliers multipliers_;
+  // The coarse space: G~, its factor, the projector and the coarse image.
+  CoarseSpace coarse_{layout_, comm_, multipliers_};
   int reconstruction_null_ = 0;
   Vec d_, e_, lambda_tilde_, lower_;
   // work arrays (allocated once)
-  Vec ext_in_, ext_out_, coarse_work_;
   std::vector<std::vector<Vec>> x_;           // per cluster, per subdomain
   std::vector<std::vector<double>> contrib_;  // per subdomain, per row entry
-  std::vector<std::vector<int>> mult_;        // per subdomain: its multipliers (extended indices)
   std::vector<std::vector<Vec>> lam_, out_;   // per cluster, per subdomain: local dual vectors
-  // Preconditioner: per local subdomain its local part, per row entry the interface position of
-  // its dof and (stiffness scaling) the scaled value of B_D; work vectors on the interface.
-  void build_scaling(const std::vector<std::vector<double>>& rho);
-  // Stiffness scaling on nodes with per-node gluing rows: q = B_g^T B_g w on the interfaces
-  // (B_g: those rows; one exchange each way), and the weighted sums over a node's copies.
-  void gluing_BtB(const std::vector<Vec>& w, std::vector<Vec>& q);
-  void copy_sums(std::vector<Vec>& v, std::vector<Vec>& sums);  // sums_e = sum_c v_c (node dofs)
-  bool exact_node_scaling_ = false;
-  std::vector<std::vector<int>> node_copies_;  // per local subdomain: copies of each node
-  std::vector<std::vector<int>>
-      node_row_positions_;  // interface positions with per-node gluing rows
-  std::vector<std::vector<double>> node_row_copies_,
-      node_row_delta_;                                     // their copy count and weight delta
-  std::vector<Vec> scaling_w_, scaling_q_, scaling_sums_;  // interface work vectors
-  PreconditionerKind precond_kind_ = PreconditionerKind::none;
-  Scaling scaling_ = Scaling::multiplicity;
-  bool precond_dense_ = true;
-  std::vector<std::unique_ptr<LocalPreconditioner>> precond_;
-  std::vector<std::vector<int>> ipos_;
-  std::vector<std::vector<double>> bd_;
-  std::vector<Vec> pin_, pout_;
+  // The preconditioner with its scaling.
+  DualPreconditioner preconditioner_;
   bool explicit_ = false;
   bool factors_released_ = false;
   std::vector<char> released_;   // per local cluster: factors freed after setup

@@ -1,0 +1,186 @@
+// The coarse space of (H-)TFETI (paper, (11)-(12) and (15)-(16)): G~ = R~^T B~^T, one row per
+// kernel vector of a cluster (the coarse dimension is the sum of the cluster kernel dimensions),
+// the coarse matrix G~ G~^T and its factor, the projector P = I - G~^T (G~ G~^T)^{-1} G~ onto
+// Ker G~, and the coarse image E = F G~^T with C = G~ F G~^T for one coarse step per Hessian
+// product (coarse_image.cpp).
+//
+// Every rank holds the rows of G~ of its clusters (sparse: the entries at the multipliers the
+// cluster's rows touch) and factors the same coarse matrix, assembled from partial sums formed
+// per owner cluster and added in cluster order, so that nothing depends on the number of ranks.
+// G~ and G~^T: every cluster writes its own coarse entries and its own pairs, so threads take
+// clusters and each value is formed in the same order as by one thread.
+// Cost: apply_G one pass over the rank's G~ and an allreduce of the coarse vector; apply_Gt one
+// pass and one reverse exchange (ordered sums over clusters); project both and one sparse
+// coarse solve. None allocates.
+#pragma once
+
+#include <Eigen/Dense>
+#include <functional>
+#include <memory>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "htfeti/feti/cluster.hpp"
+#include "htfeti/feti/multipliers.hpp"
+#include "htfeti/feti/sparse_cholesky.hpp"
+
+namespace htfeti {
+
+class CoarseSpace {
+ public:
+  using Vec = Eigen::VectorXd;
+  /// The space of the rank's multipliers (held by reference: the owner of both keeps them in
+  /// place, see DualProblem).
+  CoarseSpace(const FetiLayout& layout, const Comm& comm, Multipliers& multipliers)
+      : layout_(layout), comm_(comm), m_(multipliers) {}
+  CoarseSpace(const CoarseSpace&) = delete;
+  CoarseSpace& operator=(const CoarseSpace&) = delete;
+
+  /// The kernel dimension of every cluster (allgathered), the rank's rows of G~ and the pairs of
+  /// G~^T. clusters: the rank's clusters [first_cluster, first_cluster + clusters.size()), local
+  /// cluster c holding the local subdomains [sub_first[c], sub_first[c + 1]); threads go over
+  /// clusters when threads_over_clusters. Collective.
+  void set_up(const std::vector<std::unique_ptr<Cluster>>& clusters, int first_cluster,
+              std::vector<int> sub_first, bool threads_over_clusters);
+  /// Assembles and factors G~ G~^T. Collective.
+  void factor() { assemble(std::vector<double>(m_.n_owned(), 1.0), factor_); }
+
+  int dimension() const { return first_.empty() ? 0 : first_.back(); }
+  /// Cluster c's first coarse index (all clusters; c = num_clusters gives dimension()).
+  int first(int cluster) const { return first_[cluster]; }
+  std::vector<int> cluster_kernel_dimensions() const {
+    std::vector<int> d(first_.size() - 1);
+    for (size_t c = 0; c < d.size(); ++c) d[c] = first_[c + 1] - first_[c];
+    return d;
+  }
+
+  /// coarse = G~ lambda (all clusters, on every rank).
+  void apply_G(const Vec& lambda, Vec& coarse);
+  /// lambda = G~^T coarse.
+  void apply_Gt(const Vec& coarse, Vec& lambda);
+  /// coarse <- (G~ G~^T)^{-1} coarse.
+  void solve(Vec& coarse) { factor_.solve(coarse); }
+  /// y = P x (x and y may alias).
+  void project(const Vec& x, Vec& y);
+  /// coarse <- (G~ W G~^T)^{-1} coarse with W = diag(weight) on the owned multipliers (the
+  /// reconstruction's active rows); returns the null dimension of G~ W G~^T. Collective.
+  int solve_weighted(const std::vector<double>& weight, Vec& coarse);
+
+  /// Directions of the coarse space that no constraint row restrains (see Factor).
+  int null_dimension() const { return factor_.null_dimension(); }
+  const Eigen::MatrixXd& null_space() const { return factor_.null; }
+  long factor_nonzeros() const {
+    return factor_.use_dense ? static_cast<long>(dimension()) * (dimension() + 1) / 2
+                             : factor_.sparse.factor_nonzeros();
+  }
+  /// "k rigid motion(s) of cluster(s) ..." for the null directions Z (columns).
+  std::string describe_null(const Eigen::MatrixXd& Z) const;
+  /// Why the contact problem with coarse right-hand side e has no solution, or "" (Farkas'
+  /// lemma on the rigid motions no equality restrains; DualProblem::unbounded_motion).
+  std::string unbounded_motion(const Vec& e);
+
+  /// The coarse image (coarse_image.cpp): E = F G~^T by owned rows and C = G~ F G~^T on every
+  /// rank, formed with apply_F. Throws std::invalid_argument on every rank when E does not fit
+  /// in the usable memory (memory_limit_mb: MiB per machine, 0: the machine's). Collective.
+  void build_image(const std::function<void(const Vec&, Vec&)>& apply_F, double memory_limit_mb);
+  bool has_image() const { return image_.built; }
+  struct ImageStats {
+    int colours = 0;           ///< of the distance-3 colouring
+    int F_applications = 0;    ///< spent forming E
+    long long E_nonzeros = 0;  ///< summed over ranks
+    long long C_nonzeros = 0;
+    double seconds = 0;  ///< wall clock on this rank
+  };
+  const ImageStats& image_stats() const { return image_.stats; }
+  /// y = E z (the owned rows of F G~^T z).
+  void apply_image(const Vec& z, Vec& y) const;
+  /// H_rho v = P F P v + rho Q v from fv = F v with one global reduction (DualProblem).
+  void hessian_from_Fv(const Vec& v, const Vec& fv, double rho, Vec& y, Vec& qv);
+
+ private:
+  // The coarse matrix G~ W G~^T (W = diag(weight)) and its factor. Sparse Cholesky; if that
+  // finds the matrix singular (a floating body that no constraint restrains: a pure Neumann
+  // problem, or in the reconstruction a body whose contact rows all have zero multipliers),
+  // the matrix is formed densely (up to kMaxDense), its null space Z found by a symmetric
+  // eigendecomposition, and G W G^T + Z Z^T factored instead: on the range of G W G^T that is
+  // the pseudo-inverse, and the coefficients along Z come out zero.
+  struct Factor {
+    SparseCholesky sparse;
+    Eigen::LLT<Eigen::MatrixXd> dense;
+    Eigen::MatrixXd null;  // Z (orthonormal columns); empty when the sparse factor is used
+    bool use_dense = false;
+    void solve(Vec& x) {
+      if (use_dense)
+        x = dense.solve(x);  // allocates: only for degenerate problems
+      else
+        sparse.solve(x.data(), x.data());
+    }
+    int null_dimension() const { return static_cast<int>(null.cols()); }
+  };
+  static constexpr int kMaxDense = 4000;
+  void assemble(const std::vector<double>& weight, Factor& factor);
+  void gt_into_ext(const Vec& coarse);  // m_.ext_out = G~^T coarse (owners summed)
+  int local_clusters() const { return static_cast<int>(rows_.size()); }
+  int members(int c) const { return sub_first_[c + 1] - sub_first_[c]; }
+  int sub_of(int c, int i) const { return sub_first_[c] + i; }
+
+  // G~'s columns at the owned multipliers: (global multiplier, coarse row, value) for every
+  // nonzero of G~, sent to the multiplier's owner and sorted by (multiplier, row). Collective.
+  struct GItem {
+    long long k;
+    int row;
+    double g;
+  };
+  std::vector<GItem> g_columns_at_owners() const;
+  // (key, a, b, value) partial sums of a coarse matrix, summed over ranks in (a, b, key) order.
+  struct CoarseTriplet {
+    long long k;
+    int a, b;
+    double v;
+  };
+  std::vector<CoarseTriplet> allgather_sorted(const std::vector<CoarseTriplet>& mine) const;
+  // Partial sums of a coarse matrix sum_k (products at multiplier k): products_of(i, j, out)
+  // appends the products of gcol[i, j) (one multiplier's items), which are summed per (a, b)
+  // over each owner cluster's multipliers in multiplier order (key: the owner cluster).
+  using ProductsOf = std::function<void(size_t, size_t, std::vector<CoarseTriplet>&)>;
+  std::vector<CoarseTriplet> owner_cluster_sums(const std::vector<GItem>& gcol,
+                                                const ProductsOf& products_of) const;
+  // build_image's steps 1 and 4 (coarse_image.cpp).
+  std::vector<std::vector<int>> clusters_touching_owned_rows() const;
+  void assemble_image_coarse_matrix();
+
+  const FetiLayout& layout_;
+  const Comm& comm_;
+  Multipliers& m_;
+  int first_cluster_ = 0;
+  std::vector<int> sub_first_;  // per local cluster: its first local subdomain (+ 1 entry)
+  bool outer_parallel_ = false;
+  std::vector<int> first_;  // per global cluster: its first coarse index (num_clusters + 1)
+  // Per local cluster, per kernel vector: the row of G~ as (extended index, value), in the
+  // global order of the multipliers; and the same with the pair index of G~^T's ordered sums.
+  std::vector<std::vector<std::vector<std::pair<int, double>>>> rows_, row_pairs_;
+  std::vector<int> pair_first_;  // local cluster c's pairs: [pair_first_[c], pair_first_[c + 1])
+  OrderedSum cluster_sum_;       // the pairs summed on the multipliers' owners, in a fixed order
+  Vec pairs_;                    // work: one value per (cluster, multiplier) pair
+  Vec work_;                     // work: one coarse vector
+  Factor factor_;
+  // build_image(): E by owned rows (CSR, columns sorted), C = G~ F G~^T (CSR, all ranks).
+  struct Image {
+    bool built = false;
+    std::vector<int> e_ptr, e_col, c_ptr, c_col;
+    std::vector<double> e_val, c_val;
+    Vec ab, z1, z2;  // work: [G~ v; G~ F v], the two coarse solutions
+    // work: the second vector of the fused G~ and G~^T passes
+    Vec ext_in_second, pairs_second, ext_out_second;
+    ImageStats stats;
+  } image_;
+  double image_row(int e, const Vec& z) const {  // (E z)_e, E's columns in increasing order
+    double s = 0;
+    for (int q = image_.e_ptr[e]; q < image_.e_ptr[e + 1]; ++q)
+      s += image_.e_val[q] * z[image_.e_col[q]];
+    return s;
+  }
+};
+
+}  // namespace htfeti

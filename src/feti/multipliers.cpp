@@ -1,0 +1,171 @@
+// Multipliers (multipliers.hpp): the numbering of the rows of B~ and the exchange of dual
+// vectors. number() runs once in DualProblem's setup (stage 2); the rest is the hot path.
+#include "htfeti/feti/multipliers.hpp"
+
+#include <mpi.h>
+
+#include <algorithm>
+#include <numeric>
+
+#include "htfeti/parallel/key_numbering.hpp"
+
+namespace htfeti {
+
+std::vector<std::vector<Subdomain::BEntry>> Multipliers::number(
+    const FetiLayout& fl, const Comm& c, std::vector<std::vector<LocalRow>>& local_rows,
+    int first_subdomain) {
+  comm = &c;
+  const int P = c.size(), me = c.rank();
+  const int nsub = static_cast<int>(local_rows.size());
+  // Global numbering of the rows by key, owners, and the extended dual layout.
+  std::vector<NumberingKey> keys;
+  std::vector<int> key_owner;
+  std::vector<const LocalRow*> key_row;
+  {
+    std::vector<std::pair<RowKey, const LocalRow*>> all;
+    for (int s = 0; s < nsub; ++s)
+      for (const auto& r : local_rows[s]) all.push_back({r.key, &r});
+    std::sort(all.begin(), all.end(),
+              [](const auto& x, const auto& y) { return x.first < y.first; });
+    for (size_t i = 0; i < all.size(); ++i)
+      if (i == 0 || all[i].first != all[i - 1].first) {
+        keys.push_back(all[i].first);
+        key_owner.push_back(fl.rank_of_subdomain(all[i].second->owner_subdomain, P));
+        key_row.push_back(all[i].second);
+      }
+  }
+  // Bucket position: per-node rows by their node, object rows after all nodes by cluster.
+  const long long nodes = fl.num_nodes;
+  const std::vector<long long> index = number_keys(
+      c, keys, nodes + fl.num_clusters,
+      [nodes](const NumberingKey& k) { return k[0] == 0 ? k[1] : nodes + k[1]; }, dimension);
+  {
+    std::vector<long long> touched(index);
+    std::vector<int> owner(key_owner);
+    std::vector<size_t> perm(index.size());
+    std::iota(perm.begin(), perm.end(), 0);
+    std::sort(perm.begin(), perm.end(), [&](size_t a, size_t b) { return index[a] < index[b]; });
+    for (size_t i = 0; i < perm.size(); ++i)
+      touched[i] = index[perm[i]], owner[i] = key_owner[perm[i]];
+    layout = DualLayout(c, touched, owner);
+  }
+  const int n_ext = layout.n_ext(), n_own = layout.n_owned();
+  owner_rank.assign(n_ext, me);
+  kind.assign(n_own, MultiplierKind::gluing);
+  rhs = Vec::Zero(n_own);
+  contact_scale.assign(n_own, 1.0);
+  contact_gap.assign(n_own, 0.0);
+  contact_point.assign(n_own, {0, 0, 0});
+  long long my_inequalities = 0;
+  owner_cluster.assign(n_own, 0);
+  for (size_t i = 0; i < keys.size(); ++i) {
+    const int k = layout.ext_index(index[i]);
+    owner_rank[k] = key_owner[i];
+    if (k < n_own) {
+      const LocalRow& r = *key_row[i];
+      owner_cluster[k] = fl.cluster_of(r.owner_subdomain);
+      kind[k] = r.kind;
+      rhs[k] = r.rhs;
+      contact_scale[k] = r.scale;
+      contact_gap[k] = r.gap;
+      contact_point[k] = r.point;
+      if (r.kind == MultiplierKind::contact) ++my_inequalities;
+    }
+  }
+  inequalities = c.sum(my_inequalities);
+  rows.assign(nsub, {});
+  for (int s = 0; s < nsub; ++s) {
+    auto& lr = local_rows[s];
+    std::vector<std::pair<int, const LocalRow*>> ordered;
+    for (const auto& r : lr) {
+      const size_t i = std::lower_bound(keys.begin(), keys.end(), r.key) - keys.begin();
+      ordered.push_back({layout.ext_index(index[i]), &r});
+    }
+    // Rows in global order (the order of the ext indices of owned entries, then ghosts, is the
+    // global order within each part; sort by global index for a fixed accumulation order).
+    std::sort(ordered.begin(), ordered.end(), [&](const auto& x, const auto& y) {
+      return layout.global(x.first) < layout.global(y.first);
+    });
+    for (const auto& [k, r] : ordered) {
+      const RowClass cls = r->kind != MultiplierKind::gluing ? RowClass::other
+                           : r->key[0] == 0                  ? RowClass::node
+                                                             : RowClass::object;
+      const auto side = static_cast<std::int8_t>(r->side);
+      for (const auto& [dof, v] : r->entries) rows[s].push_back({k, -1, dof, side, cls, v});
+    }
+    lr = {};
+  }
+  local_rows = {};
+
+  // Local numbering of the rows on each subdomain (distinct multipliers in extended order).
+  std::vector<std::vector<Subdomain::BEntry>> local_b(nsub);
+  of_subdomain.assign(nsub, {});
+  {
+    std::vector<int> local_of(n_ext, -1);
+    for (int s = 0; s < nsub; ++s) {
+      auto& mult = of_subdomain[s];
+      for (const auto& r : rows[s]) mult.push_back(r.k);
+      // By global index (not extended index, whose owned/ghost split depends on the ranks): the
+      // local numbering fixes the summation order of the dense blocks F_i.
+      std::sort(mult.begin(), mult.end(),
+                [&](int a, int b) { return layout.global(a) < layout.global(b); });
+      mult.erase(std::unique(mult.begin(), mult.end()), mult.end());
+      for (size_t j = 0; j < mult.size(); ++j) local_of[mult[j]] = static_cast<int>(j);
+      for (auto& r : rows[s]) {
+        r.j = local_of[r.k];
+        local_b[s].push_back({r.j, r.dof, r.value});
+      }
+    }
+  }
+  // Ordered sums over subdomains (F, B u, d) and the work vectors.
+  {
+    std::vector<int> pk;
+    std::vector<long long> pc;
+    pair_first.assign(nsub + 1, 0);
+    for (int s = 0; s < nsub; ++s) {
+      for (int k : of_subdomain[s]) pk.push_back(k), pc.push_back(first_subdomain + s);
+      pair_first[s + 1] = static_cast<int>(pk.size());
+    }
+    subdomain_sum = OrderedSum(c, layout, pk, pc, owner_rank);
+    pairs = Vec::Zero(static_cast<int>(pk.size()));
+    partial.assign(fl.num_clusters, 0.0);
+  }
+  ext_in = Vec::Zero(n_ext);
+  ext_out = Vec::Zero(n_ext);
+  return local_b;
+}
+
+void Multipliers::combine_row_entries(const std::vector<std::vector<double>>& per_entry) {
+  pairs.setZero();
+  for (size_t s = 0; s < rows.size(); ++s) {
+    const auto& r = rows[s];
+    const double* in = per_entry[s].data();
+    for (size_t j = 0; j < r.size(); ++j) pairs[pair_first[s] + r[j].j] += in[j];
+  }
+  combine_subdomains();
+}
+
+double Multipliers::reduce_clusters(std::vector<double>& partial_sums) const {
+  // Every cluster's partial sum is non-zero on one rank only, so the allreduce adds exact zeros;
+  // the partial sums are then added in cluster order on every rank.
+  if (comm->size() > 1)
+    MPI_Allreduce(MPI_IN_PLACE, partial_sums.data(), static_cast<int>(partial_sums.size()),
+                  MPI_DOUBLE, MPI_SUM, comm->raw());
+  double s = 0;
+  for (double v : partial_sums) s += v;
+  return s;
+}
+
+double Multipliers::dot(const Vec& a, const Vec& b) const {
+  std::fill(partial.begin(), partial.end(), 0.0);
+  for (Eigen::Index i = 0; i < a.size(); ++i) partial[owner_cluster[i]] += a[i] * b[i];
+  return reduce_clusters(partial);
+}
+
+double Multipliers::sum(const Vec& v) const {
+  std::fill(partial.begin(), partial.end(), 0.0);
+  for (Eigen::Index i = 0; i < v.size(); ++i) partial[owner_cluster[i]] += v[i];
+  return reduce_clusters(partial);
+}
+
+}  // namespace htfeti

@@ -235,6 +235,210 @@ TEST_P(SmalbeConformance, MatchesEnumeratedActiveSets) {
 INSTANTIATE_TEST_SUITE_P(Random, SmalbeConformance,
                          ::testing::Combine(::testing::Range(1u, 7u), ::testing::Bool()));
 
+// Box constraints l <= x <= u (BoxBounds): the random QP above with upper bounds on its first
+// `bounded` components: a lower bound only (i % 3 == 1), an upper bound only (i % 3 == 0), or
+// both (i % 3 == 2), around 0 so that both sides are active at some solutions.
+static Vec box_upper(Qp& q, int bounded, unsigned seed) {
+  std::mt19937 gen(seed + 1000);
+  std::normal_distribution<double> N01;
+  const Eigen::Index n = q.b.size();
+  Vec u = Vec::Constant(n, inf);
+  for (int i = 0; i < bounded; ++i) {
+    q.l[i] = i % 3 == 0 ? -inf : -0.1 - 0.3 * std::abs(N01(gen));
+    if (i % 3 != 1) u[i] = 0.1 + 0.3 * std::abs(N01(gen));
+  }
+  return u;
+}
+
+// Exact solution with box constraints by enumerating, for each bounded component, free / at
+// its lower bound / at its upper bound (3^bounded cases), KKT solved on the free set.
+static Vec exact_box_solution(const Qp& q, const Vec& u, int bounded) {
+  const int n = static_cast<int>(q.b.size()), me = static_cast<int>(q.G.rows());
+  int cases = 1;
+  for (int i = 0; i < bounded; ++i) cases *= 3;
+  for (int c = 0; c < cases; ++c) {
+    std::vector<int> state(n, 0), fr;  // 0 free, 1 at l, 2 at u
+    bool possible = true;
+    for (int i = 0, r = c; i < bounded; ++i, r /= 3) {
+      state[i] = r % 3;
+      if ((state[i] == 1 && q.l[i] == -inf) || (state[i] == 2 && u[i] == inf)) possible = false;
+    }
+    if (!possible) continue;
+    Vec x = Vec::Zero(n);
+    for (int i = 0; i < n; ++i) {
+      if (state[i] == 0) fr.push_back(i);
+      if (state[i] == 1) x[i] = q.l[i];
+      if (state[i] == 2) x[i] = u[i];
+    }
+    const int nf = static_cast<int>(fr.size());
+    Eigen::MatrixXd K = Eigen::MatrixXd::Zero(nf + me, nf + me);
+    Vec rhs(nf + me);
+    const Vec Ax = q.A * x, Gx = me ? Vec(q.G * x) : Vec();
+    for (int a = 0; a < nf; ++a) {
+      for (int b = 0; b < nf; ++b) K(a, b) = q.A(fr[a], fr[b]);
+      for (int e = 0; e < me; ++e) K(a, nf + e) = K(nf + e, a) = q.G(e, fr[a]);
+      rhs[a] = q.b[fr[a]] - Ax[fr[a]];
+    }
+    for (int e = 0; e < me; ++e) rhs[nf + e] = -Gx[e];
+    Eigen::FullPivLU<Eigen::MatrixXd> lu(K);
+    if (!lu.isInvertible()) continue;
+    const Vec sol = lu.solve(rhs);
+    for (int a = 0; a < nf; ++a) x[fr[a]] = sol[a];
+    Vec g = q.A * x - q.b;
+    if (me) g += q.G.transpose() * sol.tail(me);
+    bool ok = true;
+    for (int i = 0; i < n; ++i) {
+      if (x[i] < q.l[i] - 1e-12 || x[i] > u[i] + 1e-12) ok = false;
+      if (state[i] == 1 && g[i] < -1e-12) ok = false;  // pushed against l: multiplier >= 0
+      if (state[i] == 2 && g[i] > 1e-12) ok = false;   // pushed against u
+    }
+    if (ok) return x;
+  }
+  ADD_FAILURE() << "no active set satisfies KKT";
+  return Vec::Zero(n);
+}
+
+TEST(MprgpBox, HandCheckableTwoByTwo) {
+  // A = I: the solution is b clamped to the box.
+  DenseOperator A(Eigen::MatrixXd::Identity(2, 2));
+  SerialReducer red;
+  MprgpOptions opt;
+  opt.alpha = 1.0;
+  const Vec l = Vec::Constant(2, -1.0), u = Vec::Constant(2, 1.0);
+  const auto stop = [](const Vec&, const Vec&, double gp) { return gp <= 1e-14; };
+  for (const auto& [b, expected] : {std::pair<Vec, Vec>{Vec{{3.0, -3.0}}, Vec{{1.0, -1.0}}},
+                                    std::pair<Vec, Vec>{Vec{{0.5, -0.25}}, Vec{{0.5, -0.25}}},
+                                    std::pair<Vec, Vec>{Vec{{-7.0, 0.0}}, Vec{{-1.0, 0.0}}}}) {
+    Vec x = Vec::Zero(2), g(2);
+    const auto r = mprgp(A, b, l, u, x, g, red, opt, stop);
+    ASSERT_EQ(r.reason, StopReason::converged);
+    EXPECT_EQ(x, expected);
+    Vec gp;
+    projected_gradient(x, g, l, gp, u);
+    EXPECT_EQ(gp.norm(), 0.0);
+  }
+  // A fixed component (l = u) stays at its value and has no projected gradient.
+  const Vec lf{{-1.0, 0.25}}, uf{{1.0, 0.25}};
+  Vec x = Vec::Zero(2), g(2);
+  const auto r = mprgp(A, Vec{{0.5, 9.0}}, lf, uf, x, g, red, opt, stop);
+  ASSERT_EQ(r.reason, StopReason::converged);
+  EXPECT_EQ(x, (Vec{{0.5, 0.25}}));
+  // Upper bounds of the wrong size are refused.
+  EXPECT_THROW(mprgp(A, Vec::Zero(2), l, Vec::Zero(3), x, g, red, opt, stop),
+               std::invalid_argument);
+}
+
+class MprgpBoxConformance : public ::testing::TestWithParam<unsigned> {};
+
+TEST_P(MprgpBoxConformance, MatchesEnumeratedActiveSets) {
+  const int n = 10, bounded = 7;
+  Qp q = random_qp(n, bounded, 0, GetParam(), false);
+  q.b *= 2.0;  // push more components onto their bounds
+  const Vec u = box_upper(q, bounded, GetParam());
+  DenseOperator A(q.A);
+  SerialReducer red;
+  MprgpOptions opt;
+  opt.alpha = 1.9 / estimate_norm(A, Vec::Ones(n), red, 200, 1e-10);
+  const double tol = 1e-11 * q.b.norm();
+  const auto stop = [&](const Vec&, const Vec&, double gp) { return gp <= tol; };
+  const Vec exact = exact_box_solution(q, u, bounded);
+  int at_upper = 0;
+  for (int i = 0; i < n; ++i) at_upper += exact[i] == u[i];
+  Vec x = Vec::Zero(n), g(n);
+  const auto r = mprgp(A, q.b, q.l, u, x, g, red, opt, stop);
+  ASSERT_EQ(r.reason, StopReason::converged);
+  EXPECT_LT((x - exact).norm(), 1e-8) << at_upper << " components at an upper bound";
+  for (int i = 0; i < n; ++i) EXPECT_TRUE(x[i] >= q.l[i] && x[i] <= u[i]);
+  // Preconditioned in face (Jacobi): the same solution.
+  DenseOperator Z(Eigen::MatrixXd(q.A.diagonal().cwiseInverse().asDiagonal()));
+  opt.preconditioner = &Z;
+  Vec xp = Vec::Zero(n), gp(n);
+  ASSERT_EQ(mprgp(A, q.b, q.l, u, xp, gp, red, opt, stop).reason, StopReason::converged);
+  EXPECT_LT((xp - exact).norm(), 1e-8);
+}
+
+INSTANTIATE_TEST_SUITE_P(Random, MprgpBoxConformance, ::testing::Range(1u, 13u));
+
+TEST(MprgpBox, UpperBoundsEnteredAtSomeSolution) {
+  // The random cases above are not all decided by lower bounds: some solution of the suite has
+  // a component on its upper bound (else the upper-bound code would be untested).
+  int at_upper = 0;
+  for (unsigned seed = 1; seed < 13; ++seed) {
+    Qp q = random_qp(10, 7, 0, seed, false);
+    q.b *= 2.0;
+    const Vec u = box_upper(q, 7, seed);
+    const Vec x = exact_box_solution(q, u, 7);
+    for (int i = 0; i < 10; ++i) at_upper += x[i] == u[i];
+  }
+  EXPECT_GT(at_upper, 3);
+}
+
+TEST(MprgpBox, InfiniteUpperBoundsGiveTheLowerBoundIterates) {
+  // u = +infinity everywhere: bit for bit the iterates of the lower-bound form.
+  const Qp q = random_qp(10, 7, 0, 5, false);
+  DenseOperator A(q.A);
+  SerialReducer red;
+  MprgpOptions opt;
+  opt.alpha = 1.9 / estimate_norm(A, Vec::Ones(10), red, 200, 1e-10);
+  const auto stop = [&](const Vec&, const Vec&, double gp) { return gp <= 1e-12; };
+  Vec x1 = Vec::Zero(10), g1(10), x2 = Vec::Zero(10), g2(10);
+  const auto r1 = mprgp(A, q.b, q.l, x1, g1, red, opt, stop);
+  const auto r2 = mprgp(A, q.b, q.l, Vec::Constant(10, inf), x2, g2, red, opt, stop);
+  EXPECT_EQ(r1.iterations, r2.iterations);
+  EXPECT_EQ(x1, x2);
+  EXPECT_EQ(g1, g2);
+}
+
+class SmalbeBoxConformance : public ::testing::TestWithParam<std::tuple<unsigned, bool>> {};
+
+TEST_P(SmalbeBoxConformance, MatchesEnumeratedActiveSets) {
+  const auto [seed, singular] = GetParam();
+  const int n = 10, bounded = 6, me = 2;
+  Qp q = random_qp(n, bounded, me, seed, singular);
+  q.b *= 2.0;
+  const Vec u = box_upper(q, bounded, seed);
+  DenseOperator A(q.A);
+  SerialReducer red;
+  SmalbeOptions opt;
+  opt.rtol = 1e-11;
+  const double normA = estimate_norm(A, Vec::Ones(n), red, 200, 1e-10);
+  QuadraticProgram qp = qp_of(A, q, false);
+  qp.constraints = std::make_shared<BoxBounds>(q.l, u);
+  Vec x = Vec::Zero(n);
+  const auto r = smalbe(qp, normA, x, red, opt);
+  ASSERT_EQ(r.reason, StopReason::converged);
+  EXPECT_LT((x - exact_box_solution(q, u, bounded)).norm(), 1e-7);
+  EXPECT_LT((q.G * x).norm(), 1e-8);
+  // Homogenized at x0 (the box moves with it, BoxBounds::shifted): SMALBE-M then solves for y
+  // in min 1/2 y'Ay - (b - A x0)'y, l - x0 <= y <= u - x0, G y = 0, checked against the
+  // enumeration of that problem.
+  const Vec x0 = Vec::Constant(n, 0.05);
+  const QuadraticProgram h = homogenize(qp, x0);
+  Vec y = Vec::Zero(n);
+  ASSERT_EQ(smalbe(h, normA, y, red, opt).reason, StopReason::converged);
+  Qp qs = q;
+  qs.b = q.b - q.A * x0;
+  qs.l = q.l - x0;
+  EXPECT_LT((y - exact_box_solution(qs, u - x0, bounded)).norm(), 1e-7);
+}
+
+INSTANTIATE_TEST_SUITE_P(Random, SmalbeBoxConformance,
+                         ::testing::Combine(::testing::Range(1u, 7u), ::testing::Bool()));
+
+TEST(QpTransforms, BoxBoundsRefuseEmptyIntervalsAndNan) {
+  EXPECT_THROW(BoxBounds(Vec::Zero(2), Vec::Zero(3)), std::invalid_argument);
+  EXPECT_THROW(BoxBounds(Vec{{0.0, 1.0}}, Vec{{1.0, 0.5}}), std::invalid_argument);
+  EXPECT_THROW(BoxBounds(Vec{{0.0, std::nan("")}}, Vec{{1.0, 2.0}}), std::invalid_argument);
+  const BoxBounds box(Vec{{-1.0, -inf}}, Vec{{1.0, 2.0}});
+  Vec x{{5.0, -5.0}};
+  box.project(x);
+  EXPECT_EQ(x, (Vec{{1.0, -5.0}}));
+  const auto moved = box.shifted(Vec{{1.0, 1.0}});
+  Vec y{{5.0, 5.0}};
+  moved->project(y);
+  EXPECT_EQ(y, (Vec{{0.0, 1.0}}));
+}
+
 TEST(Pcg, EqualityConstrainedMatchesKkt) {
   const int n = 12, me = 3;
   const Qp q = random_qp(n, 0, me, 42, true);

@@ -6,29 +6,52 @@
 
 namespace htfeti::qp {
 
-void projected_gradient(const Vec& x, const Vec& g, const Vec& lower, Vec& gp) {
-  gp.resize(x.size());
-  for (Eigen::Index i = 0; i < x.size(); ++i) gp[i] = x[i] > lower[i] ? g[i] : std::min(g[i], 0.0);
-}
-
 namespace {
-// phi: free gradient, beta: chopped gradient.
-void split_gradient(const Vec& x, const Vec& g, const Vec& l, Vec& phi, Vec& beta) {
+// Upper bounds given (u.size() == n) or none (empty: +infinity everywhere).
+bool has_upper(const Vec& u, Eigen::Index n) {
+  if (u.size() != 0 && u.size() != n)
+    throw std::invalid_argument("MPRGP: the upper bounds have the wrong size");
+  return u.size() == n;
+}
+// phi: free gradient, beta: chopped gradient (min(g, 0) at a lower bound, max(g, 0) at an upper
+// one, 0 where both bounds hold: a fixed component cannot move).
+void split_gradient(const Vec& x, const Vec& g, const Vec& l, const Vec& u, Vec& phi, Vec& beta) {
+  const bool upper = u.size() == x.size();
   for (Eigen::Index i = 0; i < x.size(); ++i) {
-    const bool free = x[i] > l[i];
-    phi[i] = free ? g[i] : 0.0;
-    beta[i] = free ? 0.0 : std::min(g[i], 0.0);
+    const bool at_lower = !(x[i] > l[i]), at_upper = upper && !(x[i] < u[i]);
+    phi[i] = at_lower || at_upper ? 0.0 : g[i];
+    beta[i] = at_lower && at_upper ? 0.0
+              : at_lower           ? std::min(g[i], 0.0)
+              : at_upper           ? std::max(g[i], 0.0)
+                                   : 0.0;
   }
+}
+// x <- the projection of x onto [l, u].
+void clamp(Vec& x, const Vec& l, const Vec& u) {
+  x = x.cwiseMax(l);
+  if (u.size() == x.size()) x = x.cwiseMin(u);
 }
 }  // namespace
 
-MprgpResult mprgp(Operator& A, const Vec& b, const Vec& l, Vec& x, Vec& g, const Reducer& red,
-                  const MprgpOptions& opt, const MprgpStop& stop, bool gradient_given,
-                  MprgpWorkspace* workspace) {
+void projected_gradient(const Vec& x, const Vec& g, const Vec& lower, Vec& gp,
+                        const Vec& upper) {
+  has_upper(upper, x.size());
+  gp.resize(x.size());
+  Vec beta(x.size());
+  split_gradient(x, g, lower, upper, gp, beta);
+  gp += beta;
+}
+
+MprgpResult mprgp(Operator& A, const Vec& b, const Vec& l, const Vec& u, Vec& x, Vec& g,
+                  const Reducer& red, const MprgpOptions& opt, const MprgpStop& stop,
+                  bool gradient_given, MprgpWorkspace* workspace) {
   if (!(opt.alpha > 0)) throw std::invalid_argument("MPRGP: the expansion step length must be > 0");
   if (!(opt.gamma > 0)) throw std::invalid_argument("MPRGP: Gamma must be > 0");
   const Eigen::Index n = b.size();
   const double inf = std::numeric_limits<double>::infinity();
+  const bool upper = has_upper(u, n);  // this rank's entries have upper bounds
+  // Some rank's entries have (a rank may own no entries): the collective step below needs it.
+  const bool any_upper = red.max(upper ? 1.0 : 0.0) > 0;
   MprgpResult res;
   MprgpWorkspace local;
   MprgpWorkspace& w = workspace ? *workspace : local;
@@ -41,7 +64,7 @@ MprgpResult mprgp(Operator& A, const Vec& b, const Vec& l, Vec& x, Vec& g, const
     if (!Z) return phi;
     Z->apply(phi, z);
     for (Eigen::Index i = 0; i < n; ++i)
-      if (!(x[i] > l[i])) z[i] = 0.0;
+      if (!(x[i] > l[i]) || (upper && !(x[i] < u[i]))) z[i] = 0.0;
     return z;
   };
   TrackedImage* T = opt.image;
@@ -53,12 +76,12 @@ MprgpResult mprgp(Operator& A, const Vec& b, const Vec& l, Vec& x, Vec& g, const
     if (T) T->tx = *T->last;
   };
   if (!gradient_given) {
-    x = x.cwiseMax(l);
+    clamp(x, l, u);
     A.apply(x, g);
     image_reset();
     g -= b;
   }
-  split_gradient(x, g, l, phi, beta);
+  split_gradient(x, g, l, u, phi, beta);
   p = precondition();
   for (int it = 0;; ++it) {
     res.iterations = it;
@@ -73,8 +96,12 @@ MprgpResult mprgp(Operator& A, const Vec& b, const Vec& l, Vec& x, Vec& g, const
     }
     // Proportionality test ||beta||^2 <= Gamma^2 phi~'phi.
     // Ap is free here (both branches below compute it before use): the entries of phi~'phi.
+    // phi~_i = min((x_i - l_i) / alpha, phi_i) for phi_i > 0, max((x_i - u_i) / alpha, phi_i)
+    // for phi_i < 0 (the lower-bound form alone when there are no upper bounds).
     for (Eigen::Index i = 0; i < n; ++i)
-      Ap[i] = phi[i] != 0.0 ? std::min((x[i] - l[i]) / opt.alpha, phi[i]) * phi[i] : 0.0;
+      Ap[i] = phi[i] == 0.0              ? 0.0
+              : upper && phi[i] < 0.0    ? std::max((x[i] - u[i]) / opt.alpha, phi[i]) * phi[i]
+                                         : std::min((x[i] - l[i]) / opt.alpha, phi[i]) * phi[i];
     const double beta2 = red.dot(beta, beta);
     const double phi_red_phi = red.sum_entries(Ap);
     if (beta2 <= opt.gamma * opt.gamma * phi_red_phi) {
@@ -86,30 +113,33 @@ MprgpResult mprgp(Operator& A, const Vec& b, const Vec& l, Vec& x, Vec& g, const
       }
       const double a_cg = red.dot(g, p) / pAp;
       double a_f = inf;  // largest feasible step along -p
-      for (Eigen::Index i = 0; i < n; ++i)
+      for (Eigen::Index i = 0; i < n; ++i) {
         if (p[i] > 0 && l[i] > -inf) a_f = std::min(a_f, (x[i] - l[i]) / p[i]);
+        if (upper && p[i] < 0 && u[i] < inf) a_f = std::min(a_f, (x[i] - u[i]) / p[i]);
+      }
       a_f = red.min(a_f);
       if (a_cg <= a_f) {  // conjugate gradient step
         ++res.cg_steps;
         x -= a_cg * p;
         image_step(a_cg);
-        x = x.cwiseMax(l);
+        clamp(x, l, u);
         g -= a_cg * Ap;
-        split_gradient(x, g, l, phi, beta);
+        split_gradient(x, g, l, u, phi, beta);
         const Vec& zz = precondition();
         const double gamma_cg = red.dot(zz, Ap) / pAp;
         p = zz - gamma_cg * p;
       } else {  // expansion step: feasible half step, then fixed-length projected gradient step
         ++res.expansion_steps;
         x -= a_f * p;
-        x = x.cwiseMax(l);
+        clamp(x, l, u);
         g -= a_f * Ap;
-        split_gradient(x, g, l, phi, beta);
-        x = (x - opt.alpha * phi).cwiseMax(l);
+        split_gradient(x, g, l, u, phi, beta);
+        x -= opt.alpha * phi;
+        clamp(x, l, u);
         A.apply(x, g);
         image_reset();
         g -= b;
-        split_gradient(x, g, l, phi, beta);
+        split_gradient(x, g, l, u, phi, beta);
         p = precondition();
       }
     } else {  // proportioning step along the chopped gradient
@@ -120,11 +150,22 @@ MprgpResult mprgp(Operator& A, const Vec& b, const Vec& l, Vec& x, Vec& g, const
         res.reason = StopReason::breakdown;
         return res;
       }
-      const double a_cg = red.dot(g, beta) / dAd;
+      double a_cg = red.dot(g, beta) / dAd;
+      if (any_upper) {
+        // With both bounds the line search along -beta can carry a component from one bound past
+        // the other: the step stops at the first bound it reaches (a descent step still).
+        double a_f = inf;
+        for (Eigen::Index i = 0; i < n; ++i) {
+          if (beta[i] > 0 && l[i] > -inf) a_f = std::min(a_f, (x[i] - l[i]) / beta[i]);
+          if (upper && beta[i] < 0 && u[i] < inf) a_f = std::min(a_f, (x[i] - u[i]) / beta[i]);
+        }
+        a_cg = std::min(a_cg, red.min(a_f));
+      }
       x -= a_cg * beta;
+      if (upper) clamp(x, l, u);  // round-off of the shortened step
       image_step(a_cg);
       g -= a_cg * Ap;
-      split_gradient(x, g, l, phi, beta);
+      split_gradient(x, g, l, u, phi, beta);
       p = precondition();
     }
   }

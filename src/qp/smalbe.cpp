@@ -9,14 +9,24 @@ namespace htfeti::qp {
 SmalbeResult smalbe(const QuadraticProgram& qp, double normA, Vec& x, const Reducer& red,
                     const SmalbeOptions& opt, const SmalbeHooks& hooks, const Progress& progress) {
   qp.check();
-  const auto* bounds = dynamic_cast<const LowerBounds*>(qp.constraints.get());
-  if (!bounds) throw std::invalid_argument("SMALBE-M: MPRGP needs lower bounds as constraints");
+  // MPRGP solves the inner problems: the constraint set must be bounds (lower, or a box).
+  static const Vec no_upper;
+  const Vec* lower = nullptr;
+  const Vec* upper = &no_upper;
+  if (const auto* lb = dynamic_cast<const LowerBounds*>(qp.constraints.get())) {
+    lower = &lb->lower();
+  } else if (const auto* box = dynamic_cast<const BoxBounds*>(qp.constraints.get())) {
+    lower = &box->lower(), upper = &box->upper();
+  } else {
+    throw std::invalid_argument("SMALBE-M: MPRGP needs bounds (LowerBounds or BoxBounds)");
+  }
   if (!qp.equality_projector) throw std::invalid_argument("SMALBE-M: the QP has no equalities");
   if (x.size() != qp.size()) throw std::invalid_argument("SMALBE-M: x has the wrong size");
   if (!(normA > 0)) throw std::invalid_argument("SMALBE-M: ||A|| estimate must be positive");
   SmalbeResult res;
   const Vec& b = qp.linear;
-  const Vec& l = bounds->lower();
+  const Vec& l = *lower;
+  const Vec& u = *upper;
   const Eigen::Index n = b.size();
   const double rho0 = opt.rho_factor * normA;   // H.rho(): raised by the late update (step 4)
   ComplementOperator Q(qp.equality_projector);  // Q = I - P
@@ -73,7 +83,7 @@ SmalbeResult smalbe(const QuadraticProgram& qp, double normA, Vec& x, const Redu
     rhs = b - nu;
     mo.max_iterations = opt.max_inner - res.inner_iterations;
     // After the first outer iteration g = H x - (b - nu) is kept up to date below.
-    const MprgpResult inner = mprgp(H, rhs, l, x, g, red, mo, stop, k > 0, &work);
+    const MprgpResult inner = mprgp(H, rhs, l, u, x, g, red, mo, stop, k > 0, &work);
     // Q x afresh at the inner solve's exit: the outer update and the global test use it, and the
     // next inner solve starts its tracked image from it (round-off of the updates does not carry).
     Q.apply(x, qx);

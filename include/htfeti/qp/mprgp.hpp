@@ -1,15 +1,21 @@
 // MPRGP: modified proportioning with reduced gradient projections (Dostal, "Optimal Quadratic
 // Programming Algorithms", 2009, ch. 8; Dostal et al., "Scalable Algorithms for Contact
 // Problems", 2016, ch. 8; the paper's inner solver, Section 7.3) for
-//     min 1/2 x'Ax - b'x   subject to  x_i >= l_i  (l_i = -infinity: no bound on x_i).
+//     min 1/2 x'Ax - b'x   subject to  l_i <= x_i <= u_i
+// (l_i = -infinity or u_i = +infinity: no bound on that side; without upper bounds at all, the
+// form the frictionless contact problem needs, u is passed empty). Box constraints are
+// MPRGP's form for Tresca friction in 2D (|lambda_t| <= g: an interval per tangential row).
 //
-// With g = Ax - b, the free gradient phi (g on the free set x_i > l_i), the chopped gradient beta
-// (min(g_i, 0) on the active set) and the reduced free gradient
-// phi~_i = min((x_i - l_i)/alpha, phi_i), an iteration is
+// With g = Ax - b, the free gradient phi (g on the free set l_i < x_i < u_i), the chopped
+// gradient beta (min(g_i, 0) at a lower bound, max(g_i, 0) at an upper bound) and the reduced free
+// gradient phi~_i = min((x_i - l_i)/alpha, phi_i) for phi_i > 0, max((x_i - u_i)/alpha, phi_i)
+// for phi_i < 0, an iteration is
 //   - proportional (||beta||^2 <= Gamma^2 phi~'phi): a CG step in the face if the CG step length
 //     keeps x feasible, otherwise an expansion step: the largest feasible CG step, then a
 //     projected gradient step of fixed length alpha on the free gradient;
-//   - not proportional: a proportioning step, an exact line search along beta (leaves the face).
+//   - not proportional: a proportioning step, an exact line search along beta (leaves the face;
+//     with upper bounds shortened to the first bound it reaches, as a component leaving one bound
+//     could otherwise pass the other).
 // Preconditioning in face (Dostal 2009, Section 8.6; PERMON's and ESPRESO's MPRGP): with a
 // preconditioner Z, symmetric positive definite, the CG steps in the face use the preconditioned
 // free gradient z = D_F Z phi (D_F: zero on the active set) in place of phi: p = z after a
@@ -63,11 +69,23 @@ struct MprgpWorkspace {
 /// g: the gradient A x - b at exit; if gradient_given, also on entry (x must then be feasible),
 /// which saves the first application of A (SMALBE-M updates g itself between outer iterations).
 using MprgpStop = std::function<bool(const Vec& x, const Vec& g, double gp_norm)>;
-MprgpResult mprgp(Operator& A, const Vec& b, const Vec& lower, Vec& x, Vec& g, const Reducer& red,
-                  const MprgpOptions& options, const MprgpStop& stop, bool gradient_given = false,
-                  MprgpWorkspace* workspace = nullptr);
+/// upper: empty (no upper bounds) or of the size of b (std::invalid_argument otherwise); over
+/// MPI, each rank's part (some ranks may give none). One allreduce per call decides whether any
+/// rank has upper bounds.
+MprgpResult mprgp(Operator& A, const Vec& b, const Vec& lower, const Vec& upper, Vec& x, Vec& g,
+                  const Reducer& red, const MprgpOptions& options, const MprgpStop& stop,
+                  bool gradient_given = false, MprgpWorkspace* workspace = nullptr);
+/// Lower bounds only.
+inline MprgpResult mprgp(Operator& A, const Vec& b, const Vec& lower, Vec& x, Vec& g,
+                         const Reducer& red, const MprgpOptions& options, const MprgpStop& stop,
+                         bool gradient_given = false, MprgpWorkspace* workspace = nullptr) {
+  static const Vec no_upper;
+  return mprgp(A, b, lower, no_upper, x, g, red, options, stop, gradient_given, workspace);
+}
 
-/// The projected gradient g^P of min 1/2 x'Ax - b'x, x >= l, for the gradient g at x.
-void projected_gradient(const Vec& x, const Vec& g, const Vec& lower, Vec& gp);
+/// The projected gradient g^P = phi + beta of min 1/2 x'Ax - b'x, l <= x <= u, for the gradient
+/// g at x (upper empty: no upper bounds).
+void projected_gradient(const Vec& x, const Vec& g, const Vec& lower, Vec& gp,
+                        const Vec& upper = Vec());
 
 }  // namespace htfeti::qp

@@ -19,8 +19,9 @@
 
 namespace htfeti::qp {
 
-/// The feasible set Omega of the variables. Bounds today (MPRGP); separable convex sets (discs
-/// for friction, MPGP) derive from it without changing the QP or SMALBE-M.
+/// The feasible set Omega of the variables. Bounds (LowerBounds, BoxBounds: MPRGP) today;
+/// separable convex sets (discs for friction in 3D, MPGP) derive from it without changing the QP
+/// or SMALBE-M.
 class ConstraintSet {
  public:
   virtual ~ConstraintSet() = default;
@@ -44,6 +45,24 @@ class LowerBounds final : public ConstraintSet {
 
  private:
   Vec lower_;
+};
+
+/// l_i <= x_i <= u_i (l_i = -infinity or u_i = +infinity: no bound on that side). The interval
+/// constraints of Tresca friction in 2D; MPRGP solves with them as with LowerBounds.
+class BoxBounds final : public ConstraintSet {
+ public:
+  /// Throws std::invalid_argument when the sizes differ, a bound is NaN or some l_i > u_i.
+  BoxBounds(Vec lower, Vec upper);
+  const Vec& lower() const { return lower_; }
+  const Vec& upper() const { return upper_; }
+  Eigen::Index size() const override { return lower_.size(); }
+  void project(Vec& x) const override { x = x.cwiseMax(lower_).cwiseMin(upper_); }
+  std::shared_ptr<const ConstraintSet> shifted(const Vec& s) const override {
+    return std::make_shared<BoxBounds>(lower_ - s, upper_ - s);
+  }
+
+ private:
+  Vec lower_, upper_;
 };
 
 /// A shared pointer to an operator that the caller keeps alive (not owned).

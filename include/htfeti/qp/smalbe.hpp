@@ -89,7 +89,7 @@ struct SmalbeHooks {
   PenalizedApply preconditioner;
 };
 
-/// qp: lower bounds (LowerBounds) and an equality projector are required (std::invalid_argument
+/// qp: bounds (LowerBounds or BoxBounds) and an equality projector are required (std::invalid_argument
 /// otherwise). normA: an estimate of ||A|| (estimate_norm). x: start in, solution out (of qp;
 /// its shift is the caller's to add).
 SmalbeResult smalbe(const QuadraticProgram& qp, double normA, Vec& x, const Reducer& red,

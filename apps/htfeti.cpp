@@ -94,6 +94,14 @@ void print_summary(const nlohmann::json& r) {
       r["objective"].get<double>(), k["equality_residual"].get<double>(),
       k["max_violation"].get<double>(), k["min_multiplier"].get<double>(),
       k["complementarity"].get<double>());
+  if (r.contains("friction")) {
+    const auto& f = r["friction"];
+    std::printf(
+        "  Tresca friction (%lld tangential rows): tangential force %.6e, %lld rows in stick, "
+        "%lld in slip\n",
+        r["friction_rows"].get<long long>(), f["tangential_force"].get<double>(),
+        f["stick_rows"].get<long long>(), f["slip_rows"].get<long long>());
+  }
   const auto& t = r["timings"];
   std::printf(
       "  time: setup %.2f s, factorization %.2f s, coarse %.2f s, solve %.2f s, "

@@ -342,7 +342,7 @@ void read_conditions(const toml::table& root, ProblemSpec& spec) {
   i = 0;
   for (const toml::table* t : array_of_tables("contact")) {
     const std::string where = "contact #" + std::to_string(++i);
-    check_keys(*t, where, {"group", "direction", "gap"});
+    check_keys(*t, where, {"group", "direction", "gap", "friction"});
     ProblemSpec::Contact c;
     c.group = get_string(*t, where, "group", "", true);
     const toml::node* dn = t->get("direction");
@@ -356,6 +356,21 @@ void read_conditions(const toml::table& root, ProblemSpec& spec) {
     for (double& v : c.direction) v /= std::sqrt(norm);
     const toml::node* g = t->get("gap");
     c.gap = g ? number_or_expression(*g, where + ".gap") : "0";
+    if (const toml::node* fn = t->get("friction")) {
+      const std::string fw = where + ".friction";
+      if (!fn->is_table()) bad(fw, "must be a table: friction = { law = \"tresca\", bound = ... }");
+      const toml::table& ft = *fn->as_table();
+      check_keys(ft, fw, {"law", "bound", "coefficient"});
+      const std::string law = get_string(ft, fw, "law", "", true);
+      if (law == "coulomb")
+        bad(fw + ".law", "\"coulomb\" is not supported yet (Tresca is: law = \"tresca\")");
+      if (law != "tresca") bad(fw + ".law", "must be \"tresca\"");
+      if (ft.contains("coefficient")) bad(fw + ".coefficient", "belongs to Coulomb friction");
+      if (!ft.contains("bound")) bad(fw + ".bound", "missing (the slip bound, force per area)");
+      c.slip_bound = get_double(ft, fw, "bound", 0);
+      if (!(c.slip_bound >= 0) || !std::isfinite(c.slip_bound))
+        bad(fw + ".bound", "must be a finite number >= 0");
+    }
     spec.contact.push_back(c);
   }
 }

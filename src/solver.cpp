@@ -117,7 +117,12 @@ QpSolve solve_with_contact(DualProblem& dual, DualOperators& ops, Vec& lambda,
   qp::QuadraticProgram dual_qp;
   dual_qp.hessian = qp::borrow(ops.F);
   dual_qp.linear = dual.d();
-  dual_qp.constraints = std::make_shared<qp::LowerBounds>(dual.lower_bounds());
+  // Bounds: lambda_I >= 0 on contact rows; with Tresca friction also -g <= lambda_T <= g on the
+  // tangential rows (a box: the same MPRGP).
+  if (dual.has_friction())
+    dual_qp.constraints = std::make_shared<qp::BoxBounds>(dual.lower_bounds(), dual.upper_bounds());
+  else
+    dual_qp.constraints = std::make_shared<qp::LowerBounds>(dual.lower_bounds());
   dual_qp.equality_projector = qp::borrow(ops.P);
   // lambda = lambda~ + x: b = P(d - F lambda~), x_I >= -lambda~_I, A = P F P.
   qp::QuadraticProgram qp = qp::enforce_by_projector(qp::homogenize(dual_qp, dual.lambda_tilde()));
@@ -204,6 +209,7 @@ struct SolveRecord {
   double t_setup, t_image, t_solve, t_rec, t_checks, peak_mb_solve;
   DualProblem::Kkt kkt;
   double energy;
+  DualProblem::FrictionSummary friction;
 };
 
 // The problem, the choices in effect and the solver's counts.
@@ -224,6 +230,7 @@ void report_problem_and_solve(nlohmann::json& rep, const Model& model, DualProbl
   rep["dual_dimension"] = dual.dual_dimension();
   rep["equalities"] = dual.equalities();
   rep["inequalities"] = dual.inequalities();
+  if (dual.has_friction()) rep["friction_rows"] = dual.friction_rows();
   rep["coarse_dimension"] = dual.coarse_dimension();
   {
     const auto dims = dual.cluster_kernel_dimensions();
@@ -288,6 +295,10 @@ void report_problem_and_solve(nlohmann::json& rep, const Model& model, DualProbl
                 {"max_violation", kkt.max_violation},
                 {"min_multiplier", kkt.min_multiplier},
                 {"complementarity", kkt.complementarity}};
+  if (dual.has_friction())
+    rep["friction"] = {{"tangential_force", r.friction.tangential_force},
+                       {"stick_rows", r.friction.stick},
+                       {"slip_rows", r.friction.slip}};
   rep["solver"] = qs.solver;
   // Every solver option in effect, defaults included (the app adds the output options).
   {
@@ -590,8 +601,22 @@ SolveOutput solve(std::shared_ptr<const Model> model_ptr, const SolveOptions& op
   t_checks = seconds_now() - t_checks;
 
   const SolveRecord record{
-      options, feti,  estimate, preconditioner_reason, qs,  ops,   merged, t_setup, t_image,
-      t_solve, t_rec, t_checks, peak_mb_solve,         kkt, energy};
+      options,
+      feti,
+      estimate,
+      preconditioner_reason,
+      qs,
+      ops,
+      merged,
+      t_setup,
+      t_image,
+      t_solve,
+      t_rec,
+      t_checks,
+      peak_mb_solve,
+      kkt,
+      energy,
+      dual.has_friction() ? dual.friction_summary(lambda) : DualProblem::FrictionSummary{}};
   nlohmann::json& rep = out.report;
   rep = model.describe();
   report_problem_and_solve(rep, model, dual, comm, record);

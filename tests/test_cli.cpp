@@ -253,6 +253,9 @@ TEST_F(Cli, BadProblemFilesExitWithCode2NamingTheKeyAndWriteNothing) {
       {with("group = \"y0\"", "group = \"floor\""), "'floor'"},
       {with("gap = \"0.05 + 0.1*x\"", "gap = \"0.05 + sin(\""), "contact #1.gap"},
       {with("gap = \"0.05 + 0.1*x\"", "gap = \"q*x\""), "contact #1.gap"},
+      {with("gap = \"0.05 + 0.1*x\"",
+            "gap = \"0.05 + 0.1*x\"\nfriction = { law = \"tresca\", bound = 1.0 }"),
+       "2D elasticity only"},
       {"[mesh]\nfile = \"missing.msh\"\n[physics]\ntype = \"laplace\"\n", "missing.msh"},
       {"[mesh]\nfile = \"broken.msh\"\n[physics]\ntype = \"laplace\"\n", "broken.msh"},
       {"[mesh]\nfile = \"notgmsh.msh\"\n[physics]\ntype = \"laplace\"\n", "notgmsh.msh"},
@@ -343,6 +346,29 @@ TEST_F(Cli, ContactResultsAreIdenticalOnOneToFourRanks) {
     }
     EXPECT_GT(reports[0]["displacement"]["max_norm"].get<double>(), 0.0);
   }
+}
+
+TEST_F(Cli, FrictionResultsAreIdenticalOnOneToFourRanks) {
+  // Tresca friction (box bounds on the tangential rows, bounds summed over a node's copies in
+  // a fixed order): the same iterates and numbers on 1, 2 and 4 ranks.
+  const std::string p = std::string(HTFETI_SOURCE_DIR) + "/examples/friction-block.toml";
+  nlohmann::json reports[3];
+  const int ranks[3] = {1, 2, 4};
+  for (int i = 0; i < 3; ++i) {
+    const std::string out = "f" + std::to_string(ranks[i]) + ".json";
+    // (one thread per rank: ranks x threads beyond the 2 cores only slow the polling down)
+    ASSERT_EQ(run("OMP_NUM_THREADS=1 " + mpiexec + " -n " + std::to_string(ranks[i]) + " " + bin +
+                  " solve " + p + " --no-vtu --report " + out),
+              0)
+        << stderr_text();
+    std::ifstream f(out);
+    reports[i] = nlohmann::json::parse(f);
+  }
+  for (int i = 1; i < 3; ++i)
+    for (const char* key : {"outer_iterations", "matvecs", "objective", "kkt", "friction"})
+      EXPECT_EQ(reports[0][key], reports[i][key]) << ranks[i] << " ranks: " << key;
+  EXPECT_GT(reports[0]["friction"]["stick_rows"].get<long long>(), 0);
+  EXPECT_GT(reports[0]["friction"]["slip_rows"].get<long long>(), 0);
 }
 
 // The automatic operator's speed rule (explicit_for_speed, bench/operator_choice.py): explicit in
@@ -599,6 +625,10 @@ TEST_F(Cli, OptionsAreEchoedAndDryRunWritesNothing) {
   EXPECT_EQ(r["options"]["output"]["report"], "r.json");
   EXPECT_EQ(r["solver"]["algorithm"], "pcg");
   EXPECT_EQ(r["preconditioner_reason"], "automatic: Laplace without a coefficient field");
+  // The conditions as read: the Dirichlet group with its components and values.
+  ASSERT_EQ(r["conditions"]["dirichlet"].size(), 1u);
+  EXPECT_EQ(r["conditions"]["dirichlet"][0]["group"], "x0");
+  EXPECT_EQ(r["conditions"]["dirichlet"][0]["value"], nlohmann::json({0.0}));
   EXPECT_TRUE(fs::exists("r.json"));
   fs::remove("r.json");
 
@@ -608,9 +638,9 @@ TEST_F(Cli, OptionsAreEchoedAndDryRunWritesNothing) {
   ASSERT_TRUE(WIFEXITED(code) && WEXITSTATUS(code) == 0) << stderr_text();
   std::ifstream d("dry.txt");
   const std::string text(std::istreambuf_iterator<char>(d), {});
-  for (const char* needle :
-       {"nothing is set up", "\"partitioner\"", "projected CG", "preconditioner: none",
-        "memory estimate:", "[solver]", "rtol = 1e-06", "[output]", "report = \"r.json\""})
+  for (const char* needle : {"nothing is set up", "\"partitioner\"", "\"conditions\"",
+                             "projected CG", "preconditioner: none", "memory estimate:", "[solver]",
+                             "rtol = 1e-06", "[output]", "report = \"r.json\""})
     EXPECT_NE(text.find(needle), std::string::npos) << needle << "\n" << text;
   EXPECT_FALSE(fs::exists("r.json"));
   EXPECT_FALSE(fs::exists("u.vtu"));
@@ -670,6 +700,28 @@ TEST_F(Cli, EveryContactConditionKeepsItsRows) {
        "contact #1 and contact #2"},
       {replace("direction = [0.0, -1.0]", "direction = [0.0, 0.0, -1.0]"), "contact #1.direction"},
       {replace("components = [1]", "components = [2]"), "dirichlet #2.components"},
+      // Friction: Coulomb (not yet), unknown laws, bounds negative, NaN or missing, stray keys.
+      {replace("direction = [0.0, -1.0]",
+               "direction = [0.0, -1.0]\nfriction = { law = \"coulomb\", coefficient = 0.3 }"),
+       "contact #1.friction.law"},
+      {replace("direction = [0.0, -1.0]",
+               "direction = [0.0, -1.0]\nfriction = { law = \"magic\", bound = 1.0 }"),
+       "contact #1.friction.law"},
+      {replace("direction = [0.0, -1.0]",
+               "direction = [0.0, -1.0]\nfriction = { law = \"tresca\", bound = -1.0 }"),
+       "contact #1.friction.bound"},
+      {replace("direction = [0.0, -1.0]",
+               "direction = [0.0, -1.0]\nfriction = { law = \"tresca\", bound = nan }"),
+       "contact #1.friction.bound"},
+      {replace("direction = [0.0, -1.0]",
+               "direction = [0.0, -1.0]\nfriction = { law = \"tresca\" }"),
+       "contact #1.friction.bound"},
+      {replace("direction = [0.0, -1.0]",
+               "direction = [0.0, -1.0]\nfriction = { law = \"tresca\", bound = 1.0, coefficient = "
+               "0.3 }"),
+       "contact #1.friction.coefficient"},
+      {replace("direction = [0.0, -1.0]", "direction = [0.0, -1.0]\nfriction = \"tresca\""),
+       "contact #1.friction"},
   };
   for (const auto& [text, needle] : bad) {
     write_file("bad.toml", text);

@@ -405,6 +405,20 @@ AssembledSubdomain assemble_subdomain(const SubdomainMesh& mesh, const Physics& 
   return out;
 }
 
+void add_facet_shares(const SubdomainMesh& mesh, const SubdomainMesh::FacetGroup& g,
+                      std::vector<double>& share_of_node) {
+  const int fn = g.facet_nodes;
+  if (fn == 0) return;
+  double x[12];
+  for (size_t i = 0; i + fn <= g.nodes.size(); i += fn) {
+    for (int a = 0; a < fn; ++a)
+      for (int d = 0; d < 3; ++d)
+        x[3 * a + d] = mesh.coords[3 * static_cast<size_t>(g.nodes[i + a]) + d];
+    const double share = facet_measure(mesh.dim, fn, x) / fn;
+    for (int a = 0; a < fn; ++a) share_of_node[g.nodes[i + a]] += share;
+  }
+}
+
 void add_traction(const SubdomainMesh& mesh, const SubdomainMesh::FacetGroup& g, const Physics& ph,
                   const std::array<double, 3>& t, Eigen::VectorXd& f) {
   const int fn = g.facet_nodes, dpn = ph.dofs_per_node();

@@ -248,6 +248,24 @@ void subdomain_rows(const FetiLayout& L, const SubdomainInput& in, std::vector<L
     for (int i = 0; i < dpn; ++i)
       if (c.direction[i] != 0.0) row.entries.push_back({c.node * dpn + i, w * c.direction[i]});
     out.push_back(std::move(row));
+    if (c.slip_bound >= 0 && dpn == 2) {
+      // Tresca friction in 2D: the tangential row t.(avg u_a), t = (-n_y, n_x), scaled as the
+      // normal row (its force is scale * lambda), with |lambda| <= g A / scale summed over the
+      // copies of the node (A: the node's contact area). No right-hand side: the tangential
+      // displacement is free where the bound is reached (slip), zero below it (stick).
+      row = LocalRow{};
+      row.key = {0, c.node_a, 3, c.condition, 0, 0};
+      row.kind = MultiplierKind::friction;
+      row.owner_subdomain = c.owner_subdomain;
+      row.scale = scale;
+      row.point = c.point;
+      row.direction = {-c.direction[1], c.direction[0], 0};
+      row.bound = c.slip_bound * c.area / scale;
+      for (int i = 0; i < dpn; ++i)
+        if (row.direction[i] != 0.0)
+          row.entries.push_back({c.node * dpn + i, w * row.direction[i]});
+      out.push_back(std::move(row));
+    }
   }
   // 4. rows of averaged objects.
   const double r2 = 1.0 / std::sqrt(2.0);

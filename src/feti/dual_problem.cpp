@@ -388,8 +388,9 @@ void DualProblem::finish_setup(Setup& st) {
   apply_Gt(coarse_work, lambda_tilde_);
   lower_.resize(n_own);
   for (int k = 0; k < n_own; ++k)
-    lower_[k] = multipliers_.kind[k] == MultiplierKind::contact
-                    ? 0.0
+    lower_[k] = multipliers_.kind[k] == MultiplierKind::contact ? 0.0
+                : multipliers_.kind[k] == MultiplierKind::friction
+                    ? -multipliers_.friction_bound[k]
                     : -std::numeric_limits<double>::infinity();
   {
     std::vector<int> dofs_per_node(nsub);

@@ -5,6 +5,7 @@
 #include <mpi.h>
 
 #include <algorithm>
+#include <limits>
 #include <numeric>
 
 #include "htfeti/parallel/key_numbering.hpp"
@@ -56,7 +57,7 @@ std::vector<std::vector<Subdomain::BEntry>> Multipliers::number(
   contact_scale.assign(n_own, 1.0);
   contact_gap.assign(n_own, 0.0);
   contact_point.assign(n_own, {0, 0, 0});
-  long long my_inequalities = 0;
+  long long my_inequalities = 0, my_friction = 0;
   owner_cluster.assign(n_own, 0);
   for (size_t i = 0; i < keys.size(); ++i) {
     const int k = layout.ext_index(index[i]);
@@ -70,9 +71,13 @@ std::vector<std::vector<Subdomain::BEntry>> Multipliers::number(
       contact_gap[k] = r.gap;
       contact_point[k] = r.point;
       if (r.kind == MultiplierKind::contact) ++my_inequalities;
+      if (r.kind == MultiplierKind::friction) ++my_friction;
     }
   }
   inequalities = c.sum(my_inequalities);
+  friction_rows = c.sum(my_friction);
+  // Friction rows: per subdomain, (first entry of the row, its part of the bound).
+  std::vector<std::vector<std::pair<size_t, double>>> bound_part(nsub);
   rows.assign(nsub, {});
   for (int s = 0; s < nsub; ++s) {
     auto& lr = local_rows[s];
@@ -91,6 +96,7 @@ std::vector<std::vector<Subdomain::BEntry>> Multipliers::number(
                            : r->key[0] == 0                  ? RowClass::node
                                                              : RowClass::object;
       const auto side = static_cast<std::int8_t>(r->side);
+      if (r->kind == MultiplierKind::friction) bound_part[s].push_back({rows[s].size(), r->bound});
       for (const auto& [dof, v] : r->entries) rows[s].push_back({k, -1, dof, side, cls, v});
     }
     lr = {};
@@ -132,6 +138,18 @@ std::vector<std::vector<Subdomain::BEntry>> Multipliers::number(
   }
   ext_in = Vec::Zero(n_ext);
   ext_out = Vec::Zero(n_ext);
+  // The friction bounds summed over the copies of each node, in the fixed order of the sums.
+  friction_bound = Vec::Constant(n_own, std::numeric_limits<double>::infinity());
+  if (friction_rows > 0) {
+    pairs.setZero();
+    for (int s = 0; s < nsub; ++s)
+      for (const auto& [e, b] : bound_part[s]) pairs[pair_first[s] + rows[s][e].j] += b;
+    combine_subdomains();
+    for (int k = 0; k < n_own; ++k)
+      if (kind[k] == MultiplierKind::friction) friction_bound[k] = ext_out[k];
+    pairs.setZero();
+    ext_out.setZero();
+  }
   return local_b;
 }
 

@@ -67,18 +67,23 @@ std::vector<DualProblem::Vec> DualProblem::reconstruct(const Vec& lambda) {
   }
   comm_.agree(error, input_error);
   // B u0 = d + c - F lambda; alpha solves G~ D G~^T alpha = G~ D (c - B u0), D masking the
-  // contact rows with lambda_i = 0 (paper, (10)).
+  // contact rows with lambda_i = 0 (paper, (10)) and the friction rows in slip.
   Vec r;
   apply_B(u, r);
   r = multipliers_.rhs - r;
   std::vector<double> weight(n_own, 1.0);
   bool masked = false;
-  for (int k = 0; k < n_own; ++k)
-    if (multipliers_.kind[k] == MultiplierKind::contact && !(lambda[k] > 0.0)) {
+  for (int k = 0; k < n_own; ++k) {
+    const bool open = multipliers_.kind[k] == MultiplierKind::contact && !(lambda[k] > 0.0);
+    // A friction row holds (t.u = 0) only in stick, below its bound.
+    const bool slip = multipliers_.kind[k] == MultiplierKind::friction &&
+                      !(std::abs(lambda[k]) < (1 - 1e-10) * multipliers_.friction_bound[k]);
+    if (open || slip) {
       weight[k] = 0.0;
       r[k] = 0.0;
       masked = true;
     }
+  }
   Vec alpha;
   apply_G(r, alpha);
   if (comm_.max(masked ? 1.0 : 0.0) > 0.0) {
@@ -117,6 +122,7 @@ DualProblem::Kkt DualProblem::kkt(const std::vector<Vec>& u, const Vec& lambda) 
   bool any_contact = false;
   Vec sq = Vec::Zero(multipliers_.layout.n_owned());
   for (int k = 0; k < multipliers_.layout.n_owned(); ++k) {
+    if (multipliers_.kind[k] == MultiplierKind::friction) continue;  // not an equality
     if (multipliers_.kind[k] != MultiplierKind::contact) {
       sq[k] = (bu[k] - multipliers_.rhs[k]) * (bu[k] - multipliers_.rhs[k]);
       continue;
@@ -184,6 +190,25 @@ DualProblem::ContactData DualProblem::contact_data(const std::vector<Vec>& u, co
     data.force.push_back(r[6]);
   }
   return data;
+}
+
+DualProblem::FrictionSummary DualProblem::friction_summary(const Vec& lambda,
+                                                           double rel_tol) const {
+  FrictionSummary f;
+  Vec force = Vec::Zero(lambda.size());
+  long long stick = 0, slip = 0;
+  for (Eigen::Index k = 0; k < lambda.size(); ++k)
+    if (multipliers_.kind[k] == MultiplierKind::friction) {
+      force[k] = -multipliers_.contact_scale[k] * lambda[k];  // on the body, along t
+      if (std::abs(lambda[k]) < (1 - rel_tol) * multipliers_.friction_bound[k])
+        ++stick;
+      else
+        ++slip;
+    }
+  f.tangential_force = sum(force);
+  f.stick = comm_.sum(stick);
+  f.slip = comm_.sum(slip);
+  return f;
 }
 
 std::vector<DualProblem::Vec> DualProblem::contact_forces(const Vec& lambda) {

@@ -279,6 +279,14 @@ class GroupModel final : public Model {
       auto it = m.node_groups.find(c.group);
       if (it == m.node_groups.end()) continue;
       const Expression gap(c.gap);
+      // Friction: each node's share of the group's facets on this subdomain (summed over the
+      // copies later, in the FETI stage).
+      std::vector<double> area;
+      if (c.slip_bound >= 0) {
+        area.assign(m.num_nodes(), 0.0);
+        auto fg = m.facet_groups.find(c.group);
+        if (fg != m.facet_groups.end()) add_facet_shares(m, fg->second, area);
+      }
       std::set<int> done;
       for (int k : it->second) {
         if (!done.insert(k).second) continue;
@@ -301,6 +309,7 @@ class GroupModel final : public Model {
           throw std::invalid_argument("problem file: contact #" + std::to_string(ci + 1) +
                                       ".gap is not finite at (" + point_text(r.point) + ")");
         r.condition = static_cast<int>(ci);
+        if (c.slip_bound >= 0) r.slip_bound = c.slip_bound, r.area = area[k];
         in.contact.push_back(r);
       }
     }
@@ -338,6 +347,40 @@ class GroupModel final : public Model {
     }
     if (!physics_.coefficient.empty()) ph["coefficient"] = physics_.coefficient;
     j["physics"] = ph;
+    // The conditions as the solver reads them (groups, values, directions, gaps, friction).
+    const int dpn = physics_.dofs_per_node();
+    nlohmann::json conditions = {{"dirichlet", nlohmann::json::array()},
+                                 {"load", nlohmann::json::array()},
+                                 {"contact", nlohmann::json::array()}};
+    for (const auto& d : spec_.dirichlet) {
+      std::vector<int> comps = d.components;
+      if (comps.empty())
+        for (int c = 0; c < dpn; ++c) comps.push_back(c);
+      std::vector<double> value;
+      for (int c : comps) value.push_back(d.value[c]);
+      conditions["dirichlet"].push_back(
+          {{"group", d.group}, {"components", comps}, {"value", value}});
+    }
+    for (const auto& l : spec_.loads) {
+      const char* kind = l.kind == ProblemSpec::Load::traction ? "traction"
+                         : l.kind == ProblemSpec::Load::source ? "source"
+                                                               : "force";
+      conditions["load"].push_back(
+          {{"group", l.group},
+           {kind, l.kind == ProblemSpec::Load::source
+                      ? nlohmann::json(l.value[0])
+                      : nlohmann::json(std::vector<double>(l.value.begin(),
+                                                           l.value.begin() + physics_.dim))}});
+    }
+    for (const auto& c : spec_.contact) {
+      nlohmann::json cj = {
+          {"group", c.group},
+          {"direction", std::vector<double>(c.direction.begin(), c.direction.begin() + dpn)},
+          {"gap", c.gap}};
+      if (c.slip_bound >= 0) cj["friction"] = {{"law", "tresca"}, {"bound", c.slip_bound}};
+      conditions["contact"].push_back(cj);
+    }
+    j["conditions"] = conditions;
     j["subdomains"] = num_subdomains();
     j["clusters"] = num_clusters();
     j["cluster_size"] = spec_.cluster_size;
@@ -377,7 +420,17 @@ class GroupModel final : public Model {
                                     ": 'force' is for elasticity; use 'source' for Laplace");
     }
     i = 0;
-    for (const auto& c : spec_.contact) require(c.group, nodes, "contact #" + std::to_string(++i));
+    for (const auto& c : spec_.contact) {
+      const std::string what = "contact #" + std::to_string(++i);
+      require(c.group, nodes, what);
+      if (c.slip_bound < 0) continue;
+      if (physics_.kind != PhysicsKind::elasticity || physics_.dim != 2)
+        throw std::invalid_argument(
+            "problem file: " + what +
+            ".friction: Tresca friction is supported for 2D elasticity only (3D needs disc "
+            "constraints on the tangential multipliers, not yet implemented)");
+      require(c.group, facets, what + ".friction (the slip bound acts on the contact area)");
+    }
     check_components();
   }
 

@@ -33,8 +33,7 @@ void clamp(Vec& x, const Vec& l, const Vec& u) {
 }
 }  // namespace
 
-void projected_gradient(const Vec& x, const Vec& g, const Vec& lower, Vec& gp,
-                        const Vec& upper) {
+void projected_gradient(const Vec& x, const Vec& g, const Vec& lower, Vec& gp, const Vec& upper) {
   has_upper(upper, x.size());
   gp.resize(x.size());
   Vec beta(x.size());
@@ -99,9 +98,9 @@ MprgpResult mprgp(Operator& A, const Vec& b, const Vec& l, const Vec& u, Vec& x,
     // phi~_i = min((x_i - l_i) / alpha, phi_i) for phi_i > 0, max((x_i - u_i) / alpha, phi_i)
     // for phi_i < 0 (the lower-bound form alone when there are no upper bounds).
     for (Eigen::Index i = 0; i < n; ++i)
-      Ap[i] = phi[i] == 0.0              ? 0.0
-              : upper && phi[i] < 0.0    ? std::max((x[i] - u[i]) / opt.alpha, phi[i]) * phi[i]
-                                         : std::min((x[i] - l[i]) / opt.alpha, phi[i]) * phi[i];
+      Ap[i] = phi[i] == 0.0           ? 0.0
+              : upper && phi[i] < 0.0 ? std::max((x[i] - u[i]) / opt.alpha, phi[i]) * phi[i]
+                                      : std::min((x[i] - l[i]) / opt.alpha, phi[i]) * phi[i];
     const double beta2 = red.dot(beta, beta);
     const double phi_red_phi = red.sum_entries(Ap);
     if (beta2 <= opt.gamma * opt.gamma * phi_red_phi) {

@@ -8,8 +8,8 @@ namespace htfeti::qp {
 
 BoxBounds::BoxBounds(Vec lower, Vec upper) : lower_(std::move(lower)), upper_(std::move(upper)) {
   if (lower_.size() != upper_.size())
-    throw std::invalid_argument("BoxBounds: " + std::to_string(lower_.size()) +
-                                " lower and " + std::to_string(upper_.size()) + " upper bounds");
+    throw std::invalid_argument("BoxBounds: " + std::to_string(lower_.size()) + " lower and " +
+                                std::to_string(upper_.size()) + " upper bounds");
   for (Eigen::Index i = 0; i < lower_.size(); ++i)
     if (!(lower_[i] <= upper_[i]))  // NaN fails too
       throw std::invalid_argument("BoxBounds: bound " + std::to_string(i) +

@@ -80,6 +80,10 @@ double stiffness_form(const SubdomainMesh& mesh, const Physics& physics, const E
 /// K, the volume load (source for Laplace, density * gravity for elasticity), kernel, fixed dofs.
 AssembledSubdomain assemble_subdomain(const SubdomainMesh& mesh, const Physics& physics,
                                       const SourceFunction& source);
+/// Adds to share_of_node (one entry per node) each facet's measure of a facet group shared
+/// equally by its nodes (the nodal areas of a uniform traction of 1).
+void add_facet_shares(const SubdomainMesh& mesh, const SubdomainMesh::FacetGroup& group,
+                      std::vector<double>& share_of_node);
 /// Adds a uniform traction (elasticity: a vector; Laplace: a flux, component 0) on the facets
 /// of a facet group: each facet's measure times the traction, shared equally by its nodes.
 void add_traction(const SubdomainMesh& mesh, const SubdomainMesh::FacetGroup& group,

@@ -41,7 +41,8 @@
 
 namespace htfeti {
 
-enum class MultiplierKind : std::uint8_t { gluing, dirichlet, contact };
+/// friction: the tangential row of a contact row with Tresca friction, |lambda| <= bound.
+enum class MultiplierKind : std::uint8_t { gluing, dirichlet, contact, friction };
 
 using RowKey = std::array<long long, 6>;
 
@@ -53,6 +54,7 @@ struct LocalRow {
   double rhs = 0;           ///< c: B~ u = c (equalities) or B~ u <= c (contact)
   double scale = 1;         ///< contact: scale * lambda is the nodal force
   double gap = 0;           ///< contact: the gap in length units
+  double bound = 0;         ///< friction: this subdomain's part of the bound on |lambda| (summed)
   int side = 0;             ///< contact: +1 for the part on node a, -1 on node b
   std::array<double, 3> point{0, 0, 0};         ///< contact: node a
   std::array<double, 3> direction{0, 0, 0};     ///< contact: n

@@ -157,7 +157,11 @@ class DualProblem {
   const Comm& comm() const { return comm_; }
   int n_owned() const { return multipliers_.n_owned(); }
   long long dual_dimension() const { return multipliers_.dimension; }
-  long long equalities() const { return multipliers_.dimension - multipliers_.inequalities; }
+  long long equalities() const {
+    return multipliers_.dimension - multipliers_.inequalities - multipliers_.friction_rows;
+  }
+  /// Tangential rows of Tresca friction (neither equalities nor contact rows).
+  long long friction_rows() const { return multipliers_.friction_rows; }
   long long inequalities() const { return multipliers_.inequalities; }
   int coarse_dimension() const { return coarse_.dimension(); }
   /// The kernel dimension of every cluster (all ranks): the rows of G~ it contributes.
@@ -231,8 +235,20 @@ class DualProblem {
   const Vec& e() const { return e_; }
   /// lambda~ = G~^T (G~ G~^T)^{-1} e~: the least-squares solution of G~ lambda = e~.
   const Vec& lambda_tilde() const { return lambda_tilde_; }
-  /// Lower bounds on the owned multipliers: 0 on contact rows, -infinity elsewhere.
+  /// Lower bounds on the owned multipliers: 0 on contact rows, -bound on friction rows,
+  /// -infinity elsewhere.
   const Vec& lower_bounds() const { return lower_; }
+  /// Upper bounds: the bound on friction rows, +infinity elsewhere.
+  const Vec& upper_bounds() const { return multipliers_.friction_bound; }
+  /// Whether some contact condition has Tresca friction (tangential rows with box bounds).
+  bool has_friction() const { return multipliers_.friction_rows > 0; }
+  /// Per friction condition summed over ranks: the total tangential force sum scale * lambda
+  /// and the rows in stick (|lambda| below its bound by more than rel_tol) and in slip.
+  struct FrictionSummary {
+    double tangential_force = 0;
+    long long stick = 0, slip = 0;
+  };
+  FrictionSummary friction_summary(const Vec& lambda, double rel_tol = 1e-6) const;
   bool has_inequalities() const { return multipliers_.inequalities > 0; }
   /// Why a contact problem has no solution, or "" when it has one (or the check cannot be made:
   /// a coarse dimension over kMaxDenseCoarse): a rigid motion restrained by no equality that
@@ -240,7 +256,8 @@ class DualProblem {
   /// coarse space; coarse_space.cpp). Costs one coarse factorization (dense when singular);
   /// called when SMALBE-M did not converge. Collective.
   std::string unbounded_motion() {
-    return multipliers_.inequalities ? coarse_.unbounded_motion(e_) : "";
+    // (With friction the tangential rows are bounded both ways: no diagnosis is attempted.)
+    return multipliers_.inequalities && !has_friction() ? coarse_.unbounded_motion(e_) : "";
   }
 
   /// Primal solution u = K~^+ (f - B~^T lambda) + R~ alpha, with alpha chosen so that the

@@ -81,6 +81,11 @@ struct ContactRow {
   /// The contact condition the row comes from: a node may carry one row per condition (a
   /// corner under a floor and beside a wall), each its own multiplier.
   int condition = 0;
+  /// Tresca friction (2D): the slip bound per unit area, < 0 without friction; and this
+  /// subdomain's share of the node's contact area (its facets of the group, each facet's
+  /// measure shared equally by its nodes: summed over the copies, the node's area).
+  double slip_bound = -1;
+  double area = 0;
 };
 
 /// One local subdomain's input: moved into the FETI stage, which keeps what it needs.

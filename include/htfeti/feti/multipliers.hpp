@@ -78,8 +78,9 @@ struct Multipliers {
 
   const Comm* comm = nullptr;
   DualLayout layout;
-  long long dimension = 0;     ///< rows of B~ (all ranks)
-  long long inequalities = 0;  ///< contact rows (all ranks)
+  long long dimension = 0;      ///< rows of B~ (all ranks)
+  long long inequalities = 0;   ///< contact rows (all ranks)
+  long long friction_rows = 0;  ///< tangential rows of Tresca friction (all ranks)
   /// Per local subdomain: the entries of its rows, in the global order of the rows.
   std::vector<std::vector<BRowEntry>> rows;
   /// Per local subdomain: its multipliers (extended indices), by global index. Their positions
@@ -91,6 +92,8 @@ struct Multipliers {
   // the force scale (scale * lambda is the nodal force), the gap and the point (node a).
   std::vector<MultiplierKind> kind;
   Vec rhs;
+  /// Per owned entry: the bound on |lambda| of a friction row (+infinity elsewhere).
+  Vec friction_bound;
   std::vector<double> contact_scale, contact_gap;
   std::vector<std::array<double, 3>> contact_point;
   /// Per local subdomain: its first (subdomain, multiplier) pair (subdomains() + 1 entries).

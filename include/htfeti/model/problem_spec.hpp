@@ -42,6 +42,9 @@ struct ProblemSpec {
     std::string group;
     std::array<double, 3> direction{0, 0, -1};
     std::string gap = "0";
+    /// Tresca friction on the condition (friction = { law = "tresca", bound = g }): the slip
+    /// bound g per unit area (force per area) of the tangential traction; < 0: frictionless.
+    double slip_bound = -1;
   };
   std::vector<Dirichlet> dirichlet;
   std::vector<Load> loads;

@@ -89,9 +89,9 @@ struct SmalbeHooks {
   PenalizedApply preconditioner;
 };
 
-/// qp: bounds (LowerBounds or BoxBounds) and an equality projector are required (std::invalid_argument
-/// otherwise). normA: an estimate of ||A|| (estimate_norm). x: start in, solution out (of qp;
-/// its shift is the caller's to add).
+/// qp: bounds (LowerBounds or BoxBounds) and an equality projector are required
+/// (std::invalid_argument otherwise). normA: an estimate of ||A|| (estimate_norm). x: start in,
+/// solution out (of qp; its shift is the caller's to add).
 SmalbeResult smalbe(const QuadraticProgram& qp, double normA, Vec& x, const Reducer& red,
                     const SmalbeOptions& options, const SmalbeHooks& hooks = {},
                     const Progress& progress = {});

@@ -1,0 +1,104 @@
+// Tresca friction in 2D against a rigid plane: a block pressed on the plane y = 0 by a
+// traction p on its top, whose top is dragged by a prescribed horizontal displacement d. The
+// tangential multipliers live in boxes |lambda_t| <= g A (qp::BoxBounds, MPRGP inside SMALBE-M).
+// Checked against what does not depend on the solver: full slip transmits exactly g L (L the
+// contact length); a bound that nothing reaches is the same problem as a bottom held in x by a
+// Dirichlet condition (equality rows instead of boxes); a zero bound is frictionless contact.
+// Runs under mpiexec -n 1 and 2.
+#include <gtest/gtest.h>
+
+#include "helpers.hpp"
+#include "htfeti/model/problem_spec.hpp"
+#include "htfeti/solver.hpp"
+
+using namespace htfeti;
+
+namespace {
+
+constexpr double kLength = 4.0, kPressure = 10.0;
+
+// The block [0, 4] x [0, 1], 40 x 10 quad4 in 4 x 2 subdomains, E = 1000, in contact with the
+// plane y = 0; slip_bound < 0: frictionless; bottom_fixed_x: the bottom held in x instead.
+ProblemSpec block_on_plane(double poisson, double drag, double slip_bound,
+                           bool bottom_fixed_x = false) {
+  ProblemSpec s;
+  s.box.dim = 2;
+  s.box.cell = CellType::quad4;
+  s.box.size = {kLength, 1.0, 0.0};
+  s.box.elements = {40, 10, 0};
+  s.physics.kind = PhysicsKind::elasticity;
+  s.physics.material = {1000.0, poisson};
+  s.dirichlet.push_back({"y1", {drag, 0, 0}, {0}});
+  if (bottom_fixed_x) s.dirichlet.push_back({"y0", {0, 0, 0}, {0}});
+  s.loads.push_back({"y1", ProblemSpec::Load::traction, {0, -kPressure, 0}});
+  ProblemSpec::Contact c;
+  c.group = "y0";
+  c.direction = {0, -1, 0};
+  c.gap = "0";
+  c.slip_bound = slip_bound;
+  s.contact.push_back(c);
+  s.subdomains = {4, 2};
+  return s;
+}
+
+SolveOutput run(const ProblemSpec& spec, const Comm& comm) {
+  SolveOptions opt;
+  opt.rtol = 1e-10;
+  opt.max_iterations = 20000;
+  return solve(std::shared_ptr<const Model>(make_model(spec)), opt, comm);
+}
+
+}  // namespace
+
+TEST(TrescaFriction, FullSlipTransmitsTheBoundTimesTheLength) {
+  Comm comm;
+  const double g = 1.0;
+  const auto out = run(block_on_plane(0.3, 0.1, g), comm);
+  ASSERT_TRUE(out.converged) << out.report["stop_reason"];
+  const auto& f = out.report["friction"];
+  EXPECT_EQ(f["slip_rows"].get<long long>(), 41);
+  EXPECT_EQ(f["stick_rows"].get<long long>(), 0);
+  const auto& r = out.report;
+  EXPECT_EQ(r["friction_rows"].get<long long>(), 41);
+  EXPECT_EQ(r["inequalities"].get<long long>(), 41);
+  EXPECT_EQ(r["equalities"].get<long long>() + 82, r["dual_dimension"].get<long long>());
+  // The plane holds the block back (-x) with g per unit length over the whole contact.
+  EXPECT_NEAR(f["tangential_force"].get<double>(), -g * kLength, 1e-8 * g * kLength);
+  // The normal force balances the load.
+  EXPECT_LT(out.report["kkt"]["max_violation"].get<double>(), 1e-8);
+}
+
+TEST(TrescaFriction, SmallDragSticksEverywhere) {
+  Comm comm;
+  const double g = 1.0;
+  const auto out = run(block_on_plane(0.0, 1e-4, g), comm);
+  ASSERT_TRUE(out.converged) << out.report["stop_reason"];
+  const auto& f = out.report["friction"];
+  EXPECT_EQ(f["stick_rows"].get<long long>(), 41);
+  EXPECT_EQ(f["slip_rows"].get<long long>(), 0);
+  const double t = f["tangential_force"];
+  EXPECT_LT(t, 0.0);
+  EXPECT_LT(std::abs(t), 0.1 * g * kLength);
+}
+
+TEST(TrescaFriction, UnreachedBoundIsTheBottomHeldInX) {
+  // Stick everywhere: the tangential rows hold as equalities, the problem of a bottom held in
+  // x by a Dirichlet condition (solved with equality rows, no boxes).
+  Comm comm;
+  const auto fr = run(block_on_plane(0.3, 1e-3, 1e6), comm);
+  const auto held = run(block_on_plane(0.3, 1e-3, -1, true), comm);
+  ASSERT_TRUE(fr.converged && held.converged);
+  EXPECT_EQ(fr.report["friction"]["slip_rows"].get<long long>(), 0);
+  const double e1 = fr.report["objective"], e2 = held.report["objective"];
+  EXPECT_NEAR(e1, e2, 1e-8 * std::abs(e2));
+}
+
+TEST(TrescaFriction, ZeroBoundIsFrictionless) {
+  Comm comm;
+  const auto fr = run(block_on_plane(0.3, 1e-3, 0.0), comm);
+  const auto none = run(block_on_plane(0.3, 1e-3, -1), comm);
+  ASSERT_TRUE(fr.converged && none.converged);
+  EXPECT_NEAR(fr.report["friction"]["tangential_force"].get<double>(), 0.0, 1e-12);
+  const double e1 = fr.report["objective"], e2 = none.report["objective"];
+  EXPECT_NEAR(e1, e2, 1e-8 * std::abs(e2));
+}

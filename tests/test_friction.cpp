@@ -66,6 +66,15 @@ TEST(TrescaFriction, FullSlipTransmitsTheBoundTimesTheLength) {
   EXPECT_NEAR(f["tangential_force"].get<double>(), -g * kLength, 1e-8 * g * kLength);
   // The normal force balances the load.
   EXPECT_LT(out.report["kkt"]["max_violation"].get<double>(), 1e-8);
+  // The nodal contact force of the VTU (-B_I^T lambda, normal and tangential rows) sums to the
+  // same tangential force in x and to the load in y.
+  const auto forces = out.dual->contact_forces(out.lambda);
+  double fx = 0, fy = 0;
+  for (const auto& f_s : forces)
+    for (Eigen::Index i = 0; i < f_s.size(); i += 2) fx += f_s[i], fy += f_s[i + 1];
+  fx = comm.sum(fx), fy = comm.sum(fy);
+  EXPECT_NEAR(fx, -g * kLength, 1e-8 * g * kLength);
+  EXPECT_NEAR(fy, kPressure * kLength, 1e-8 * kPressure * kLength);
 }
 
 TEST(TrescaFriction, SmallDragSticksEverywhere) {

@@ -260,6 +260,7 @@ void subdomain_rows(const FetiLayout& L, const SubdomainInput& in, std::vector<L
       row.scale = scale;
       row.point = c.point;
       row.direction = {-c.direction[1], c.direction[0], 0};
+      row.side = c.side;  // the contact force -B_I^T lambda takes it (contact_forces)
       row.bound = c.slip_bound * c.area / scale;
       for (int i = 0; i < dpn; ++i)
         if (row.direction[i] != 0.0)

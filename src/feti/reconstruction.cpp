@@ -226,7 +226,8 @@ std::vector<DualProblem::Vec> DualProblem::contact_gap_field(const std::vector<V
   Vec bu;
   apply_B(u, bu);
   const int n_own = multipliers_.layout.n_owned();
-  Vec rem = Vec::Zero(multipliers_.layout.n_ext());
+  // NaN on every row but the normal contact rows (friction rows also carry a side).
+  Vec rem = Vec::Constant(multipliers_.layout.n_ext(), std::numeric_limits<double>::quiet_NaN());
   for (int k = 0; k < n_own; ++k)
     if (multipliers_.kind[k] == MultiplierKind::contact)
       rem[k] = (multipliers_.rhs[k] - bu[k]) / multipliers_.contact_scale[k];
@@ -236,7 +237,7 @@ std::vector<DualProblem::Vec> DualProblem::contact_gap_field(const std::vector<V
     const int dpn = subs_[s]->dofs_per_node();
     out[s] = Vec::Constant(subs_[s]->size() / dpn, std::numeric_limits<double>::quiet_NaN());
     for (const auto& r : multipliers_.rows[s])
-      if (r.side != 0) {  // the smallest remaining gap of a node's rows
+      if (r.side != 0 && !std::isnan(rem[r.k])) {  // the smallest remaining gap of a node's rows
         double& g = out[s][r.dof / dpn];
         g = std::isnan(g) ? rem[r.k] : std::min(g, rem[r.k]);
       }

@@ -8,6 +8,7 @@
 #include <fstream>
 #include <nlohmann/json.hpp>
 #include <string>
+#include <thread>
 
 namespace fs = std::filesystem;
 
@@ -346,6 +347,20 @@ TEST_F(Cli, ContactResultsAreIdenticalOnOneToFourRanks) {
     }
     EXPECT_GT(reports[0]["displacement"]["max_norm"].get<double>(), 0.0);
   }
+}
+
+TEST_F(Cli, OversubscribedThreadsAreNoted) {
+  // Ranks x threads beyond the machine's cores: a note naming the fix, and the run goes on.
+  const int cores = static_cast<int>(std::thread::hardware_concurrency());
+  const std::string solve =
+      " solve --problem poisson2d -n 32 --subdomains 4 --no-vtu --report r.json";
+  ASSERT_EQ(
+      run("OMP_NUM_THREADS=" + std::to_string(cores) + " " + mpiexec + " -n 2 " + bin + solve), 0);
+  EXPECT_NE(stderr_text().find("threads on a machine with " + std::to_string(cores) + " cores"),
+            std::string::npos)
+      << stderr_text();
+  ASSERT_EQ(run("OMP_NUM_THREADS=1 " + bin + solve), 0);
+  EXPECT_EQ(stderr_text().find("note:"), std::string::npos) << stderr_text();
 }
 
 TEST_F(Cli, FrictionResultsAreIdenticalOnOneToFourRanks) {

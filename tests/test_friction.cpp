@@ -111,3 +111,16 @@ TEST(TrescaFriction, ZeroBoundIsFrictionless) {
   const double e1 = fr.report["objective"], e2 = none.report["objective"];
   EXPECT_NEAR(e1, e2, 1e-8 * std::abs(e2));
 }
+
+TEST(TrescaFriction, NoTangentialRowWhereDirichletFixesTheTangent) {
+  // The left side held in x: at the corner node (0, 0) the condition already fixes t.u, and a
+  // tangential row there would repeat it (a dependent row of B~: the split of the reaction
+  // between the two would not be unique). The normal row stays.
+  Comm comm;
+  ProblemSpec spec = block_on_plane(0.3, 0.002, 1.0);
+  spec.dirichlet.push_back({"x0", {0, 0, 0}, {0}});
+  const auto out = run(spec, comm);
+  ASSERT_TRUE(out.converged) << out.report["stop_reason"];
+  EXPECT_EQ(out.report["friction_rows"].get<long long>(), 40);
+  EXPECT_EQ(out.report["inequalities"].get<long long>(), 41);
+}

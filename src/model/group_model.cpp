@@ -309,7 +309,15 @@ class GroupModel final : public Model {
           throw std::invalid_argument("problem file: contact #" + std::to_string(ci + 1) +
                                       ".gap is not finite at (" + point_text(r.point) + ")");
         r.condition = static_cast<int>(ci);
-        if (c.slip_bound >= 0) r.slip_bound = c.slip_bound, r.area = area[k];
+        if (c.slip_bound >= 0) {
+          // No tangential row where a Dirichlet condition already fixes t.u (t = (-n_y, n_x)):
+          // it would repeat that row.
+          const double t[2] = {-c.direction[1], c.direction[0]};
+          bool t_fixed = true;
+          for (int d = 0; d < 2; ++d)
+            if (t[d] != 0 && !fixed.count({k, d})) t_fixed = false;
+          if (!t_fixed) r.slip_bound = c.slip_bound, r.area = area[k];
+        }
         in.contact.push_back(r);
       }
     }

@@ -342,10 +342,43 @@ void read_conditions(const toml::table& root, ProblemSpec& spec) {
   i = 0;
   for (const toml::table* t : array_of_tables("contact")) {
     const std::string where = "contact #" + std::to_string(++i);
-    check_keys(*t, where, {"group", "direction", "gap", "friction"});
+    check_keys(*t, where, {"group", "master", "search_distance", "direction", "gap", "friction"});
     ProblemSpec::Contact c;
     c.group = get_string(*t, where, "group", "", true);
+    // Between two bodies: the slave group against a master group (mortar rows). In elasticity
+    // the normal and the gap are the geometry's; a Laplace pair takes a direction (+1: u_slave -
+    // u_master <= gap, -1: the other way) and a gap like an obstacle.
+    if (t->contains("master")) {
+      c.master = get_string(*t, where, "master", "", true);
+      if (c.master == c.group) bad(where + ".master", "is the slave group itself");
+      if (spec.physics.kind == PhysicsKind::elasticity)
+        for (const char* k : {"direction", "gap"})
+          if (t->contains(k))
+            bad(where + "." + k,
+                "does not apply to contact between bodies in elasticity (the normal and the gap "
+                "come from the meshes)");
+      if (t->contains("search_distance")) {
+        c.search_distance = get_double(*t, where, "search_distance", 0);
+        if (!(c.search_distance > 0) || !std::isfinite(c.search_distance))
+          bad(where + ".search_distance", "must be a finite number > 0");
+      }
+      if (t->contains("friction"))
+        bad(where + ".friction",
+            "friction between bodies is not supported yet (only against "
+            "a rigid obstacle)");
+      if (spec.physics.kind == PhysicsKind::elasticity) {
+        spec.contact.push_back(c);
+        continue;
+      }
+      if (!t->contains("direction")) c.direction = {1, 0, 0};
+    } else if (t->contains("search_distance")) {
+      bad(where + ".search_distance", "applies to contact between bodies (with master)");
+    }
     const toml::node* dn = t->get("direction");
+    if (!dn && !c.master.empty()) {
+      spec.contact.push_back(c);  // a Laplace pair with the default direction +1 and gap 0
+      continue;
+    }
     if (!dn) bad(where + ".direction", "missing");
     const auto dir = get_numbers(*dn, where + ".direction");
     if (dir.size() > 3) bad(where + ".direction", "has at most 3 components");

@@ -403,7 +403,8 @@ void report_solution(nlohmann::json& rep, const Model& model, DualProblem& dual,
                          {"u_left", c.u_a},
                          {"u_right", c.u_b},
                          {"gap", c.gap},
-                         {"multiplier", c.force}};
+                         {"multiplier", c.force},
+                         {"pressure", c.pressure}};
     // Rank 0 holds the gathered arrays; share them so the report is the same everywhere.
     std::string s = comm.rank() == 0 ? cj.dump() : std::string();
     long long len = static_cast<long long>(s.size());
@@ -411,6 +412,25 @@ void report_solution(nlohmann::json& rep, const Model& model, DualProblem& dual,
     s.resize(static_cast<size_t>(len));
     MPI_Bcast(s.data(), static_cast<int>(len), MPI_CHAR, 0, comm.raw());
     rep["contact"] = nlohmann::json::parse(s);
+    // One entry per contact condition, in the problem file's order.
+    const auto conditions = model.contact_conditions();
+    const auto summary =
+        dual.contact_summary(u, lambda, static_cast<int>(std::max<size_t>(conditions.size(), 1)));
+    nlohmann::json list = nlohmann::json::array();
+    for (size_t i = 0; i < summary.size(); ++i) {
+      nlohmann::json e;
+      e["group"] =
+          i < conditions.size() ? conditions[i].group : "contact #" + std::to_string(i + 1);
+      if (i < conditions.size() && !conditions[i].master.empty())
+        e["master"] = conditions[i].master;
+      e["rows"] = summary[i].rows;
+      e["active_rows"] = summary[i].active;
+      e["area"] = summary[i].area;
+      e["normal_force"] = summary[i].normal_force;
+      e["max_penetration"] = summary[i].max_penetration;
+      list.push_back(e);
+    }
+    rep["contact_summary"] = list;
   }
   {
     // Nodal displacement magnitudes: max and mean over the global nodes (a node's copies are

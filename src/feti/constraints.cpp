@@ -230,21 +230,25 @@ void subdomain_rows(const FetiLayout& L, const SubdomainInput& in, std::vector<L
     row.entries.push_back({d.node * dpn + d.component, 1.0 / std::sqrt(kc * 1.0)});
     out.push_back(std::move(row));
   }
-  // 3. contact rows.
+  // 3. contact rows: this subdomain's part of n.(sum_j c_j avg u_j) <= W gap, scaled to unit
+  // norm (input.hpp, ContactRow).
   for (const auto& c : in.contact) {
-    const double inv = 1.0 / c.copies_a + (c.copies_b > 0 ? 1.0 / c.copies_b : 0.0);
-    const double scale = 1.0 / std::sqrt(inv);
+    const double scale = 1.0 / std::sqrt(c.norm_sq);
     row = LocalRow{};
     row.key = {0, c.node_a, 2, c.condition, 0, 0};
     row.kind = MultiplierKind::contact;
     row.owner_subdomain = c.owner_subdomain;
-    row.rhs = scale * c.gap;
+    row.rhs = scale * (c.weight * c.gap);
     row.scale = scale;
+    row.weight = c.weight;
     row.gap = c.gap;
+    row.area = c.area;
+    row.condition = c.condition;
     row.point = c.point;
     row.direction = c.direction;
     row.side = c.side;
-    const double w = c.side > 0 ? scale / c.copies_a : -scale / c.copies_b;
+    row.key_node = c.key;
+    const double w = c.coefficient * scale / c.copies;
     for (int i = 0; i < dpn; ++i)
       if (c.direction[i] != 0.0) row.entries.push_back({c.node * dpn + i, w * c.direction[i]});
     out.push_back(std::move(row));
@@ -258,6 +262,7 @@ void subdomain_rows(const FetiLayout& L, const SubdomainInput& in, std::vector<L
       row.kind = MultiplierKind::friction;
       row.owner_subdomain = c.owner_subdomain;
       row.scale = scale;
+      row.condition = c.condition;
       row.point = c.point;
       row.direction = {-c.direction[1], c.direction[0], 0};
       row.side = c.side;  // the contact force -B_I^T lambda takes it (contact_forces)

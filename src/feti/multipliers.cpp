@@ -55,7 +55,9 @@ std::vector<std::vector<Subdomain::BEntry>> Multipliers::number(
   kind.assign(n_own, MultiplierKind::gluing);
   rhs = Vec::Zero(n_own);
   contact_scale.assign(n_own, 1.0);
+  contact_weight.assign(n_own, 1.0);
   contact_gap.assign(n_own, 0.0);
+  contact_condition.assign(n_own, -1);
   contact_point.assign(n_own, {0, 0, 0});
   long long my_inequalities = 0, my_friction = 0;
   owner_cluster.assign(n_own, 0);
@@ -68,7 +70,11 @@ std::vector<std::vector<Subdomain::BEntry>> Multipliers::number(
       kind[k] = r.kind;
       rhs[k] = r.rhs;
       contact_scale[k] = r.scale;
+      contact_weight[k] = r.weight;
       contact_gap[k] = r.gap;
+      contact_condition[k] = r.kind == MultiplierKind::gluing || r.kind == MultiplierKind::dirichlet
+                                 ? -1
+                                 : r.condition;
       contact_point[k] = r.point;
       if (r.kind == MultiplierKind::contact) ++my_inequalities;
       if (r.kind == MultiplierKind::friction) ++my_friction;
@@ -76,8 +82,9 @@ std::vector<std::vector<Subdomain::BEntry>> Multipliers::number(
   }
   inequalities = c.sum(my_inequalities);
   friction_rows = c.sum(my_friction);
-  // Friction rows: per subdomain, (first entry of the row, its part of the bound).
-  std::vector<std::vector<std::pair<size_t, double>>> bound_part(nsub);
+  // Friction rows: per subdomain, (first entry of the row, its part of the bound); contact
+  // rows: (first entry, its part of the contact area).
+  std::vector<std::vector<std::pair<size_t, double>>> bound_part(nsub), area_part(nsub);
   rows.assign(nsub, {});
   for (int s = 0; s < nsub; ++s) {
     auto& lr = local_rows[s];
@@ -97,7 +104,10 @@ std::vector<std::vector<Subdomain::BEntry>> Multipliers::number(
                                                              : RowClass::object;
       const auto side = static_cast<std::int8_t>(r->side);
       if (r->kind == MultiplierKind::friction) bound_part[s].push_back({rows[s].size(), r->bound});
-      for (const auto& [dof, v] : r->entries) rows[s].push_back({k, -1, dof, side, cls, v});
+      if (r->kind == MultiplierKind::contact && r->area != 0.0)
+        area_part[s].push_back({rows[s].size(), r->area});
+      const auto key = static_cast<std::uint8_t>(r->key_node);
+      for (const auto& [dof, v] : r->entries) rows[s].push_back({k, -1, dof, side, cls, key, v});
     }
     lr = {};
   }
@@ -138,18 +148,24 @@ std::vector<std::vector<Subdomain::BEntry>> Multipliers::number(
   }
   ext_in = Vec::Zero(n_ext);
   ext_out = Vec::Zero(n_ext);
-  // The friction bounds summed over the copies of each node, in the fixed order of the sums.
-  friction_bound = Vec::Constant(n_own, std::numeric_limits<double>::infinity());
-  if (friction_rows > 0) {
+  // The friction bounds and the contact areas summed over the copies of each node, in the fixed
+  // order of the sums.
+  auto sum_parts = [&](const std::vector<std::vector<std::pair<size_t, double>>>& parts,
+                       MultiplierKind of, Vec& out) {
     pairs.setZero();
     for (int s = 0; s < nsub; ++s)
-      for (const auto& [e, b] : bound_part[s]) pairs[pair_first[s] + rows[s][e].j] += b;
+      for (const auto& [e, b] : parts[s]) pairs[pair_first[s] + rows[s][e].j] += b;
     combine_subdomains();
     for (int k = 0; k < n_own; ++k)
-      if (kind[k] == MultiplierKind::friction) friction_bound[k] = ext_out[k];
+      if (kind[k] == of) out[k] = ext_out[k];
     pairs.setZero();
     ext_out.setZero();
-  }
+  };
+  friction_bound = Vec::Constant(n_own, std::numeric_limits<double>::infinity());
+  if (friction_rows > 0) sum_parts(bound_part, MultiplierKind::friction, friction_bound);
+  Vec area = Vec::Zero(n_own);
+  if (inequalities > 0) sum_parts(area_part, MultiplierKind::contact, area);
+  contact_area.assign(area.data(), area.data() + n_own);
   return local_b;
 }
 

@@ -128,7 +128,8 @@ DualProblem::Kkt DualProblem::kkt(const std::vector<Vec>& u, const Vec& lambda) 
       continue;
     }
     any_contact = true;
-    const double s = multipliers_.contact_scale[k];
+    // The row's force and its remaining gap in length units (W = 1 for node-to-node rows).
+    const double s = multipliers_.contact_scale[k] * multipliers_.contact_weight[k];
     const double gap =
         (multipliers_.rhs[k] - bu[k]) / s;  // gap - n.(u_a - u_b), >= 0 when feasible
     const double force = s * lambda[k];
@@ -160,12 +161,14 @@ DualProblem::ContactData DualProblem::contact_data(const std::vector<Vec>& u, co
   std::vector<double> mine;
   for (int k = 0; k < n_own; ++k)
     if (multipliers_.kind[k] == MultiplierKind::contact) {
-      const double s = multipliers_.contact_scale[k];
+      const double s = multipliers_.contact_scale[k] * multipliers_.contact_weight[k];
       const auto& p = multipliers_.contact_point[k];
-      mine.insert(mine.end(), {p[0], p[1], p[2], a[k] / s, b[k] / s, multipliers_.contact_gap[k],
-                               s * lambda[k]});
+      const double area = multipliers_.contact_area[k];
+      mine.insert(mine.end(),
+                  {p[0], p[1], p[2], a[k] / s, b[k] / s, multipliers_.contact_gap[k], s * lambda[k],
+                   area > 0 ? s * lambda[k] / area : std::numeric_limits<double>::quiet_NaN()});
     }
-  constexpr int W = 7;
+  constexpr int W = 8;
   const int P = comm_.size();
   int count = static_cast<int>(mine.size());
   std::vector<int> counts(P), disp(P + 1, 0);
@@ -188,8 +191,65 @@ DualProblem::ContactData DualProblem::contact_data(const std::vector<Vec>& u, co
     data.u_b.push_back(r[4]);
     data.gap.push_back(r[5]);
     data.force.push_back(r[6]);
+    data.pressure.push_back(r[7]);
   }
   return data;
+}
+
+std::vector<DualProblem::ContactSummary> DualProblem::contact_summary(const std::vector<Vec>& u,
+                                                                      const Vec& lambda,
+                                                                      int conditions) {
+  Vec bu;
+  apply_B(u, bu);
+  const int n_own = multipliers_.layout.n_owned();
+  std::vector<ContactSummary> out(conditions);
+  Vec force(n_own), area(n_own);
+  for (int c = 0; c < conditions; ++c) {
+    long long rows = 0, active = 0;
+    double penetration = 0;
+    force.setZero(), area.setZero();
+    for (int k = 0; k < n_own; ++k) {
+      if (multipliers_.kind[k] != MultiplierKind::contact || multipliers_.contact_condition[k] != c)
+        continue;
+      const double s = multipliers_.contact_scale[k] * multipliers_.contact_weight[k];
+      ++rows;
+      penetration = std::max(penetration, -(multipliers_.rhs[k] - bu[k]) / s);
+      if (lambda[k] > 0) {
+        ++active;
+        force[k] = s * lambda[k];
+        area[k] = multipliers_.contact_area[k];
+      }
+    }
+    out[c].rows = comm_.sum(rows);
+    out[c].active = comm_.sum(active);
+    out[c].normal_force = sum(force);
+    out[c].area = sum(area);
+    out[c].max_penetration = comm_.max(penetration);
+  }
+  return out;
+}
+
+std::vector<DualProblem::Vec> DualProblem::contact_pressure_field(const Vec& lambda) {
+  const int n_own = multipliers_.layout.n_owned();
+  Vec p = Vec::Constant(multipliers_.layout.n_ext(), std::numeric_limits<double>::quiet_NaN());
+  for (int k = 0; k < n_own; ++k)
+    if (multipliers_.kind[k] == MultiplierKind::contact && multipliers_.contact_area[k] > 0)
+      p[k] = multipliers_.contact_scale[k] * multipliers_.contact_weight[k] * lambda[k] /
+             multipliers_.contact_area[k];
+  multipliers_.layout.forward(p.data());
+  std::vector<Vec> out(subs_.size());
+  for (size_t s = 0; s < subs_.size(); ++s) {
+    const int dpn = subs_[s]->dofs_per_node();
+    out[s] = Vec::Constant(subs_[s]->size() / dpn, std::numeric_limits<double>::quiet_NaN());
+    std::vector<int> last(out[s].size(), -1);  // a row has one entry per normal component
+    for (const auto& r : multipliers_.rows[s])
+      if (r.key && !std::isnan(p[r.k]) && last[r.dof / dpn] != r.k) {
+        double& v = out[s][r.dof / dpn];
+        v = std::isnan(v) ? p[r.k] : v + p[r.k];  // rows of several conditions at one node add
+        last[r.dof / dpn] = r.k;
+      }
+  }
+  return out;
 }
 
 DualProblem::FrictionSummary DualProblem::friction_summary(const Vec& lambda,
@@ -230,14 +290,15 @@ std::vector<DualProblem::Vec> DualProblem::contact_gap_field(const std::vector<V
   Vec rem = Vec::Constant(multipliers_.layout.n_ext(), std::numeric_limits<double>::quiet_NaN());
   for (int k = 0; k < n_own; ++k)
     if (multipliers_.kind[k] == MultiplierKind::contact)
-      rem[k] = (multipliers_.rhs[k] - bu[k]) / multipliers_.contact_scale[k];
+      rem[k] = (multipliers_.rhs[k] - bu[k]) /
+               (multipliers_.contact_scale[k] * multipliers_.contact_weight[k]);
   multipliers_.layout.forward(rem.data());
   std::vector<Vec> out(subs_.size());
   for (size_t s = 0; s < subs_.size(); ++s) {
     const int dpn = subs_[s]->dofs_per_node();
     out[s] = Vec::Constant(subs_[s]->size() / dpn, std::numeric_limits<double>::quiet_NaN());
     for (const auto& r : multipliers_.rows[s])
-      if (r.side != 0 && !std::isnan(rem[r.k])) {  // the smallest remaining gap of a node's rows
+      if (r.key && !std::isnan(rem[r.k])) {  // the smallest remaining gap of a node's rows
         double& g = out[s][r.dof / dpn];
         g = std::isnan(g) ? rem[r.k] : std::min(g, rem[r.k]);
       }

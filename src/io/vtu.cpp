@@ -54,13 +54,14 @@ void write_ascii_values(std::ostream& o, const std::string& bytes) {
 
 // One subdomain's values of every array (or all of a piece's, for ASCII).
 struct Buffers {
-  std::vector<double> xyz, u, cf, cg, vm;
+  std::vector<double> xyz, u, cf, cg, cp, vm;
   std::vector<std::int64_t> conn, offs;
   std::vector<std::int32_t> conn32, offs32;  // the same, narrowed (Int32 arrays)
   std::vector<std::uint8_t> types;
   std::vector<std::int32_t> sub, clu, rank;
   void clear() {
-    xyz.clear(), u.clear(), cf.clear(), cg.clear(), vm.clear(), conn.clear(), offs.clear();
+    xyz.clear(), u.clear(), cf.clear(), cg.clear(), cp.clear(), vm.clear(), conn.clear(),
+        offs.clear();
     conn32.clear(), offs32.clear(), types.clear(), sub.clear(), clu.clear(), rank.clear();
   }
   void narrow() {
@@ -151,13 +152,14 @@ namespace {
 class PieceWriter {
  public:
   PieceWriter(const Model& model, const std::vector<Eigen::VectorXd>& u,
-              std::vector<Eigen::VectorXd> forces, std::vector<Eigen::VectorXd> gaps, bool contact,
-              int rank)
+              std::vector<Eigen::VectorXd> forces, std::vector<Eigen::VectorXd> gaps,
+              std::vector<Eigen::VectorXd> pressures, bool contact, int rank)
       : model_(model),
         ph_(model.physics()),
         u_(u),
         forces_(std::move(forces)),
         gaps_(std::move(gaps)),
+        pressures_(std::move(pressures)),
         dpn_(ph_.dofs_per_node()),
         elastic_(ph_.kind == PhysicsKind::elasticity),
         contact_(contact),
@@ -166,6 +168,7 @@ class PieceWriter {
     if (contact_) {
       pa_.push_back({"contact_force", "Float64", 3, {}});
       pa_.push_back({"contact_gap", "Float64", 1, {}});
+      pa_.push_back({"contact_pressure", "Float64", 1, {}});
     }
     ca_ = {{"subdomain", "Int32", 1, {}}, {"cluster", "Int32", 1, {}}, {"rank", "Int32", 1, {}}};
     if (elastic_) ca_.push_back({"von_mises", "Float64", 1, {}});
@@ -214,7 +217,7 @@ class PieceWriter {
   const Model& model_;
   const Physics& ph_;
   const std::vector<Eigen::VectorXd>& u_;
-  const std::vector<Eigen::VectorXd> forces_, gaps_;
+  const std::vector<Eigen::VectorXd> forces_, gaps_, pressures_;
   const int dpn_;
   const bool elastic_, contact_;
   const int rank_;
@@ -239,6 +242,7 @@ void PieceWriter::fill(int i, const SubdomainMesh& m, std::int64_t base, std::in
     if (contact_) {
       for (int d = 0; d < 3; ++d) b.cf.push_back(d < dpn_ ? forces_[i][k * dpn_ + d] : 0.0);
       b.cg.push_back(gaps_[i][k]);
+      b.cp.push_back(pressures_[i][k]);
     }
   }
   const Eigen::MatrixXd D = elastic_ ? elasticity_matrix(m.dim, ph_.material) : Eigen::MatrixXd();
@@ -272,6 +276,7 @@ std::pair<const char*, size_t> PieceWriter::bytes_of(const Array& a, const Buffe
   if (a.name == "u") return raw(b.u);
   if (a.name == "contact_force") return raw(b.cf);
   if (a.name == "contact_gap") return raw(b.cg);
+  if (a.name == "contact_pressure") return raw(b.cp);
   if (a.name == "subdomain") return raw(b.sub);
   if (a.name == "cluster") return raw(b.clu);
   if (a.name == "rank") return raw(b.rank);
@@ -330,8 +335,7 @@ PieceWriter::Layout PieceWriter::layout(const std::vector<int>& subdomains) {
   L.P = L.nodes[ns], L.C = L.cells[ns], L.K = L.corners[ns];
   L.narrow = use_int32(L.P, L.K);
   for (const Array* a : arrays_) {
-    const bool point =
-        a == &coords_ || a->name == "u" || a->name == "contact_force" || a->name == "contact_gap";
+    const bool point = a == &coords_ || a->name == "u" || a->name.rfind("contact_", 0) == 0;
     const std::uint64_t width = a->type == "Float64" || a->type == "Int64" ? 8
                                 : a->type == "Int32"                       ? 4
                                                                            : 1;
@@ -477,7 +481,8 @@ void write_pvtu(const std::string& tmp, const std::vector<std::string>& files, b
     << (elastic ? " NumberOfComponents=\"3\"" : "") << "/>\n";
   if (contact)
     o << "<PDataArray type=\"Float64\" Name=\"contact_force\" NumberOfComponents=\"3\"/>\n"
-      << "<PDataArray type=\"Float64\" Name=\"contact_gap\"/>\n";
+      << "<PDataArray type=\"Float64\" Name=\"contact_gap\"/>\n"
+      << "<PDataArray type=\"Float64\" Name=\"contact_pressure\"/>\n";
   o << "</PPointData>\n<PCellData>\n<PDataArray type=\"Int32\" Name=\"subdomain\"/>\n"
        "<PDataArray type=\"Int32\" Name=\"cluster\"/>\n<PDataArray type=\"Int32\" "
        "Name=\"rank\"/>\n";
@@ -511,7 +516,9 @@ VtuWritten write_vtu(const std::string& path, const Model& model, DualProblem& d
   for (const auto& s : dual.subdomains()) subdomains.push_back(s->id());
   auto forces = dual.contact_forces(lambda);  // (collective, in this order on every rank)
   auto gaps = dual.contact_gap_field(u);
-  PieceWriter writer(model, u, std::move(forces), std::move(gaps), contact, comm.rank());
+  auto pressures = dual.contact_pressure_field(lambda);
+  PieceWriter writer(model, u, std::move(forces), std::move(gaps), std::move(pressures), contact,
+                     comm.rank());
   std::string error;
   try {
     if (options.ascii)

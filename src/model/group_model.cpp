@@ -7,6 +7,7 @@
 
 #include "htfeti/expression.hpp"
 #include "htfeti/mesh/mesh.hpp"
+#include "htfeti/model/contact_pairs.hpp"
 #include "htfeti/model/problem_spec.hpp"
 #include "htfeti/partition/partition.hpp"
 
@@ -49,6 +50,10 @@ class MeshSource {
                       std::set<std::string>& cells) const = 0;
   /// The report's description of the mesh and of its split.
   virtual void describe(const ProblemSpec& spec, nlohmann::json& j) const = 0;
+  /// The whole mesh and its partition, where the source holds them (contact between bodies
+  /// needs them); null for a box split into boxes of subdomains (one body).
+  virtual const Mesh* whole_mesh() const { return nullptr; }
+  virtual const MeshPartition* partition() const { return nullptr; }
 };
 
 // A generated box split into boxes of subdomains: decomposition.subdomains = [sx, sy(, sz)].
@@ -170,7 +175,10 @@ class MetisSplit final : public MeshSource {
     for (const auto& [n, v] : mesh_->facet_groups) facets.insert(n);
     for (const auto& [n, v] : mesh_->cell_groups) cells.insert(n);
   }
+  const Mesh* whole_mesh() const override { return mesh_.get(); }
+  const MeshPartition* partition() const override { return part_.get(); }
   void describe(const ProblemSpec& spec, nlohmann::json& j) const override {
+    j["bodies"] = part_->num_bodies;
     j["mesh"] = spec.mesh_file.empty() ? BoxSplit::box_description(spec)
                                        : nlohmann::json{{"file", spec.mesh_file},
                                                         {"element", to_string(mesh_->type)},
@@ -188,6 +196,11 @@ class MetisSplit final : public MeshSource {
 class GroupModel final : public Model {
  public:
   bool has_contact() const override { return !spec_.contact.empty(); }
+  std::vector<ContactCondition> contact_conditions() const override {
+    std::vector<ContactCondition> out;
+    for (const auto& c : spec_.contact) out.push_back({c.group, c.master});
+    return out;
+  }
   explicit GroupModel(const ProblemSpec& spec) : spec_(spec), source_(spec.source) {
     physics_ = spec.physics;
     glue_ = spec.glue;
@@ -210,6 +223,15 @@ class GroupModel final : public Model {
       mesh_source_ = std::move(metis);
     }
     check_groups();
+    for (size_t ci = 0; ci < spec.contact.size(); ++ci)
+      if (!spec.contact[ci].master.empty() && !mesh_source_->whole_mesh())
+        throw std::invalid_argument(
+            "problem file: contact #" + std::to_string(ci + 1) +
+            ": contact between bodies needs a mesh of several bodies (a Gmsh file; a generated "
+            "box is one body)");
+    if (mesh_source_->whole_mesh())
+      pairs_ =
+          ContactPairs(spec, physics_, *mesh_source_->whole_mesh(), *mesh_source_->partition());
   }
 
   int num_subdomains() const override { return mesh_source_->num_subdomains(); }
@@ -277,7 +299,7 @@ class GroupModel final : public Model {
     for (size_t ci = 0; ci < spec_.contact.size(); ++ci) {
       const auto& c = spec_.contact[ci];
       auto it = m.node_groups.find(c.group);
-      if (it == m.node_groups.end()) continue;
+      if (it == m.node_groups.end() || !c.master.empty()) continue;  // pairs: below
       const Expression gap(c.gap);
       // Friction: each node's share of the group's facets on this subdomain (summed over the
       // copies later, in the FETI stage).
@@ -298,8 +320,8 @@ class GroupModel final : public Model {
         r.node = k;
         r.side = 1;
         r.node_a = m.global_node[k];
-        r.copies_a = m.num_copies(k);
-        r.copies_b = 0;
+        r.copies = m.num_copies(k);
+        r.norm_sq = 1.0 / r.copies;
         r.owner_subdomain = *std::min_element(m.copies(k), m.copies(k) + m.num_copies(k));
         r.direction = c.direction;
         if (dpn == 1) r.direction = {c.direction[0] < 0 ? -1.0 : 1.0, 0, 0};
@@ -323,6 +345,9 @@ class GroupModel final : public Model {
     }
     for (size_t i = first_row; i < in.contact.size(); ++i)
       at_node[in.contact[i].node].push_back(&in.contact[i]);
+    // Contact between bodies: the parts of the mortar rows on this subdomain's nodes (after the
+    // check above, which is for obstacles).
+    pairs_.add_rows(m, in);
     for (const auto& rows : at_node)
       for (size_t a = 0; a < rows.size(); ++a)
         for (size_t b = a + 1; b < rows.size(); ++b) {
@@ -380,7 +405,17 @@ class GroupModel final : public Model {
                       : nlohmann::json(std::vector<double>(l.value.begin(),
                                                            l.value.begin() + physics_.dim))}});
     }
-    for (const auto& c : spec_.contact) {
+    for (size_t ci = 0; ci < spec_.contact.size(); ++ci) {
+      const auto& c = spec_.contact[ci];
+      if (!c.master.empty()) {
+        nlohmann::json cj = {{"group", c.group}, {"master", c.master}, {"rows", "mortar"}};
+        const nlohmann::json pair = pairs_.describe(static_cast<int>(ci));
+        for (const auto& [k, v] : pair.items()) cj[k] = v;
+        if (physics_.kind == PhysicsKind::laplace)
+          cj["direction"] = c.direction[0], cj["gap"] = c.gap;
+        conditions["contact"].push_back(cj);
+        continue;
+      }
       nlohmann::json cj = {
           {"group", c.group},
           {"direction", std::vector<double>(c.direction.begin(), c.direction.begin() + dpn)},
@@ -431,6 +466,10 @@ class GroupModel final : public Model {
     for (const auto& c : spec_.contact) {
       const std::string what = "contact #" + std::to_string(++i);
       require(c.group, nodes, what);
+      if (!c.master.empty()) {
+        require(c.group, facets, what + " (the slave surface of contact between bodies)");
+        require(c.master, facets, what + ".master (a master surface)");
+      }
       if (c.slip_bound < 0) continue;
       if (physics_.kind != PhysicsKind::elasticity || physics_.dim != 2)
         throw std::invalid_argument(
@@ -459,6 +498,7 @@ class GroupModel final : public Model {
     i = 0;
     for (const auto& c : spec_.contact) {
       ++i;
+      if (!c.master.empty() && dpn > 1) continue;  // the normal comes from the meshes
       const std::string where = "problem file: contact #" + std::to_string(i) + ".direction: ";
       if (dpn == 1) {
         if (c.direction[1] != 0 || c.direction[2] != 0)
@@ -478,6 +518,7 @@ class GroupModel final : public Model {
   ProblemSpec spec_;
   Expression source_;
   std::unique_ptr<MeshSource> mesh_source_;
+  ContactPairs pairs_;
 };
 
 }  // namespace
@@ -508,7 +549,11 @@ ProblemSpec cube_obstacle_spec(const std::vector<int>& elements, const std::vect
   std::ostringstream gap;
   gap.precision(17);
   gap << amplitude << "*sin(pi*x/50)";
-  s.contact.push_back({"z0", {0, 0, -1}, gap.str()});
+  ProblemSpec::Contact c;
+  c.group = "z0";
+  c.direction = {0, 0, -1};
+  c.gap = gap.str();
+  s.contact.push_back(c);
   s.subdomains = three(subdomains, "--subdomains");
   s.cluster_size = cluster_size;
   s.glue = Glue::averages;

@@ -78,6 +78,10 @@ class BuiltinModel final : public Model {
     glue_ = o.glue;
   }
   bool has_contact() const override { return dec_.options().problem != ProblemKind::poisson2d; }
+  std::vector<ContactCondition> contact_conditions() const override {
+    if (!has_contact()) return {};
+    return {{"membrane1_right", "membrane2_left"}};  // u_a - u_b <= 0 on x = 1
+  }
   int num_subdomains() const override { return dec_.num_subdomains(); }
   int num_clusters() const override { return dec_.num_clusters(); }
   int cluster_first(int c) const override { return c * dec_.m() * dec_.m(); }
@@ -109,9 +113,11 @@ class BuiltinModel final : public Model {
       ContactRow c;
       c.node = k;
       c.side = is_a ? 1 : -1;
+      c.key = is_a;
       c.node_a = grid_.global_node(0, {ga[0], ga[1], ga[2]});
-      c.copies_a = ka;
-      c.copies_b = kb;
+      c.coefficient = is_a ? 1.0 : -1.0;
+      c.copies = is_a ? ka : kb;
+      c.norm_sq = 1.0 / ka + 1.0 / kb;
       c.owner_subdomain = std::min(*std::min_element(ca, ca + ka), *std::min_element(cb, cb + kb));
       c.direction = {1, 0, 0};
       c.gap = 0;

@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <array>
+#include <cmath>
 #include <map>
 #include <new>
 #include <numeric>
@@ -50,6 +51,140 @@ std::vector<std::pair<FacetKey, int>> all_facets(const Mesh& mesh) {
   return f;
 }
 
+// Bodies: the connected components of the cells (cells sharing a node), numbered in the order
+// of their first cell. Union-find over the nodes.
+int find_bodies(const Mesh& mesh, std::vector<int>& cell_body) {
+  const int ne = mesh.num_cells(), nn = mesh.num_nodes(), nc = cell_nodes(mesh.type);
+  std::vector<int> parent(nn);
+  std::iota(parent.begin(), parent.end(), 0);
+  auto root = [&](int a) {
+    while (parent[a] != a) a = parent[a] = parent[parent[a]];
+    return a;
+  };
+  for (int e = 0; e < ne; ++e) {
+    const int* cn = mesh.cells.data() + static_cast<size_t>(e) * nc;
+    for (int a = 1; a < nc; ++a) {
+      const int r0 = root(cn[0]), r1 = root(cn[a]);
+      if (r0 != r1) parent[std::max(r0, r1)] = std::min(r0, r1);
+    }
+  }
+  std::vector<int> body_of_root(nn, -1);
+  int bodies = 0;
+  cell_body.resize(ne);
+  for (int e = 0; e < ne; ++e) {
+    const int r = root(mesh.cells[static_cast<size_t>(e) * nc]);
+    if (body_of_root[r] < 0) body_of_root[r] = bodies++;
+    cell_body[e] = body_of_root[r];
+  }
+  return bodies;
+}
+
+// METIS k-way on the dual graph of the given cells (all cells: the whole mesh as it is);
+// part[e] in [0, nparts) for e in cells.
+void split_cells(const Mesh& mesh, const std::vector<int>* cells, int nparts_in,
+                 std::vector<idx_t>& part, bool contiguous = false) {
+  if (nparts_in <= 1) {
+    if (cells)
+      for (int e : *cells) part[e] = 0;
+    return;
+  }
+  const int nc = cell_nodes(mesh.type);
+  const int ne = cells ? static_cast<int>(cells->size()) : mesh.num_cells();
+  std::vector<idx_t> eptr(ne + 1), eind;
+  std::vector<int> local;  // global node -> local, for a subset of cells
+  idx_t nn = mesh.num_nodes();
+  if (!cells) {
+    eind.assign(mesh.cells.begin(), mesh.cells.end());
+  } else {
+    local.assign(mesh.num_nodes(), -1);
+    nn = 0;
+    for (int e : *cells)
+      for (int a = 0; a < nc; ++a) {
+        const int g = mesh.cells[static_cast<size_t>(e) * nc + a];
+        if (local[g] < 0) local[g] = static_cast<int>(nn++);
+        eind.push_back(local[g]);
+      }
+  }
+  for (int i = 0; i <= ne; ++i) eptr[i] = static_cast<idx_t>(i) * nc;
+  idx_t e = ne, ncommon = mesh.dim == 2 ? 2 : (mesh.type == CellType::hex8 ? 4 : 3);
+  idx_t nparts = nparts_in, objval = 0;
+  std::vector<idx_t> out(ne), npart(nn);
+  idx_t options[METIS_NOPTIONS];
+  METIS_SetDefaultOptions(options);
+  options[METIS_OPTION_SEED] = 1;
+  options[METIS_OPTION_NUMBERING] = 0;
+  if (contiguous) options[METIS_OPTION_CONTIG] = 1;
+  metis_check(METIS_PartMeshDual(&e, &nn, eptr.data(), eind.data(), nullptr, nullptr, &ncommon,
+                                 &nparts, nullptr, options, &objval, out.data(), npart.data()),
+              "mesh");
+  for (int i = 0; i < ne; ++i) part[cells ? (*cells)[i] : i] = out[i];
+}
+
+// Whether some part's cells are joined only through single nodes (2D) or edges (3D) somewhere:
+// fewer components when cells that share any node are joined than when only cells that share
+// a facet are. Such a part is a mechanism (two pieces hinged at a node), whose stiffness the
+// kernel of rigid body motions does not make regular. `facets`: all_facets(mesh).
+bool has_hinged_part(const Mesh& mesh, const std::vector<int>& cells,
+                     const std::vector<idx_t>& part,
+                     const std::vector<std::pair<FacetKey, int>>& facets) {
+  const int nc = cell_nodes(mesh.type);
+  std::vector<int> local(mesh.num_cells(), -1);
+  for (size_t i = 0; i < cells.size(); ++i) local[cells[i]] = static_cast<int>(i);
+  auto components = [&](auto&& join_all) {
+    std::vector<int> parent(cells.size());
+    std::iota(parent.begin(), parent.end(), 0);
+    auto root = [&](int a) {
+      while (parent[a] != a) a = parent[a] = parent[parent[a]];
+      return a;
+    };
+    join_all([&](int a, int b) {
+      if (local[a] < 0 || local[b] < 0 || part[a] != part[b]) return;
+      const int ra = root(local[a]), rb = root(local[b]);
+      if (ra != rb) parent[std::max(ra, rb)] = std::min(ra, rb);
+    });
+    int n = 0;
+    for (size_t i = 0; i < cells.size(); ++i) n += root(static_cast<int>(i)) == static_cast<int>(i);
+    return n;
+  };
+  const int by_facet = components([&](auto join) {
+    for (size_t i = 1; i < facets.size(); ++i)
+      if (facets[i].first == facets[i - 1].first) join(facets[i].second, facets[i - 1].second);
+  });
+  const int by_node = components([&](auto join) {
+    std::vector<std::array<long long, 3>> at;  // (node, part, cell)
+    for (int e : cells)
+      for (int a = 0; a < nc; ++a)
+        at.push_back({mesh.cells[static_cast<size_t>(e) * nc + a], part[e], e});
+    std::sort(at.begin(), at.end());
+    for (size_t i = 1; i < at.size(); ++i)
+      if (at[i][0] == at[i - 1][0] && at[i][1] == at[i - 1][1])
+        join(static_cast<int>(at[i][2]), static_cast<int>(at[i - 1][2]));
+  });
+  return by_node < by_facet;
+}
+
+// Subdomains per body, proportional to the bodies' cell counts (largest remainders, at least
+// one each), summing to `subdomains`.
+std::vector<int> parts_per_body(const std::vector<long long>& cells_of_body, int subdomains) {
+  const int nb = static_cast<int>(cells_of_body.size());
+  long long total = 0;
+  for (long long c : cells_of_body) total += c;
+  std::vector<int> n(nb, 1);
+  int left = subdomains - nb;
+  std::vector<std::pair<double, int>> rem;
+  for (int b = 0; b < nb; ++b) {
+    const double share = static_cast<double>(subdomains) * cells_of_body[b] / total - 1.0;
+    const int whole = std::max(0, std::min(left, static_cast<int>(std::floor(share))));
+    n[b] += whole;
+    left -= whole;
+    rem.push_back({-(share - whole), b});
+  }
+  std::sort(rem.begin(), rem.end());
+  for (int i = 0; left > 0; i = (i + 1) % nb, --left) ++n[rem[i].second];
+  for (int b = 0; b < nb; ++b) n[b] = static_cast<int>(std::min<long long>(n[b], cells_of_body[b]));
+  return n;
+}
+
 }  // namespace
 
 MeshPartition partition_mesh(const Mesh& mesh, int subdomains, int cluster_size) {
@@ -60,20 +195,45 @@ MeshPartition partition_mesh(const Mesh& mesh, int subdomains, int cluster_size)
     throw std::invalid_argument("decomposition.subdomains = " + std::to_string(subdomains) +
                                 " exceeds the " + std::to_string(ne) + " cells of the mesh");
   MeshPartition p;
-  // 1. Subdomains: METIS on the dual graph.
+  p.num_bodies = find_bodies(mesh, p.cell_body);
+  const int nb = p.num_bodies;
+  if (subdomains < nb)
+    throw std::invalid_argument("decomposition.subdomains = " + std::to_string(subdomains) +
+                                " is fewer than the " + std::to_string(nb) +
+                                " bodies of the mesh (a subdomain never spans two bodies)");
+  // 1. Subdomains: METIS on the dual graph, of the whole mesh (one body) or of each body with
+  // a share of the subdomains proportional to its cells (subdomain ids body-major).
+  // A body whose METIS split left a subdomain hinged at a node (METIS's parts need not be
+  // connected) is split again with connected parts asked for (METIS_OPTION_CONTIG); splits
+  // without hinges are kept as METIS gave them.
   std::vector<idx_t> part(ne, 0);
-  if (subdomains > 1) {
-    idx_t e = ne, n = nn, ncommon = mesh.dim == 2 ? 2 : (mesh.type == CellType::hex8 ? 4 : 3);
-    idx_t nparts = subdomains, objval = 0;
-    std::vector<idx_t> eptr(ne + 1), eind(mesh.cells.begin(), mesh.cells.end()), npart(nn);
-    for (int i = 0; i <= ne; ++i) eptr[i] = static_cast<idx_t>(i) * nc;
-    idx_t options[METIS_NOPTIONS];
-    METIS_SetDefaultOptions(options);
-    options[METIS_OPTION_SEED] = 1;
-    options[METIS_OPTION_NUMBERING] = 0;
-    metis_check(METIS_PartMeshDual(&e, &n, eptr.data(), eind.data(), nullptr, nullptr, &ncommon,
-                                   &nparts, nullptr, options, &objval, part.data(), npart.data()),
-                "mesh");
+  std::vector<int> body_first(nb + 1, 0);  // first subdomain of each body
+  const auto facets = all_facets(mesh);
+  std::vector<std::vector<int>> cells(nb);
+  for (int e = 0; e < ne; ++e) cells[p.cell_body[e]].push_back(e);
+  std::vector<long long> counts(nb);
+  for (int b = 0; b < nb; ++b) counts[b] = static_cast<long long>(cells[b].size());
+  const std::vector<int> n =
+      nb == 1 ? std::vector<int>{subdomains} : parts_per_body(counts, subdomains);
+  for (int b = 0; b < nb; ++b) {
+    const std::vector<int>* subset = nb == 1 ? nullptr : &cells[b];
+    split_cells(mesh, subset, n[b], part);
+    if (n[b] > 1 && has_hinged_part(mesh, cells[b], part, facets)) {
+      split_cells(mesh, subset, n[b], part, true);
+      if (has_hinged_part(mesh, cells[b], part, facets))
+        throw std::invalid_argument(
+            "METIS could not split body " + std::to_string(b + 1) + " into " +
+            std::to_string(n[b]) +
+            " subdomains without one hinged at a node (a mechanism): use fewer subdomains");
+    }
+    for (int e : cells[b]) part[e] += body_first[b];
+    body_first[b + 1] = body_first[b] + n[b];
+  }
+  {
+    if (body_first[nb] != subdomains)
+      throw std::invalid_argument(
+          "decomposition.subdomains = " + std::to_string(subdomains) +
+          " cannot be shared among the bodies of the mesh (a body has fewer cells than its share)");
   }
   std::vector<int> count(subdomains, 0);
   for (int e = 0; e < ne; ++e) ++count[part[e]];
@@ -90,33 +250,47 @@ MeshPartition partition_mesh(const Mesh& mesh, int subdomains, int cluster_size)
       if (std::find(v.begin(), v.end(), static_cast<int>(part[e])) == v.end()) v.push_back(part[e]);
     }
 
-  // 2. Clusters: METIS on the subdomain graph.
+  // 2. Clusters: METIS on the subdomain graph, of each body apart (a cluster never spans two
+  // bodies), ceil(subdomains of the body / cluster_size) clusters per body.
   const int nclusters_target = (subdomains + cluster_size - 1) / cluster_size;
   std::vector<idx_t> cpart(subdomains, 0);
   if (cluster_size == 1) {
     std::iota(cpart.begin(), cpart.end(), 0);
-  } else if (nclusters_target > 1) {
+  } else {
     std::vector<std::map<int, int>> adj(subdomains);
     for (const auto& v : node_subs)
       for (size_t i = 0; i < v.size(); ++i)
         for (size_t j = 0; j < v.size(); ++j)
           if (i != j) ++adj[v[i]][v[j]];
-    std::vector<idx_t> xadj(subdomains + 1, 0), adjncy, adjwgt;
-    for (int s = 0; s < subdomains; ++s) {
-      for (const auto& [t, w] : adj[s]) adjncy.push_back(t), adjwgt.push_back(w);
-      xadj[s + 1] = static_cast<idx_t>(adjncy.size());
+    int cluster_offset = 0;
+    for (int b = 0; b < nb; ++b) {
+      const int first = body_first[b], ns = body_first[b + 1] - first;
+      const int target = nb == 1 ? nclusters_target : (ns + cluster_size - 1) / cluster_size;
+      if (target > 1) {
+        std::vector<idx_t> xadj(ns + 1, 0), adjncy, adjwgt;
+        for (int s = 0; s < ns; ++s) {
+          for (const auto& [t, w] : adj[first + s])
+            adjncy.push_back(t - first), adjwgt.push_back(w);
+          xadj[s + 1] = static_cast<idx_t>(adjncy.size());
+        }
+        idx_t nv = ns, ncon = 1, nparts = target, objval = 0;
+        std::vector<idx_t> out(ns);
+        idx_t options[METIS_NOPTIONS];
+        METIS_SetDefaultOptions(options);
+        options[METIS_OPTION_SEED] = 1;
+        metis_check(METIS_PartGraphKway(&nv, &ncon, xadj.data(), adjncy.data(), nullptr, nullptr,
+                                        adjwgt.data(), &nparts, nullptr, nullptr, options, &objval,
+                                        out.data()),
+                    "subdomain graph into clusters");
+        for (int s = 0; s < ns; ++s) cpart[first + s] = cluster_offset + out[s];
+      } else {
+        for (int s = 0; s < ns; ++s) cpart[first + s] = cluster_offset;
+      }
+      cluster_offset += std::max(target, 1);
     }
-    idx_t nv = subdomains, ncon = 1, nparts = nclusters_target, objval = 0;
-    idx_t options[METIS_NOPTIONS];
-    METIS_SetDefaultOptions(options);
-    options[METIS_OPTION_SEED] = 1;
-    metis_check(
-        METIS_PartGraphKway(&nv, &ncon, xadj.data(), adjncy.data(), nullptr, nullptr, adjwgt.data(),
-                            &nparts, nullptr, nullptr, options, &objval, cpart.data()),
-        "subdomain graph into clusters");
   }
   // Drop empty clusters; number subdomains cluster-major.
-  std::vector<int> cl_count(std::max(nclusters_target, subdomains), 0), cl_new(cl_count.size(), -1);
+  std::vector<int> cl_count(subdomains, 0), cl_new(cl_count.size(), -1);
   for (int s = 0; s < subdomains; ++s) ++cl_count[cpart[s]];
   int nclusters = 0;
   for (size_t c = 0; c < cl_count.size(); ++c)
@@ -159,7 +333,6 @@ MeshPartition partition_mesh(const Mesh& mesh, int subdomains, int cluster_size)
   }
   // Domain boundary: nodes of facets that belong to one cell only.
   p.on_boundary.assign(nn, 0);
-  const auto facets = all_facets(mesh);
   for (size_t i = 0; i < facets.size();) {
     size_t j = i;
     while (j < facets.size() && facets[j].first == facets[i].first) ++j;

@@ -16,9 +16,11 @@
 //     are an orthonormal (generalized Helmert) basis of the differences of the groups, constant on
 //     each group, one set per component;
 //  2. a Dirichlet row per fixed dof: (1/sqrt(k)) on each copy, c = sqrt(k) * value;
-//  3. a contact row n.(avg u_a - avg u_b) scaled to unit norm: entries c n/k_a on a's copies and
-//     -c n/k_b on b's, c = 1/sqrt(1/k_a + 1/k_b) (b absent: 1/k_b = 0), right-hand side c * gap;
-//     c * lambda is the nodal contact force;
+//  3. a contact row n.(sum_j c_j avg u_j) <= W gap (input.hpp: ContactRow; node-to-node rows
+//     have c_a = 1, c_b = -1, W = 1; mortar rows D_ij and -M_ik) scaled to unit norm: entries
+//     s c_j n / k_j on the k_j copies of node j, s = 1/sqrt(sum_j c_j^2 / k_j), right-hand side
+//     s W gap; W s lambda is the row's contact force (for a node-to-node row the nodal force,
+//     for a mortar row the integral of the pressure s lambda times the slave basis function);
 //  4. per averaged object with p nodes: W = the orthonormalized kernel of the physics on the
 //     object's nodes (constants, rigid body motions); the rows (w, -w)/sqrt(2) for w in an
 //     orthonormal basis of the complement of W in R^(p dofs) with O(p log p) nonzeros
@@ -52,10 +54,14 @@ struct LocalRow {
   MultiplierKind kind = MultiplierKind::gluing;
   int owner_subdomain = 0;  ///< lowest subdomain the row touches: its rank owns the multiplier
   double rhs = 0;           ///< c: B~ u = c (equalities) or B~ u <= c (contact)
-  double scale = 1;         ///< contact: scale * lambda is the nodal force
+  double scale = 1;         ///< contact: scale * lambda is the row's force per unit W
+  double weight = 1;        ///< contact: W (ContactRow); the row's force is W scale lambda
   double gap = 0;           ///< contact: the gap in length units
+  double area = 0;          ///< contact: this subdomain's part of the row's contact area
+  int condition = 0;        ///< contact, friction: the contact condition (problem-file order)
   double bound = 0;         ///< friction: this subdomain's part of the bound on |lambda| (summed)
   int side = 0;             ///< contact: +1 for the part on node a, -1 on node b
+  bool key_node = false;    ///< contact: the part is on the node the row is keyed by
   std::array<double, 3> point{0, 0, 0};         ///< contact: node a
   std::array<double, 3> direction{0, 0, 0};     ///< contact: n
   std::vector<std::pair<int, double>> entries;  ///< (local dof, value)

@@ -279,19 +279,38 @@ class DualProblem {
   double energy(const std::vector<Vec>& u) const;
 
   /// Per contact row, sorted by the point (x, y, z), gathered on rank 0 (empty elsewhere):
-  /// coordinates of node a, the normal displacements n.u_a and n.u_b (0 for an obstacle),
-  /// the gap and the contact force (scale * lambda).
+  /// coordinates of node a (the slave node of a mortar row), the normal displacements n.u_a and
+  /// n.u_b (0 for an obstacle; for a mortar row the averages over the slave and master sides,
+  /// weighted by D and M), the remaining gap (length), the row's force (W scale lambda) and its
+  /// pressure (the force over the row's contact area; NaN where the group has no facets).
   struct ContactData {
-    std::vector<double> x, y, z, u_a, u_b, gap, force;
+    std::vector<double> x, y, z, u_a, u_b, gap, force, pressure;
   };
   ContactData contact_data(const std::vector<Vec>& u, const Vec& lambda);
+
+  /// Per contact condition (0 .. conditions - 1, the problem file's order; the rows carry their
+  /// condition): rows, rows in contact (lambda > 0), the contact area of those rows, the total
+  /// normal force (positive in compression) and the largest penetration (the most negative
+  /// remaining gap, as a positive length; 0 when none). The same on every rank, independent of
+  /// the rank count. Collective.
+  struct ContactSummary {
+    long long rows = 0, active = 0;
+    double area = 0, normal_force = 0, max_penetration = 0;
+  };
+  std::vector<ContactSummary> contact_summary(const std::vector<Vec>& u, const Vec& lambda,
+                                              int conditions);
+  /// The pressure of each contact row at the node it is keyed by (a, an obstacle's node, a
+  /// mortar row's slave node), per local subdomain one value per node (NaN elsewhere).
+  /// Collective.
+  std::vector<Vec> contact_pressure_field(const Vec& lambda);
 
   /// The force of the contact rows on each local subdomain's copy, -B_I^T lambda (one vector per
   /// local subdomain; summed over a node's copies it is the nodal contact force). Collective.
   std::vector<Vec> contact_forces(const Vec& lambda);
 
-  /// The remaining gap gap - n.(u_a - u_b) of each contact row at its nodes' copies, per local
-  /// subdomain one value per node (NaN on nodes without a contact row). Collective.
+  /// The remaining gap gap - n.(u_a - u_b) of each contact row at the copies of the node it is
+  /// keyed by (a, or the slave node), per local subdomain one value per node (the smallest of
+  /// the node's rows; NaN on nodes without one). Collective.
   std::vector<Vec> contact_gap_field(const std::vector<Vec>& u);
 
   long factor_nonzeros() const;  ///< summed over this rank's subdomains

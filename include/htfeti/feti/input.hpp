@@ -66,26 +66,40 @@ struct DirichletDof {
   double value;
 };
 
-/// One inequality n.(u_a - u_b) <= gap on the average of each node's copies (b = -1: a rigid
-/// obstacle, n.u_a <= gap). Given to every subdomain that holds a copy of a or b, with `node`
-/// the local node and `side` +1 for a, -1 for b.
+/// One node's part of an inequality row of B (contact), given to every subdomain holding a
+/// copy of the node. A row is
+///     n . (sum_j c_j avg u_j) <= W gap,
+/// over the nodes j of the row with coefficients c_j (avg: the average of the node's copies):
+///  - a node-to-node row n.(u_a - u_b) <= gap: c_a = +1, c_b = -1 (b absent for a rigid obstacle),
+///    W = 1;
+///  - a mortar row of a slave node i (model/mortar.hpp): c_j = D_ij on the slave nodes, -M_ik
+///    on the master nodes, W = sum_j D_ij (the integral of the slave node's basis function over
+///    the part of its support facing the master) and gap = the weighted gap / W (a length).
+/// The row is scaled to unit norm in B~ (constraints.hpp); `norm_sq` is sum_j c_j^2 / copies_j
+/// over all nodes of the row, which the model knows and a subdomain alone does not.
 struct ContactRow {
-  int node = 0;
-  int side = 1;
-  long long node_a = 0;  ///< global id of a (the key that orders the row)
-  int copies_a = 1, copies_b = 0;
-  int owner_subdomain = 0;                   ///< lowest subdomain holding a copy of a or b
+  int node = 0;             ///< local node
+  int side = 1;             ///< +1: node a or a slave node; -1: node b or a master node
+  bool key = true;          ///< the node the row is keyed by (a, or the slave node of a mortar row)
+  long long node_a = 0;     ///< global id of a or of the slave node (the key that orders the row)
+  double coefficient = 1;   ///< c_j of this node
+  int copies = 1;           ///< copies of this node (subdomains holding it)
+  double norm_sq = 1;       ///< sum over the row's nodes of c_j^2 / copies_j
+  double weight = 1;        ///< W: 1 for a node-to-node row, sum_j D_ij for a mortar row
+  int owner_subdomain = 0;  ///< lowest subdomain holding a copy of a row node
   std::array<double, 3> direction{1, 0, 0};  ///< unit normal n (dofs_per_node components used)
-  double gap = 0;
-  std::array<double, 3> point{0, 0, 0};  ///< coordinates of a (for the report)
+  double gap = 0;                            ///< in length units (the right-hand side is W gap)
+  std::array<double, 3> point{0, 0, 0};      ///< coordinates of a / the slave node (the report)
   /// The contact condition the row comes from: a node may carry one row per condition (a
   /// corner under a floor and beside a wall), each its own multiplier.
   int condition = 0;
-  /// Tresca friction (2D): the slip bound per unit area, < 0 without friction; and this
-  /// subdomain's share of the node's contact area (its facets of the group, each facet's
-  /// measure shared equally by its nodes: summed over the copies, the node's area).
-  double slip_bound = -1;
+  /// The contact area the row stands for: a node-to-node row, the node's share of the
+  /// condition's facets on this subdomain (each facet's measure shared equally by its nodes;
+  /// summed over the copies, the node's area; 0 where the group has no facets); a mortar row,
+  /// W on the slave node's entry (0 on the others).
   double area = 0;
+  /// Tresca friction (2D): the slip bound per unit area, < 0 without friction.
+  double slip_bound = -1;
 };
 
 /// One local subdomain's input: moved into the FETI stage, which keeps what it needs.

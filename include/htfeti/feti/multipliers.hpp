@@ -42,6 +42,7 @@ struct BRowEntry {
   int dof;           ///< the subdomain's dof
   std::int8_t side;  ///< contact rows: +1 on node a, -1 on node b; 0 otherwise
   RowClass cls;
+  std::uint8_t key;  ///< contact rows: 1 on the node the row is keyed by (its pressure's node)
   double value;
 };
 static_assert(sizeof(BRowEntry) == 24);
@@ -89,12 +90,15 @@ struct Multipliers {
   std::vector<int> owner_rank;     ///< per extended entry
   std::vector<int> owner_cluster;  ///< per owned entry: the cluster of its owner subdomain
   // Per owned entry: the row's kind, the right-hand side c of B~ u (<)= c, and for contact rows
-  // the force scale (scale * lambda is the nodal force), the gap and the point (node a).
+  // the force scale and weight (weight * scale * lambda is the row's force: constraints.hpp),
+  // the gap, the contact area (summed over the copies), the condition and the point (node a or
+  // the slave node).
   std::vector<MultiplierKind> kind;
   Vec rhs;
   /// Per owned entry: the bound on |lambda| of a friction row (+infinity elsewhere).
   Vec friction_bound;
-  std::vector<double> contact_scale, contact_gap;
+  std::vector<double> contact_scale, contact_weight, contact_gap, contact_area;
+  std::vector<int> contact_condition;
   std::vector<std::array<double, 3>> contact_point;
   /// Per local subdomain: its first (subdomain, multiplier) pair (subdomains() + 1 entries).
   std::vector<int> pair_first;

@@ -47,6 +47,12 @@ class Model {
   virtual void apply_conditions(const SubdomainMesh& mesh, SubdomainInput& in) const = 0;
   /// Whether the problem has contact conditions (inequalities).
   virtual bool has_contact() const = 0;
+  /// The contact conditions in order (the `condition` of their rows): the group and the master
+  /// group (empty for a rigid obstacle).
+  struct ContactCondition {
+    std::string group, master;
+  };
+  virtual std::vector<ContactCondition> contact_conditions() const { return {}; }
   /// The report's description of the problem (mesh, physics, decomposition).
   virtual nlohmann::json describe() const = 0;
 

@@ -45,6 +45,12 @@ struct ProblemSpec {
     /// Tresca friction on the condition (friction = { law = "tresca", bound = g }): the slip
     /// bound g per unit area (force per area) of the tangential traction; < 0: frictionless.
     double slip_bound = -1;
+    /// Contact between bodies: the master group (empty: a rigid obstacle, `direction`, `gap`).
+    /// `group` is then the slave surface, with mortar rows (model/mortar.hpp).
+    std::string master;
+    /// Contact between bodies: master facets farther than this from a slave facet's plane are
+    /// not paired with it; 0: twice the largest facet diameter of the two surfaces.
+    double search_distance = 0;
   };
   std::vector<Dirichlet> dirichlet;
   std::vector<Load> loads;

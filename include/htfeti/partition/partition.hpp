@@ -1,7 +1,10 @@
 // Decomposition of a whole mesh (DESIGN.md, partition/): subdomains by METIS k-way partitioning
 // of the cell dual graph (cells adjacent through a shared edge in 2D, a shared face in 3D),
 // clusters by METIS k-way partitioning of the subdomain adjacency graph (subdomains adjacent
-// when they share a node, weighted by the number of shared nodes). Subdomains are then numbered
+// when they share a node, weighted by the number of shared nodes). A mesh of several bodies
+// (connected components that share no node: parts meshed apart, in contact) is split body by
+// body, each into a share of the subdomains proportional to its cells, and its clusters are
+// formed within each body: no subdomain or cluster spans two bodies. Subdomains are then numbered
 // cluster-major (the subdomains of a cluster are contiguous), and each node lists the
 // subdomains holding a copy in increasing id order. METIS runs with a fixed seed, so every rank
 // computes the same partition.
@@ -15,6 +18,8 @@
 namespace htfeti {
 
 struct MeshPartition {
+  int num_bodies = 1;          ///< connected components of the cells (numbered by first cell)
+  std::vector<int> cell_body;  ///< per cell
   int num_subdomains = 0;
   int num_clusters = 0;
   std::vector<int> cluster_first;   ///< num_clusters + 1

@@ -1,0 +1,68 @@
+// Contact between bodies (the [[contact]] conditions with a master group): the checks of the
+// pairs, the mortar rows of each (mortar.hpp) and their hand-over to the subdomains.
+//
+// Built once from the whole mesh and its partition (every rank builds the same rows: the
+// contact search and the integrals run on the surfaces only). A row of slave node i is
+//     n_i . (sum_j D_ij avg u_j - sum_k M_ik avg u_k) <= W_i gap_i
+// (feti/input.hpp: ContactRow); each subdomain gets the part of every row on its nodes, with
+// the row's norm over all its nodes' copies (which no subdomain alone could compute).
+//
+// Laplace pairs (the paper's two membranes as two bodies) use the condition's direction (+1 or
+// -1) instead of the normal and its gap expression at the slave node instead of the geometric
+// gap: direction (u_slave - u_master) <= gap, weakly.
+#pragma once
+
+#include <array>
+#include <nlohmann/json.hpp>
+#include <vector>
+
+#include "htfeti/fem/physics.hpp"
+#include "htfeti/feti/input.hpp"
+#include "htfeti/mesh/mesh.hpp"
+#include "htfeti/mesh/subdomain_mesh.hpp"
+#include "htfeti/model/problem_spec.hpp"
+#include "htfeti/partition/partition.hpp"
+
+namespace htfeti {
+
+class ContactPairs {
+ public:
+  ContactPairs() = default;
+  /// The rows of every contact condition with a master group. Throws std::invalid_argument
+  /// naming the condition: a group without boundary facets, slave and master on one body, a
+  /// pair given twice, no slave facet facing the master within the search distance.
+  ContactPairs(const ProblemSpec& spec, const Physics& physics, const Mesh& mesh,
+               const MeshPartition& part);
+  bool empty() const { return rows_.empty(); }
+  /// Appends to in.contact the parts of the rows on the nodes of subdomain mesh m.
+  void add_rows(const SubdomainMesh& m, SubdomainInput& in) const;
+  /// What the report and the dry run say of condition c: rows, the search distance used, the
+  /// bodies of the two groups.
+  nlohmann::json describe(int condition) const;
+
+ private:
+  struct Row {
+    int condition = 0;
+    int slave = 0;  ///< the slave node (global)
+    std::array<double, 3> normal{0, 0, 0};
+    double weight = 0, gap = 0, norm_sq = 0;
+    int owner = 0;
+  };
+  struct Entry {
+    int node;  ///< global node
+    int row;
+    double coefficient;
+    bool slave;
+  };
+  std::vector<Row> rows_;
+  std::vector<Entry> by_node_;  ///< sorted by node, then row
+  std::vector<double> coords_;  ///< of the slave nodes' rows (3 per row)
+  struct Info {
+    long long rows = 0;
+    double search_distance = 0;
+    std::vector<int> slave_bodies, master_bodies;
+  };
+  std::vector<Info> info_;  ///< per condition (empty for obstacles)
+};
+
+}  // namespace htfeti

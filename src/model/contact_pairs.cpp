@@ -1,0 +1,204 @@
+// Contact between bodies (contact_pairs.hpp).
+#include "htfeti/model/contact_pairs.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <set>
+#include <stdexcept>
+#include <string>
+
+#include "htfeti/expression.hpp"
+#include "htfeti/model/mortar.hpp"
+
+namespace htfeti {
+
+namespace {
+
+// The facets of a boundary group with their outward normals (away from the one cell each
+// bounds) and the bodies they lie on.
+ContactSurface surface_of(const Mesh& mesh, const MeshPartition& part, const std::string& group,
+                          const std::string& what, std::vector<int>& bodies) {
+  auto it = mesh.facet_groups.find(group);
+  if (it == mesh.facet_groups.end() || it->second.nodes.empty())
+    throw std::invalid_argument(what + ": group '" + group +
+                                "' has no boundary facets (a contact surface is a physical group "
+                                "of dimension " +
+                                std::to_string(mesh.dim - 1) + ")");
+  const int fn = it->second.facet_nodes, nc = cell_nodes(mesh.type);
+  ContactSurface s;
+  s.facet_nodes = fn;
+  s.nodes = it->second.nodes;
+  std::set<int> body_set;
+  auto x = [&](int node, int d) { return mesh.coords[3 * static_cast<size_t>(node) + d]; };
+  for (int f = 0; f < s.num_facets(); ++f) {
+    const int* v = s.nodes.data() + static_cast<size_t>(f) * fn;
+    int cell = -1, cells = 0;
+    for (int c = part.node_cell_offset[v[0]]; c < part.node_cell_offset[v[0] + 1]; ++c) {
+      const int e = part.node_cell_list[c];
+      int hits = 0;
+      for (int a = 0; a < nc; ++a)
+        for (int b = 0; b < fn; ++b) hits += mesh.cells[static_cast<size_t>(e) * nc + a] == v[b];
+      if (hits == fn) cell = e, ++cells;
+    }
+    if (cells != 1)
+      throw std::invalid_argument(what + ": group '" + group + "' has a facet that is not on " +
+                                  "the boundary of a body (nodes " + std::to_string(v[0] + 1) +
+                                  ", " + std::to_string(v[1] + 1) + ", ...)");
+    body_set.insert(part.cell_body[cell]);
+    std::array<double, 3> n{0, 0, 0}, fc{0, 0, 0}, cc{0, 0, 0};
+    if (mesh.dim == 2) {
+      n = {x(v[1], 1) - x(v[0], 1), x(v[0], 0) - x(v[1], 0), 0};
+    } else {
+      const int p = fn == 4 ? 2 : 1, q = fn == 4 ? 3 : 2;  // quad: the diagonals
+      const double a[3] = {x(v[p], 0) - x(v[0], 0), x(v[p], 1) - x(v[0], 1),
+                           x(v[p], 2) - x(v[0], 2)};
+      const int r = fn == 4 ? 1 : 0;
+      const double b[3] = {x(v[q], 0) - x(v[r], 0), x(v[q], 1) - x(v[r], 1),
+                           x(v[q], 2) - x(v[r], 2)};
+      n = {a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]};
+    }
+    for (int d = 0; d < 3; ++d) {
+      for (int b = 0; b < fn; ++b) fc[d] += x(v[b], d) / fn;
+      for (int a = 0; a < nc; ++a)
+        cc[d] += x(mesh.cells[static_cast<size_t>(cell) * nc + a], d) / nc;
+    }
+    double len = 0, side = 0;
+    for (int d = 0; d < 3; ++d) len += n[d] * n[d], side += n[d] * (fc[d] - cc[d]);
+    len = std::sqrt(len) * (side < 0 ? -1.0 : 1.0);
+    for (double& c : n) c /= len;
+    s.normals.push_back(n);
+  }
+  bodies.assign(body_set.begin(), body_set.end());
+  return s;
+}
+
+}  // namespace
+
+ContactPairs::ContactPairs(const ProblemSpec& spec, const Physics& physics, const Mesh& mesh,
+                           const MeshPartition& part) {
+  const int dpn = physics.dofs_per_node();
+  info_.resize(spec.contact.size());
+  std::set<std::pair<int, int>> fixed;  // (node, component) held by a Dirichlet condition
+  for (const auto& d : spec.dirichlet) {
+    auto it = mesh.node_groups.find(d.group);
+    if (it == mesh.node_groups.end()) continue;
+    for (int k : it->second)
+      for (int c = 0; c < dpn; ++c)
+        if (d.components.empty() ||
+            std::find(d.components.begin(), d.components.end(), c) != d.components.end())
+          fixed.insert({k, c});
+  }
+  std::set<std::pair<std::string, std::string>> seen;
+  for (size_t ci = 0; ci < spec.contact.size(); ++ci) {
+    const auto& c = spec.contact[ci];
+    if (c.master.empty()) continue;
+    const std::string what = "problem file: contact #" + std::to_string(ci + 1);
+    if (!seen.insert({c.group, c.master}).second)
+      throw std::invalid_argument(what + ": the pair group = '" + c.group + "', master = '" +
+                                  c.master + "' is given twice");
+    Info& info = info_[ci];
+    const ContactSurface slave = surface_of(mesh, part, c.group, what, info.slave_bodies);
+    const ContactSurface master = surface_of(mesh, part, c.master, what, info.master_bodies);
+    for (int b : info.slave_bodies)
+      if (std::binary_search(info.master_bodies.begin(), info.master_bodies.end(), b))
+        throw std::invalid_argument(
+            what + ": group '" + c.group + "' and master '" + c.master +
+            "' lie on the same body (body " + std::to_string(b + 1) + " of " +
+            std::to_string(part.num_bodies) +
+            "; contact is between bodies that share no node: mesh them apart)");
+    info.search_distance = c.search_distance > 0
+                               ? c.search_distance
+                               : 2.0 * std::max(largest_facet_diameter(mesh.coords, slave),
+                                                largest_facet_diameter(mesh.coords, master));
+    const auto rows = mortar_rows(mesh.dim, mesh.coords, slave, master, info.search_distance);
+    std::vector<int> snodes(slave.nodes);
+    std::sort(snodes.begin(), snodes.end());
+    const Expression gap(c.gap);
+    for (const MortarRow& mr : rows) {
+      Row r;
+      r.condition = static_cast<int>(ci);
+      r.slave = mr.slave_node;
+      r.weight = mr.weight;
+      const std::array<double, 3> p{mesh.coords[3 * static_cast<size_t>(mr.slave_node)],
+                                    mesh.coords[3 * static_cast<size_t>(mr.slave_node) + 1],
+                                    mesh.coords[3 * static_cast<size_t>(mr.slave_node) + 2]};
+      if (physics.kind == PhysicsKind::laplace) {
+        r.normal = {c.direction[0] < 0 ? -1.0 : 1.0, 0, 0};
+        r.gap = gap(p);
+      } else {
+        r.normal = mr.normal;
+        r.gap = mr.gap;
+      }
+      // A row on dofs that Dirichlet conditions hold all of repeats their rows: dropped.
+      bool all_fixed = true;
+      for (const auto& [node, cj] : mr.entries)
+        for (int d = 0; d < dpn; ++d)
+          if (r.normal[d] != 0 && !fixed.count({node, d})) all_fixed = false;
+      if (all_fixed) continue;
+      r.owner = part.num_subdomains;
+      for (const auto& [node, cj] : mr.entries) {
+        const int k = part.copy_offset[node + 1] - part.copy_offset[node];
+        r.norm_sq += cj * cj / k;
+        r.owner = std::min(r.owner, part.copy_list[part.copy_offset[node]]);
+      }
+      const int row = static_cast<int>(rows_.size());
+      for (const auto& [node, cj] : mr.entries) {
+        by_node_.push_back({node, row, cj, std::binary_search(snodes.begin(), snodes.end(), node)});
+      }
+      rows_.push_back(r);
+      coords_.insert(coords_.end(), p.begin(), p.end());
+      ++info.rows;
+    }
+    if (info.rows == 0)
+      throw std::invalid_argument(
+          what + ": no facet of group '" + c.group + "' faces a facet of master '" + c.master +
+          "' within the search distance " + std::to_string(info.search_distance) +
+          " (set search_distance, or check which side each group is on)");
+  }
+  std::sort(by_node_.begin(), by_node_.end(), [](const Entry& a, const Entry& b) {
+    return a.node != b.node ? a.node < b.node : a.row < b.row;
+  });
+}
+
+void ContactPairs::add_rows(const SubdomainMesh& m, SubdomainInput& in) const {
+  if (rows_.empty()) return;
+  for (int k = 0; k < m.num_nodes(); ++k) {
+    const long long g = m.global_node[k];
+    auto lo = std::lower_bound(by_node_.begin(), by_node_.end(), g,
+                               [](const Entry& e, long long v) { return e.node < v; });
+    for (; lo != by_node_.end() && lo->node == g; ++lo) {
+      const Row& row = rows_[lo->row];
+      ContactRow r;
+      r.node = k;
+      r.side = lo->slave ? 1 : -1;
+      r.node_a = row.slave;
+      r.coefficient = lo->coefficient;
+      r.copies = m.num_copies(k);
+      r.norm_sq = row.norm_sq;
+      r.weight = row.weight;
+      r.owner_subdomain = row.owner;
+      r.direction = row.normal;
+      r.gap = row.gap;
+      for (int d = 0; d < 3; ++d) r.point[d] = coords_[3 * static_cast<size_t>(lo->row) + d];
+      r.condition = row.condition;
+      r.key = g == row.slave;
+      r.area = r.key ? row.weight / r.copies : 0.0;
+      in.contact.push_back(r);
+    }
+  }
+}
+
+nlohmann::json ContactPairs::describe(int c) const {
+  auto one_based = [](std::vector<int> b) {
+    for (int& v : b) ++v;
+    return b;
+  };
+  if (c < 0 || c >= static_cast<int>(info_.size()) || info_[c].rows == 0) return {};
+  const Info& i = info_[c];
+  return {{"rows", i.rows},
+          {"search_distance", i.search_distance},
+          {"slave_bodies", one_based(i.slave_bodies)},
+          {"master_bodies", one_based(i.master_bodies)}};
+}
+
+}  // namespace htfeti

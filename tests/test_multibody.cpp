@@ -1,0 +1,278 @@
+// Contact between bodies (model/mortar.hpp, model/contact_pairs.hpp): the mortar integrals on
+// hand-checkable surfaces; the contact patch test (two blocks with non-matching meshes at a
+// flat interface, a uniform pressure on top, the lower block supported) in 2D (quad4, tri3) and
+// 3D (hex8, tet4), each side as the slave, against the exact linear solution; a body held only
+// by contact; bad pairs refused. Runs under mpiexec -n 1, 2 and 4.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <set>
+
+#include "htfeti/model/mortar.hpp"
+#include "htfeti/model/problem_spec.hpp"
+#include "htfeti/solver.hpp"
+
+using namespace htfeti;
+
+namespace {
+
+const std::string kMeshes = HTFETI_BINARY_DIR "/";
+
+const MortarRow& row_of(const std::vector<MortarRow>& rows, int node) {
+  for (const auto& r : rows)
+    if (r.slave_node == node) return r;
+  throw std::runtime_error("no row");
+}
+double entry(const MortarRow& r, int node) {
+  for (const auto& [k, v] : r.entries)
+    if (k == node) return v;
+  return 0.0;
+}
+
+}  // namespace
+
+// The slave segment [0, 1] at y = 0 (normal +y) under two master segments at y = 0.1: (-0.5,
+// 0.5) and (0.5, 1.5), facing down. By hand for slave node 0 (phi_0 = 1 - x): D_00 = 1/3,
+// D_01 = 1/6; M_02 = int_0^.5 (1-x)(.5-x) = 5/48, M_03 = 3/8, M_04 = 1/48; the weighted gap
+// 0.1 * 1/2.
+TEST(Mortar, SegmentAgainstTwoMasterSegmentsByHand) {
+  const std::vector<double> x = {0, 0, 0, 1, 0, 0, -0.5, 0.1, 0, 0.5, 0.1, 0, 1.5, 0.1, 0};
+  ContactSurface slave{2, {0, 1}, {{0, 1, 0}}};
+  ContactSurface master{2, {2, 3, 3, 4}, {{0, -1, 0}, {0, -1, 0}}};
+  const auto rows = mortar_rows(2, x, slave, master, 0.5);
+  ASSERT_EQ(rows.size(), 2u);
+  const MortarRow& r = row_of(rows, 0);
+  EXPECT_NEAR(entry(r, 0), 1.0 / 3.0, 1e-15);
+  EXPECT_NEAR(entry(r, 1), 1.0 / 6.0, 1e-15);
+  EXPECT_NEAR(entry(r, 2), -5.0 / 48.0, 1e-15);
+  EXPECT_NEAR(entry(r, 3), -3.0 / 8.0, 1e-15);
+  EXPECT_NEAR(entry(r, 4), -1.0 / 48.0, 1e-15);
+  EXPECT_NEAR(r.weight, 0.5, 1e-15);
+  EXPECT_NEAR(r.gap, 0.1, 1e-15);
+  EXPECT_NEAR(r.normal[1], 1.0, 1e-15);
+  // The search distance leaves the master out when it is farther away.
+  EXPECT_TRUE(mortar_rows(2, x, slave, master, 0.05).empty());
+  // A master that does not face the slave is not paired with it.
+  ContactSurface away = master;
+  away.normals = {{0, 1, 0}, {0, 1, 0}};
+  EXPECT_TRUE(mortar_rows(2, x, slave, away, 0.5).empty());
+}
+
+// The unit square (bilinear quad, normal +z) under two skewed triangles at z = 0.2 that cover
+// it: D is the bilinear mass matrix (1/9, 1/18, 1/36), sum_k M_ik = 1/4, and a linear field
+// of the plane satisfies every row with equality (the master interpolates it exactly).
+TEST(Mortar, QuadAgainstSkewedTrianglesIsExact) {
+  const std::vector<double> x = {0,    0,    0,   1,   0,    0,   1,   1,   0,   0,    1,   0,
+                                 -0.3, -0.2, 0.2, 1.4, -0.1, 0.2, 1.2, 1.3, 0.2, -0.2, 1.1, 0.2};
+  ContactSurface slave{4, {0, 1, 2, 3}, {{0, 0, 1}}};
+  ContactSurface master{3, {4, 5, 6, 4, 6, 7}, {{0, 0, -1}, {0, 0, -1}}};
+  const auto rows = mortar_rows(3, x, slave, master, 0.5);
+  ASSERT_EQ(rows.size(), 4u);
+  const MortarRow& r = row_of(rows, 0);
+  EXPECT_NEAR(entry(r, 0), 1.0 / 9.0, 1e-14);
+  EXPECT_NEAR(entry(r, 1), 1.0 / 18.0, 1e-14);
+  EXPECT_NEAR(entry(r, 2), 1.0 / 36.0, 1e-14);
+  EXPECT_NEAR(entry(r, 3), 1.0 / 18.0, 1e-14);
+  EXPECT_NEAR(r.weight, 0.25, 1e-14);
+  EXPECT_NEAR(r.gap, 0.2, 1e-14);
+  auto f = [&](int k) { return 1.0 + 2.0 * x[3 * k] - 3.0 * x[3 * k + 1]; };
+  for (const auto& row : rows) {
+    double m = 0, lin = 0;
+    for (const auto& [k, v] : row.entries) {
+      if (k >= 4) m -= v;
+      lin += v * f(k);
+    }
+    EXPECT_NEAR(m, 0.25, 1e-14) << row.slave_node;
+    EXPECT_NEAR(lin, 0.0, 1e-14) << row.slave_node;
+  }
+}
+
+namespace {
+
+constexpr double kYoung = 1000.0, kPoisson = 0.3, kPressure = 10.0;
+
+// Two unit blocks stacked (tests/meshes/two-squares.geo, two-cubes.geo), the lower one on
+// rollers at its bottom, both on rollers at their x = 0 (and y = 0 in 3D) sides, pressed by a
+// uniform pressure on top.
+ProblemSpec stacked_blocks(const std::string& mesh, bool upper_is_slave,
+                           bool upper_rollers = true) {
+  ProblemSpec s;
+  s.mesh_file = kMeshes + mesh;
+  s.physics.kind = PhysicsKind::elasticity;
+  s.physics.material = {kYoung, kPoisson};
+  const bool three = mesh.find("cubes") != std::string::npos;
+  const int up = three ? 2 : 1;
+  s.dirichlet.push_back({"bottom", {0, 0, 0}, {up}});
+  s.dirichlet.push_back({"lower_x0", {0, 0, 0}, {0}});
+  if (upper_rollers) s.dirichlet.push_back({"upper_x0", {0, 0, 0}, {0}});
+  if (three) {
+    s.dirichlet.push_back({"lower_y0", {0, 0, 0}, {1}});
+    if (upper_rollers) s.dirichlet.push_back({"upper_y0", {0, 0, 0}, {1}});
+  }
+  std::array<double, 3> t{0, 0, 0};
+  t[up] = -kPressure;
+  s.loads.push_back({"top", ProblemSpec::Load::traction, t});
+  ProblemSpec::Contact c;
+  c.group = upper_is_slave ? "upper_bottom" : "lower_top";
+  c.master = upper_is_slave ? "lower_top" : "upper_bottom";
+  s.contact.push_back(c);
+  s.subdomains = {3};
+  return s;
+}
+
+SolveOutput run(const ProblemSpec& spec, const Comm& comm) {
+  SolveOptions opt;
+  opt.rtol = 1e-10;
+  return solve(std::shared_ptr<const Model>(make_model(spec)), opt, comm);
+}
+
+struct PatchCase {
+  std::string mesh;
+  bool upper_is_slave;
+};
+
+class ContactPatch : public ::testing::TestWithParam<PatchCase> {};
+
+}  // namespace
+
+// Uniaxial stress sigma = -p in the load direction: plane strain in 2D (eps_xx = p nu (1 + nu)
+// / E, eps_yy = -p (1 - nu^2) / E), eps = (nu p / E, nu p / E, -p / E) in 3D; u = eps x with
+// the rollers at x = 0, y = 0 and the bottom. The mortar rows pass it exactly: the pressure is
+// p at every slave node and the displacement linear, to the solver's precision.
+TEST_P(ContactPatch, UniformPressureAndLinearDisplacement) {
+  Comm comm;
+  const auto& pc = GetParam();
+  const auto out = run(stacked_blocks(pc.mesh, pc.upper_is_slave), comm);
+  ASSERT_TRUE(out.converged) << out.report["stop_reason"];
+  const auto& sum = out.report["contact_summary"];
+  ASSERT_EQ(sum.size(), 1u);
+  EXPECT_EQ(sum[0]["active_rows"], sum[0]["rows"]);
+  EXPECT_NEAR(sum[0]["normal_force"].get<double>(), kPressure, 1e-8 * kPressure);
+  EXPECT_NEAR(sum[0]["area"].get<double>(), 1.0, 1e-12);
+  EXPECT_LT(sum[0]["max_penetration"].get<double>(), 1e-10);
+  for (const auto& p : out.report["contact"]["pressure"])
+    EXPECT_NEAR(p.get<double>(), kPressure, 1e-8 * kPressure);
+  const int dim = out.model->dim();
+  std::array<double, 3> eps{};
+  if (dim == 2)
+    eps = {kPressure * kPoisson * (1 + kPoisson) / kYoung,
+           -kPressure * (1 - kPoisson * kPoisson) / kYoung, 0};
+  else
+    eps = {kPoisson * kPressure / kYoung, kPoisson * kPressure / kYoung, -kPressure / kYoung};
+  double err = 0;
+  for (size_t i = 0; i < out.u.size(); ++i) {
+    const SubdomainMesh m = out.model->mesh(out.dual->subdomains()[i]->id());
+    for (int k = 0; k < m.num_nodes(); ++k)
+      for (int d = 0; d < dim; ++d)
+        err = std::max(err, std::abs(out.u[i][k * dim + d] - eps[d] * m.coords[3 * k + d]));
+  }
+  // |u| is at most 2 |eps_load| on the top.
+  EXPECT_LT(comm.max(err), 1e-8 * 2 * std::abs(eps[dim - 1]));
+}
+
+INSTANTIATE_TEST_SUITE_P(NonMatching, ContactPatch,
+                         ::testing::Values(PatchCase{"two-squares-quad.msh", true},
+                                           PatchCase{"two-squares-quad.msh", false},
+                                           PatchCase{"two-squares-tri.msh", true},
+                                           PatchCase{"two-cubes-hex.msh", true},
+                                           PatchCase{"two-cubes-hex.msh", false},
+                                           PatchCase{"two-cubes-tet.msh", true}),
+                         [](const auto& info) {
+                           std::string n = info.param.mesh.substr(0, info.param.mesh.size() - 4);
+                           for (char& ch : n)
+                             if (ch == '-') ch = '_';
+                           return n + (info.param.upper_is_slave ? "_upper_slave" : "_lower_slave");
+                         });
+
+// The upper block held by the contact alone (no roller on its side): frictionless contact does
+// not hold it sideways, a rigid motion nothing restrains, whose coefficient the solver chooses;
+// the pressure is still the unique p and the vertical displacement linear.
+TEST(Multibody, BodyHeldOnlyByContact) {
+  Comm comm;
+  const auto out = run(stacked_blocks("two-squares-quad.msh", true, false), comm);
+  ASSERT_TRUE(out.converged) << out.report["stop_reason"];
+  EXPECT_EQ(out.report["unrestrained_rigid_motions"].get<int>(), 1);
+  for (const auto& p : out.report["contact"]["pressure"])
+    EXPECT_NEAR(p.get<double>(), kPressure, 1e-8 * kPressure);
+}
+
+// The same with a sideways load on top: nothing resists it, no solution: refused.
+TEST(Multibody, SidewaysLoadOnABodyHeldOnlyByContactIsRefused) {
+  Comm comm;
+  ProblemSpec spec = stacked_blocks("two-squares-quad.msh", true, false);
+  spec.loads[0].value[0] = 1.0;
+  SolveOptions opt;
+  opt.max_iterations = 30;
+  try {
+    solve(std::shared_ptr<const Model>(make_model(spec)), opt, comm);
+    FAIL() << "solved";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("no solution"), std::string::npos) << e.what();
+  }
+}
+
+TEST(Multibody, BodiesAreSplitApart) {
+  // 5 subdomains over 25 and 28 cells: 2 and 3, no subdomain or cluster spanning both.
+  ProblemSpec spec = stacked_blocks("two-squares-quad.msh", true);
+  spec.subdomains = {5};
+  spec.cluster_size = 2;
+  const auto model = make_model(spec);
+  EXPECT_EQ(model->describe()["bodies"].get<int>(), 2);
+  EXPECT_EQ(model->num_subdomains(), 5);
+  for (int c = 0; c < model->num_clusters(); ++c) {
+    std::set<bool> upper;
+    for (int s = model->cluster_first(c); s < model->cluster_first(c + 1); ++s) {
+      const SubdomainMesh m = model->mesh(s);
+      bool up = false, low = false;  // by the cells' centroids (y = 1 has nodes of both)
+      for (int e = 0; e < m.num_cells(); ++e) {
+        double y = 0;
+        const int nc = cell_nodes(m.type);
+        for (int a = 0; a < nc; ++a) y += m.coords[3 * m.cells[e * nc + a] + 1] / nc;
+        (y > 1 ? up : low) = true;
+      }
+      EXPECT_FALSE(up && low) << "subdomain " << s << " spans both bodies";
+      upper.insert(up);
+    }
+    EXPECT_EQ(upper.size(), 1u) << "cluster " << c << " spans both bodies";
+  }
+}
+
+TEST(Multibody, BadPairsAreRefused) {
+  auto refused = [](ProblemSpec spec, const std::string& words) {
+    try {
+      make_model(spec);
+      ADD_FAILURE() << "accepted; expected: " << words;
+    } catch (const std::invalid_argument& e) {
+      EXPECT_NE(std::string(e.what()).find(words), std::string::npos) << e.what();
+    }
+  };
+  ProblemSpec s = stacked_blocks("two-squares-quad.msh", true);
+  ProblemSpec missing = s;
+  missing.contact[0].master = "no_such_group";
+  refused(missing, "'no_such_group' does not exist");
+  ProblemSpec same_body = s;
+  same_body.contact[0].master = "top";
+  refused(same_body, "lie on the same body");
+  ProblemSpec volume = s;
+  volume.contact[0].master = "lower";
+  refused(volume, "does not exist");  // a volume group is no boundary group
+  ProblemSpec twice = s;
+  twice.contact.push_back(s.contact[0]);
+  refused(twice, "is given twice");
+  ProblemSpec far = s;
+  far.contact[0].master = "bottom";
+  refused(far, "no facet of group 'upper_bottom' faces");
+  ProblemSpec box;
+  box.box.dim = 2;
+  box.box.cell = CellType::quad4;
+  box.box.size = {1, 1, 0};
+  box.box.elements = {4, 4, 0};
+  box.physics.kind = PhysicsKind::elasticity;
+  box.physics.material = {1, 0.3};
+  ProblemSpec::Contact c;
+  c.group = "y0";
+  c.master = "y1";
+  box.contact.push_back(c);
+  box.subdomains = {2, 2};
+  refused(box, "needs a mesh of several bodies");
+}

@@ -293,6 +293,8 @@ void report_problem_and_solve(nlohmann::json& rep, const Model& model, DualProbl
   rep["preconditioner_applications"] = ops.M.count();
   rep["objective"] = energy;
   rep["kkt"] = {{"equality_residual", kkt.equality_residual},
+                {"relative_equality_residual",
+                 kkt.equality_scale > 0 ? kkt.equality_residual / kkt.equality_scale : 0.0},
                 {"max_violation", kkt.max_violation},
                 {"min_multiplier", kkt.min_multiplier},
                 {"complementarity", kkt.complementarity}};
@@ -462,6 +464,22 @@ void report_solution(nlohmann::json& rep, const Model& model, DualProblem& dual,
 
 }  // namespace
 
+void check_equality_residual(const DualProblem::Kkt& kkt, double rtol) {
+  if (!(kkt.equality_scale > 0)) return;
+  const double rel = kkt.equality_residual / kkt.equality_scale;
+  const double limit = std::min(0.1, 1e3 * rtol);
+  if (rel > limit) {
+    char msg[512];
+    std::snprintf(msg, sizeof msg,
+                  "the solution does not hold the subdomains together: ||B_E u - c_E|| is %.2e "
+                  "of ||u|| + ||c_E|| (a converged solve leaves at most %.1e at rtol %.1e); a "
+                  "subdomain's stiffness is singular beyond its rigid body motions (a mechanism: "
+                  "cells joined only at a node or an edge)",
+                  rel, limit, rtol);
+    throw std::runtime_error(msg);
+  }
+}
+
 void validate_solver(const SolveOptions& o) {
   // Every range is the options table's (options.hpp): each value is checked by its own row.
   RunOptions run;
@@ -628,6 +646,7 @@ SolveOutput solve(std::shared_ptr<const Model> model_ptr, const SolveOptions& op
   if (verbose) std::fprintf(stderr, "  reconstruction done in %.2f s\n", t_rec);
   double t_checks = seconds_now();  // the report's checks of the solution
   const auto kkt = dual.kkt(out.u, lambda);
+  if (qs.converged) check_equality_residual(kkt, options.rtol);
   const double energy = dual.energy(out.u);
   {
     bool finite = std::isfinite(energy);

@@ -237,6 +237,18 @@ TEST(Multibody, BodiesAreSplitApart) {
   }
 }
 
+// The last check of a solve refuses a residual of the gluing near the size of the solution.
+TEST(Multibody, EqualityResidualNearTheSolutionsSizeIsAFailure) {
+  DualProblem::Kkt k;
+  k.equality_scale = 1.0;
+  k.equality_residual = 1e-5;
+  EXPECT_NO_THROW(check_equality_residual(k, 1e-4));
+  k.equality_residual = 0.2;
+  EXPECT_THROW(check_equality_residual(k, 1e-4), std::runtime_error);
+  k.equality_residual = 2e-5;  // at rtol 1e-8 at most 1e-5
+  EXPECT_THROW(check_equality_residual(k, 1e-8), std::runtime_error);
+}
+
 TEST(Multibody, BadPairsAreRefused) {
   auto refused = [](ProblemSpec spec, const std::string& words) {
     try {

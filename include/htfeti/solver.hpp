@@ -74,6 +74,14 @@ SolveOutput solve(const SolveOptions& options, const Comm& comm);
 /// that chose), which the report repeats as preconditioner_reason.
 std::string resolve_preconditioner(const Model& model, FetiOptions& options);
 
+/// The last check of a converged solve: B~ has orthonormal rows, so the equality residual
+/// ||B_E u - c_E|| is at most ||u|| + ||c_E|| (kkt.equality_scale), and a solve that met its
+/// stopping test leaves at most about rtol of it (measured: below 0.1 rtol on every example).
+/// A residual above min(0.1, 1000 rtol) of it means the subdomains are not held together, e.g.
+/// a subdomain stiffness singular beyond its rigid body motions: throws std::runtime_error
+/// (exit 4) instead of returning the wrong answer.
+void check_equality_residual(const DualProblem::Kkt& kkt, double rtol);
+
 /// Checks the solver options; throws std::invalid_argument.
 void validate_solver(const SolveOptions& options);
 /// validate_solver() and the built-in decomposition.

@@ -120,11 +120,12 @@ DualProblem::Kkt DualProblem::kkt(const std::vector<Vec>& u, const Vec& lambda) 
   apply_B(u, bu);
   double viol = 0, minmult = std::numeric_limits<double>::infinity(), compl_ = 0;
   bool any_contact = false;
-  Vec sq = Vec::Zero(multipliers_.layout.n_owned());
+  Vec sq = Vec::Zero(multipliers_.layout.n_owned()), csq = sq;
   for (int k = 0; k < multipliers_.layout.n_owned(); ++k) {
     if (multipliers_.kind[k] == MultiplierKind::friction) continue;  // not an equality
     if (multipliers_.kind[k] != MultiplierKind::contact) {
       sq[k] = (bu[k] - multipliers_.rhs[k]) * (bu[k] - multipliers_.rhs[k]);
+      csq[k] = multipliers_.rhs[k] * multipliers_.rhs[k];
       continue;
     }
     any_contact = true;
@@ -139,6 +140,15 @@ DualProblem::Kkt DualProblem::kkt(const std::vector<Vec>& u, const Vec& lambda) 
   }
   Kkt r;
   r.equality_residual = std::sqrt(sum(sq));
+  // ||u|| over all copies, per subdomain in subdomain order (rank-count independent).
+  std::vector<double> usq(layout_.num_subdomains, 0.0);
+  for (size_t s = 0; s < subs_.size(); ++s) usq[subs_[s]->id()] = u[s].squaredNorm();
+  if (comm_.size() > 1)
+    MPI_Allreduce(MPI_IN_PLACE, usq.data(), static_cast<int>(usq.size()), MPI_DOUBLE, MPI_SUM,
+                  comm_.raw());
+  double u2 = 0;
+  for (double v : usq) u2 += v;
+  r.equality_scale = std::sqrt(u2) + std::sqrt(sum(csq));
   r.max_violation = comm_.max(viol);
   r.min_multiplier = comm_.sum(any_contact ? 1.0 : 0.0) > 0 ? comm_.min(minmult) : 0.0;
   r.complementarity = comm_.max(compl_);

@@ -270,9 +270,12 @@ class DualProblem {
   /// Checks of a primal solution (global, on every rank).
   struct Kkt {
     double equality_residual = 0;  ///< ||B_E u - c_E||
-    double max_violation = 0;      ///< max over contact rows of (n.(u_a - u_b) - gap)_+
-    double min_multiplier = 0;     ///< smallest contact force (0 without contact)
-    double complementarity = 0;    ///< max |force * gap| over contact rows
+    /// ||u|| + ||c_E|| (u over all copies): B~ has orthonormal rows, so ||B_E u - c_E|| is at
+    /// most this; a solution whose residual comes near it does not hold the subdomains together
+    double equality_scale = 0;
+    double max_violation = 0;    ///< max over contact rows of (n.(u_a - u_b) - gap)_+
+    double min_multiplier = 0;   ///< smallest contact force (0 without contact)
+    double complementarity = 0;  ///< max |force * gap| over contact rows
   };
   Kkt kkt(const std::vector<Vec>& u, const Vec& lambda);
   /// q(u) = 1/2 u'Ku - f'u summed over subdomains.

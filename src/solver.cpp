@@ -430,6 +430,8 @@ void report_solution(nlohmann::json& rep, const Model& model, DualProblem& dual,
       e["area"] = summary[i].area;
       e["normal_force"] = summary[i].normal_force;
       e["max_penetration"] = summary[i].max_penetration;
+      e["resultant"] = std::vector<double>(summary[i].resultant.begin(),
+                                           summary[i].resultant.begin() + model.dim());
       list.push_back(e);
     }
     rep["contact_summary"] = list;
@@ -459,6 +461,21 @@ void report_solution(nlohmann::json& rep, const Model& model, DualProblem& dual,
     double total = 0, nodes = 0;
     for (int id = 0; id < ns; ++id) total += usum[2 * id], nodes += usum[2 * id + 1];
     rep["displacement"] = {{"max_norm", comm.max(umax)}, {"mean_norm", total / nodes}};
+    // The applied load summed over the subdomains (each cell and boundary facet belongs to one),
+    // in subdomain order: the loads as meshed (a curved boundary's facets, for instance).
+    std::vector<double> f(static_cast<size_t>(dpn) * ns, 0.0);
+    for (size_t i = 0; i < u.size(); ++i) {
+      const auto& fi = dual.subdomains()[i]->f();
+      for (Eigen::Index j = 0; j < fi.size(); ++j)
+        f[static_cast<size_t>(dpn) * dual.subdomains()[i]->id() + j % dpn] += fi[j];
+    }
+    if (comm.size() > 1)
+      MPI_Allreduce(MPI_IN_PLACE, f.data(), static_cast<int>(f.size()), MPI_DOUBLE, MPI_SUM,
+                    comm.raw());
+    std::vector<double> resultant(dpn, 0.0);
+    for (int id = 0; id < ns; ++id)
+      for (int d = 0; d < dpn; ++d) resultant[d] += f[static_cast<size_t>(dpn) * id + d];
+    rep["load_resultant"] = resultant;
   }
 }
 

@@ -349,6 +349,68 @@ TEST_F(Cli, ContactResultsAreIdenticalOnOneToFourRanks) {
   }
 }
 
+// Contact between bodies: the same bit for bit on 1 to 4 ranks (the mortar rows are built alike
+// on every rank, and their entries on many subdomains summed in the fixed order).
+TEST_F(Cli, MultibodyResultsAreIdenticalOnOneToFourRanks) {
+  for (const char* ex : {"cylinder-on-block", "punch-on-block", "membranes-two-bodies"}) {
+    const std::string p = std::string(HTFETI_SOURCE_DIR) + "/examples/" + ex + ".toml";
+    nlohmann::json reports[4];
+    for (int r = 1; r <= 4; ++r) {
+      const std::string out = "m" + std::to_string(r) + ".json";
+      ASSERT_EQ(run(mpiexec + " -n " + std::to_string(r) + " " + bin + " solve " + p +
+                    " --no-vtu --report " + out),
+                0)
+          << ex << " on " << r << " ranks: " << stderr_text();
+      std::ifstream f(out);
+      reports[r - 1] = nlohmann::json::parse(f);
+    }
+    for (int r = 2; r <= 4; ++r)
+      for (const char* key : {"outer_iterations", "matvecs", "objective", "kkt", "contact",
+                              "contact_summary", "load_resultant", "displacement"})
+        EXPECT_EQ(reports[0][key], reports[r - 1][key]) << ex << ", " << r << " ranks: " << key;
+  }
+}
+
+// Every problem file in examples/ runs as it is (its paths relative to the file) and converges.
+TEST_F(Cli, EveryExampleRuns) {
+  int n = 0;
+  for (const auto& e : fs::directory_iterator(std::string(HTFETI_SOURCE_DIR) + "/examples")) {
+    if (e.path().extension() != ".toml") continue;
+    ++n;
+    ASSERT_EQ(run(bin + " solve " + e.path().string() + " --no-vtu --report ex.json"), 0)
+        << e.path() << ": " << stderr_text();
+    std::ifstream f("ex.json");
+    EXPECT_TRUE(nlohmann::json::parse(f)["converged"].get<bool>()) << e.path();
+  }
+  EXPECT_GE(n, 13);
+}
+
+// Bad contact pairs through the program: exit 2, one line naming the condition, nothing written.
+TEST_F(Cli, BadContactPairsExitWithCode2) {
+  const std::string ex = std::string(HTFETI_SOURCE_DIR) + "/examples/";
+  std::ifstream in(ex + "punch-on-block.toml");
+  std::string text((std::istreambuf_iterator<char>(in)), {});
+  text.replace(text.find("file = \"meshes/"), 15, "file = \"" + ex + "meshes/");
+  const auto bad = [&](const std::string& from, const std::string& to, const std::string& words) {
+    std::string t = text;
+    t.replace(t.find(from), from.size(), to);
+    std::ofstream("pair.toml") << t;
+    EXPECT_EQ(run(bin + " solve pair.toml --report r.json --vtu u.vtu"), 2) << words;
+    EXPECT_NE(stderr_text().find(words), std::string::npos) << stderr_text();
+    EXPECT_FALSE(fs::exists("r.json") || fs::exists("u.vtu")) << words;
+  };
+  bad("master = \"block_top\"", "master = \"nothing\"", "contact #1.master");
+  bad("master = \"block_top\"", "master = \"punch_top\"", "lie on the same body");
+  bad("master = \"block_top\"", "master = \"block_top\"\ndirection = [0.0, 0.0, -1.0]",
+      "contact #1.direction");
+  bad("master = \"block_top\"", "master = \"block_top\"\nsearch_distance = -1.0",
+      "search_distance");
+  bad("master = \"block_top\"", "master = \"block_bottom\"", "faces a facet of master");
+  bad("master = \"block_top\"",
+      "master = \"block_top\"\n[[contact]]\ngroup = \"punch_bottom\"\nmaster = \"block_top\"",
+      "given twice");
+}
+
 TEST_F(Cli, OversubscribedThreadsAreNoted) {
   // Ranks x threads beyond the machine's cores: a note naming the fix, and the run goes on.
   const int cores = static_cast<int>(std::thread::hardware_concurrency());

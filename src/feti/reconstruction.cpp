@@ -236,6 +236,31 @@ std::vector<DualProblem::ContactSummary> DualProblem::contact_summary(const std:
     out[c].area = sum(area);
     out[c].max_penetration = comm_.max(penetration);
   }
+  // The resultants: the condition of each row and lambda spread to the ranks that touch it,
+  // then per subdomain the sums over the entries on the key side, added in subdomain order.
+  Vec cond = Vec::Constant(multipliers_.layout.n_ext(), -1.0);
+  for (int k = 0; k < n_own; ++k)
+    if (multipliers_.kind[k] == MultiplierKind::contact)
+      cond[k] = multipliers_.contact_condition[k];
+  multipliers_.layout.forward(cond.data());
+  multipliers_.gather(lambda);
+  const size_t per = 3 * static_cast<size_t>(conditions);
+  std::vector<double> part(per * layout_.num_subdomains, 0.0);
+  for (size_t s = 0; s < subs_.size(); ++s) {
+    const int dpn = subs_[s]->dofs_per_node();
+    double* f = &part[per * subs_[s]->id()];
+    for (const auto& r : multipliers_.rows[s]) {
+      const int c = static_cast<int>(cond[r.k]);
+      if (c >= 0 && c < conditions && r.side > 0)
+        f[3 * c + r.dof % dpn] -= r.value * multipliers_.ext_in[r.k];
+    }
+  }
+  if (comm_.size() > 1)
+    MPI_Allreduce(MPI_IN_PLACE, part.data(), static_cast<int>(part.size()), MPI_DOUBLE, MPI_SUM,
+                  comm_.raw());
+  for (int s = 0; s < layout_.num_subdomains; ++s)
+    for (int c = 0; c < conditions; ++c)
+      for (int d = 0; d < 3; ++d) out[c].resultant[d] += part[per * s + 3 * c + d];
   return out;
 }
 

@@ -296,9 +296,13 @@ class DualProblem {
   /// normal force (positive in compression) and the largest penetration (the most negative
   /// remaining gap, as a positive length; 0 when none). The same on every rank, independent of
   /// the rank count. Collective.
+  /// `resultant`: the force of the condition's rows on the body of its key nodes (the slave
+  /// body; the body on an obstacle), -B_I^T lambda summed over those nodes, in the global frame
+  /// (Laplace: its one component first).
   struct ContactSummary {
     long long rows = 0, active = 0;
     double area = 0, normal_force = 0, max_penetration = 0;
+    std::array<double, 3> resultant{0, 0, 0};
   };
   std::vector<ContactSummary> contact_summary(const std::vector<Vec>& u, const Vec& lambda,
                                               int conditions);

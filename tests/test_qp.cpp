@@ -7,6 +7,7 @@
 #include <random>
 
 #include "htfeti/linalg/nnls.hpp"
+#include "htfeti/qp/mpgp.hpp"
 #include "htfeti/qp/mprgp.hpp"
 #include "htfeti/qp/pcg.hpp"
 #include "htfeti/qp/power_norm.hpp"
@@ -424,6 +425,200 @@ TEST_P(SmalbeBoxConformance, MatchesEnumeratedActiveSets) {
 
 INSTANTIATE_TEST_SUITE_P(Random, SmalbeBoxConformance,
                          ::testing::Combine(::testing::Range(1u, 7u), ::testing::Bool()));
+
+// MPGP on bounds alone (a SeparableSet without discs): the boxes of the MPRGP suite, the same
+// enumerated solutions, with and without preconditioning in face.
+class MpgpBoxConformance : public ::testing::TestWithParam<unsigned> {};
+
+TEST_P(MpgpBoxConformance, MatchesEnumeratedActiveSets) {
+  const int n = 10, bounded = 7;
+  Qp q = random_qp(n, bounded, 0, GetParam(), false);
+  q.b *= 2.0;
+  const Vec u = box_upper(q, bounded, GetParam());
+  DenseOperator A(q.A);
+  SerialReducer red;
+  MprgpOptions opt;
+  opt.alpha = 1.9 / estimate_norm(A, Vec::Ones(n), red, 200, 1e-10);
+  const double tol = 1e-11 * q.b.norm();
+  const auto stop = [&](const Vec&, const Vec&, double gp) { return gp <= tol; };
+  const Vec exact = exact_box_solution(q, u, bounded);
+  const SeparableSet set(q.l, u, {}, Vec(), Vec());
+  for (bool jacobi : {false, true}) {
+    DenseOperator Z(Eigen::MatrixXd(q.A.diagonal().cwiseInverse().asDiagonal()));
+    opt.preconditioner = jacobi ? &Z : nullptr;
+    Vec x = Vec::Zero(n), g(n);
+    ASSERT_EQ(mpgp(A, q.b, set, x, g, red, opt, stop).reason, StopReason::converged);
+    EXPECT_LT((x - exact).norm(), 1e-8) << (jacobi ? "preconditioned" : "");
+  }
+}
+
+INSTANTIATE_TEST_SUITE_P(Random, MpgpBoxConformance, ::testing::Range(1u, 13u));
+
+namespace {
+
+// A random QP with discs on the entries (0, 1), (2, 3), (4, 5), lower bounds on 6, 7 and 8, 9
+// free; b large enough that some discs are active at the solution.
+struct DiscQp {
+  Qp q;
+  std::shared_ptr<SeparableSet> set;
+};
+DiscQp disc_qp(unsigned seed) {
+  DiscQp d;
+  d.q = random_qp(10, 0, 0, seed, false);
+  d.q.b *= 2.0;
+  std::mt19937 gen(seed + 100);
+  std::uniform_real_distribution<double> U(0.0, 1.0);
+  Vec l = Vec::Constant(10, -inf), u = Vec::Constant(10, inf);
+  for (int i = 6; i < 8; ++i) l[i] = 0.3 * (U(gen) - 0.5);
+  Vec c(6), r(3);
+  for (int k = 0; k < 6; ++k) c[k] = 0.2 * (U(gen) - 0.5);
+  for (int k = 0; k < 3; ++k)  // disc 1 wide (often inactive), disc 2 a point in a third
+    r[k] = k == 2 && seed % 3 == 0 ? 0.0 : k == 1 ? 0.5 + 3.0 * U(gen) : 0.1 + 0.4 * U(gen);
+  d.set = std::make_shared<SeparableSet>(
+      l, u, std::vector<SeparableSet::Pair>{{0, 1}, {2, 3}, {4, 5}}, c, r);
+  return d;
+}
+
+// The reference: plain projected gradient with step 1/||A||, an independent and slow method,
+// run until its iterate stops moving (linear convergence, rate 1 - 1/cond(A)).
+Vec projected_gradient_reference(const Eigen::MatrixXd& A, const Vec& b, const SeparableSet& set) {
+  const double L = Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(A).eigenvalues().maxCoeff();
+  Vec x = Vec::Zero(b.size());
+  set.project(x);
+  for (int it = 0; it < 200000; ++it) {
+    Vec y = x - (A * x - b) / L;
+    set.project(y);
+    const double step = (y - x).norm();
+    x = y;
+    if (step < 1e-16 * (1 + x.norm())) break;
+  }
+  return x;
+}
+
+}  // namespace
+
+class MpgpDiscConformance : public ::testing::TestWithParam<unsigned> {};
+
+TEST_P(MpgpDiscConformance, MatchesProjectedGradientAndKkt) {
+  const DiscQp d = disc_qp(GetParam());
+  DenseOperator A(d.q.A);
+  SerialReducer red;
+  MprgpOptions opt;
+  opt.alpha = 1.9 / estimate_norm(A, Vec::Ones(10), red, 200, 1e-10);
+  const double tol = 1e-12 * d.q.b.norm();
+  const auto stop = [&](const Vec&, const Vec&, double gp) { return gp <= tol; };
+  const Vec ref = projected_gradient_reference(d.q.A, d.q.b, *d.set);
+  for (bool jacobi : {false, true}) {
+    DenseOperator Z(Eigen::MatrixXd(d.q.A.diagonal().cwiseInverse().asDiagonal()));
+    opt.preconditioner = jacobi ? &Z : nullptr;
+    Vec x = Vec::Zero(10), g(10);
+    const auto r = mpgp(A, d.q.b, *d.set, x, g, red, opt, stop);
+    ASSERT_EQ(r.reason, StopReason::converged);
+    EXPECT_LT((x - ref).norm(), 1e-9) << (jacobi ? "preconditioned" : "");
+    // KKT: feasible; on a disc's circle g = -mu (x - c) / r with mu >= 0, inside g = 0.
+    Vec y = x;
+    d.set->project(y);
+    EXPECT_LT((y - x).norm(), 1e-14);
+    for (int k = 0; k < 3; ++k) {
+      const Eigen::Vector2d off(x[2 * k] - d.set->centers()[2 * k],
+                                x[2 * k + 1] - d.set->centers()[2 * k + 1]);
+      const Eigen::Vector2d gk(g[2 * k], g[2 * k + 1]);
+      const double rk = d.set->radii()[k];
+      if (rk > 0 && off.norm() < rk * (1 - 1e-9)) {
+        EXPECT_LT(gk.norm(), 1e-9);
+      } else if (rk > 0) {
+        EXPECT_LE(gk.dot(off), 1e-9);                                    // mu >= 0
+        EXPECT_LT(std::abs(gk.x() * off.y() - gk.y() * off.x()), 1e-9);  // parallel
+      }
+    }
+  }
+}
+
+INSTANTIATE_TEST_SUITE_P(Random, MpgpDiscConformance, ::testing::Range(1u, 13u));
+
+TEST(MpgpDiscs, SomeDiscsAreActiveAndSomeFreeInTheSuite) {
+  int active = 0, free = 0;
+  for (unsigned seed = 1; seed < 13; ++seed) {
+    const DiscQp d = disc_qp(seed);
+    const Vec x = projected_gradient_reference(d.q.A, d.q.b, *d.set);
+    for (int k = 0; k < 2; ++k) {
+      const double len = std::hypot(x[2 * k] - d.set->centers()[2 * k],
+                                    x[2 * k + 1] - d.set->centers()[2 * k + 1]);
+      (len > d.set->radii()[k] * (1 - 1e-9) ? active : free) += 1;
+    }
+  }
+  EXPECT_GT(active, 3);
+  EXPECT_GT(free, 3);
+}
+
+TEST(MpgpDiscs, HandCheckableProjections) {
+  // A = I: the solution is the projection of b onto the set. b = (3, 4) outside the disc of
+  // radius 1 about 0: x = (0.6, 0.8); b = (0.3, 0.1) inside: x = b; a disc of radius 0: its
+  // center.
+  DenseOperator A(Eigen::MatrixXd::Identity(4, 4));
+  SerialReducer red;
+  MprgpOptions opt;
+  opt.alpha = 1.0;
+  const auto stop = [&](const Vec&, const Vec&, double gp) { return gp <= 1e-14; };
+  const SeparableSet set(Vec::Constant(4, -inf), Vec::Constant(4, inf), {{0, 1}, {2, 3}},
+                         Vec{{0.0, 0.0, 1.0, 2.0}}, Vec{{1.0, 0.0}});
+  for (const Vec& b : {Vec{{3.0, 4.0, 5.0, 5.0}}, Vec{{0.3, 0.1, -1.0, 0.0}}}) {
+    Vec x = Vec::Zero(4), g(4);
+    ASSERT_EQ(mpgp(A, b, set, x, g, red, opt, stop).reason, StopReason::converged);
+    if (b[0] == 3.0) {
+      EXPECT_NEAR(x[0], 0.6, 1e-14);
+      EXPECT_NEAR(x[1], 0.8, 1e-14);
+    } else {
+      EXPECT_NEAR(x[0], 0.3, 1e-14);
+      EXPECT_NEAR(x[1], 0.1, 1e-14);
+    }
+    EXPECT_EQ(x[2], 1.0);
+    EXPECT_EQ(x[3], 2.0);
+  }
+}
+
+// SMALBE-M hands a SeparableSet to MPGP: with the equality x_9 = 0 (G = e_9) the problem is the
+// separable one on the other entries, solved by the reference.
+TEST(MpgpDiscs, SmalbeTakesTheSeparableSet) {
+  for (unsigned seed : {1u, 4u, 7u}) {
+    const DiscQp d = disc_qp(seed);
+    Qp q = d.q;
+    q.G = Eigen::MatrixXd::Zero(1, 10);
+    q.G(0, 9) = 1.0;
+    DenseOperator A(q.A);
+    SerialReducer red;
+    SmalbeOptions opt;
+    opt.rtol = 1e-12;
+    QuadraticProgram qp = qp_of(A, q, false);
+    qp.constraints = d.set;
+    Vec x = Vec::Zero(10);
+    ASSERT_EQ(smalbe(qp, estimate_norm(A, Vec::Ones(10), red, 200, 1e-10), x, red, opt).reason,
+              StopReason::converged);
+    // The reference on the first 9 entries (x_9 = 0 removes row and column 9).
+    const Eigen::MatrixXd A9 = q.A.topLeftCorner(9, 9);
+    const SeparableSet set9(d.set->lower().head(9), d.set->upper().head(9), d.set->discs(),
+                            d.set->centers(), d.set->radii());
+    const Vec ref = projected_gradient_reference(A9, q.b.head(9), set9);
+    EXPECT_LT((x.head(9) - ref).norm(), 1e-8) << seed;
+    EXPECT_LT(std::abs(x[9]), 1e-9);
+  }
+}
+
+TEST(QpTransforms, SeparableSetRefusesBadDiscsAndShiftsItsCenters) {
+  const Vec none = Vec::Constant(4, -inf), up = Vec::Constant(4, inf);
+  EXPECT_THROW(SeparableSet(none, up, {{0, 1}}, Vec::Zero(2), Vec{{-1.0}}), std::invalid_argument);
+  EXPECT_THROW(SeparableSet(none, up, {{0, 1}, {1, 2}}, Vec::Zero(4), Vec::Ones(2)),
+               std::invalid_argument);
+  Vec l = none;
+  l[0] = 0.0;
+  EXPECT_THROW(SeparableSet(l, up, {{0, 1}}, Vec::Zero(2), Vec::Ones(1)), std::invalid_argument);
+  EXPECT_THROW(SeparableSet(none, up, {{0, 4}}, Vec::Zero(2), Vec::Ones(1)), std::invalid_argument);
+  const SeparableSet s(none, up, {{2, 3}}, Vec{{1.0, 2.0}}, Vec{{0.5}});
+  const auto t = s.shifted(Vec{{0.0, 0.0, 0.25, -1.0}});
+  const auto& ts = dynamic_cast<const SeparableSet&>(*t);
+  EXPECT_EQ(ts.centers()[0], 0.75);
+  EXPECT_EQ(ts.centers()[1], 3.0);
+}
 
 TEST(QpTransforms, BoxBoundsRefuseEmptyIntervalsAndNan) {
   EXPECT_THROW(BoxBounds(Vec::Zero(2), Vec::Zero(3)), std::invalid_argument);

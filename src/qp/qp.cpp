@@ -1,6 +1,8 @@
 // The QP object and its transforms (qp.hpp).
 #include "htfeti/qp/qp.hpp"
 
+#include <cmath>
+#include <limits>
 #include <stdexcept>
 #include <string>
 
@@ -15,6 +17,54 @@ BoxBounds::BoxBounds(Vec lower, Vec upper) : lower_(std::move(lower)), upper_(st
       throw std::invalid_argument("BoxBounds: bound " + std::to_string(i) +
                                   " is empty or NaN (lower " + std::to_string(lower_[i]) +
                                   ", upper " + std::to_string(upper_[i]) + ")");
+}
+
+SeparableSet::SeparableSet(Vec lower, Vec upper, std::vector<Pair> discs, Vec centers, Vec radii)
+    : lower_(std::move(lower)),
+      upper_(std::move(upper)),
+      discs_(std::move(discs)),
+      centers_(std::move(centers)),
+      radii_(std::move(radii)) {
+  const Eigen::Index n = lower_.size();
+  const auto nd = static_cast<Eigen::Index>(discs_.size());
+  if (upper_.size() != n || centers_.size() != 2 * nd || radii_.size() != nd)
+    throw std::invalid_argument("SeparableSet: the sizes of the bounds, centers and radii differ");
+  for (Eigen::Index i = 0; i < n; ++i)
+    if (!(lower_[i] <= upper_[i]))
+      throw std::invalid_argument("SeparableSet: bound " + std::to_string(i) + " is empty or NaN");
+  std::vector<char> taken(n, 0);
+  const double inf = std::numeric_limits<double>::infinity();
+  for (Eigen::Index d = 0; d < nd; ++d) {
+    if (!(radii_[d] >= 0) || !std::isfinite(radii_[d]) || !centers_.segment(2 * d, 2).allFinite())
+      throw std::invalid_argument("SeparableSet: disc " + std::to_string(d) +
+                                  " has a negative or non-finite radius or center");
+    for (Eigen::Index i : discs_[d]) {
+      if (i < 0 || i >= n || taken[i] || lower_[i] != -inf || upper_[i] != inf)
+        throw std::invalid_argument("SeparableSet: disc " + std::to_string(d) +
+                                    " has an entry out of range, bounded or in another disc");
+      taken[i] = 1;
+    }
+  }
+}
+
+void SeparableSet::project(Vec& x) const {
+  x = x.cwiseMax(lower_).cwiseMin(upper_);
+  for (size_t d = 0; d < discs_.size(); ++d) {
+    const auto [i, j] = discs_[d];
+    const double dx = x[i] - centers_[2 * d], dy = x[j] - centers_[2 * d + 1];
+    const double len = std::hypot(dx, dy), r = radii_[static_cast<Eigen::Index>(d)];
+    if (len > r) {
+      const double s = len > 0 ? r / len : 0.0;
+      x[i] = centers_[2 * d] + s * dx, x[j] = centers_[2 * d + 1] + s * dy;
+    }
+  }
+}
+
+std::shared_ptr<const ConstraintSet> SeparableSet::shifted(const Vec& s) const {
+  Vec c = centers_;
+  for (size_t d = 0; d < discs_.size(); ++d)
+    c[2 * d] -= s[discs_[d][0]], c[2 * d + 1] -= s[discs_[d][1]];
+  return std::make_shared<SeparableSet>(lower_ - s, upper_ - s, discs_, c, radii_);
 }
 
 void QuadraticProgram::check() const {

@@ -4,21 +4,27 @@
 #include <limits>
 #include <stdexcept>
 
+#include "htfeti/qp/mpgp.hpp"
+
 namespace htfeti::qp {
 
 SmalbeResult smalbe(const QuadraticProgram& qp, double normA, Vec& x, const Reducer& red,
                     const SmalbeOptions& opt, const SmalbeHooks& hooks, const Progress& progress) {
   qp.check();
-  // MPRGP solves the inner problems: the constraint set must be bounds (lower, or a box).
+  // MPRGP solves the inner problems on bounds (lower, or a box), MPGP on a separable set with
+  // discs (Tresca friction in 3D); the outer loop is the same for both.
   static const Vec no_upper;
-  const Vec* lower = nullptr;
+  const Vec* lower = &no_upper;
   const Vec* upper = &no_upper;
+  const auto* separable = dynamic_cast<const SeparableSet*>(qp.constraints.get());
   if (const auto* lb = dynamic_cast<const LowerBounds*>(qp.constraints.get())) {
     lower = &lb->lower();
   } else if (const auto* box = dynamic_cast<const BoxBounds*>(qp.constraints.get())) {
     lower = &box->lower(), upper = &box->upper();
-  } else {
-    throw std::invalid_argument("SMALBE-M: MPRGP needs bounds (LowerBounds or BoxBounds)");
+  } else if (!separable) {
+    throw std::invalid_argument(
+        "SMALBE-M: the constraint set must be bounds (LowerBounds, BoxBounds: MPRGP) or a "
+        "SeparableSet (MPGP)");
   }
   if (!qp.equality_projector) throw std::invalid_argument("SMALBE-M: the QP has no equalities");
   if (x.size() != qp.size()) throw std::invalid_argument("SMALBE-M: x has the wrong size");
@@ -83,7 +89,9 @@ SmalbeResult smalbe(const QuadraticProgram& qp, double normA, Vec& x, const Redu
     rhs = b - nu;
     mo.max_iterations = opt.max_inner - res.inner_iterations;
     // After the first outer iteration g = H x - (b - nu) is kept up to date below.
-    const MprgpResult inner = mprgp(H, rhs, l, u, x, g, red, mo, stop, k > 0, &work);
+    const MprgpResult inner = separable
+                                  ? mpgp(H, rhs, *separable, x, g, red, mo, stop, k > 0, &work)
+                                  : mprgp(H, rhs, l, u, x, g, red, mo, stop, k > 0, &work);
     // Q x afresh at the inner solve's exit: the outer update and the global test use it, and the
     // next inner solve starts its tracked image from it (round-off of the updates does not carry).
     Q.apply(x, qx);

@@ -31,6 +31,8 @@
 // Stops when the caller's test holds for the projected gradient g^P = phi + beta.
 #pragma once
 
+#include <vector>
+
 #include "htfeti/qp/operator.hpp"
 
 namespace htfeti::qp {
@@ -63,6 +65,7 @@ struct MprgpResult {
 /// so that nothing is allocated after the first.
 struct MprgpWorkspace {
   Vec phi, beta, p, Ap, z;
+  std::vector<int> disc_of;  ///< MPGP: the disc of each entry
 };
 
 /// stop(x, g, ||g^P||) decides convergence. x: start in (projected onto the bounds), solution out;

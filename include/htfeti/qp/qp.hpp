@@ -13,7 +13,9 @@
 // and borrow() wraps an operator the caller keeps alive (no ownership).
 #pragma once
 
+#include <array>
 #include <memory>
+#include <vector>
 
 #include "htfeti/qp/operator.hpp"
 
@@ -63,6 +65,33 @@ class BoxBounds final : public ConstraintSet {
 
  private:
   Vec lower_, upper_;
+};
+
+/// l_i <= x_i <= u_i on single entries and, on disjoint pairs of entries (i, j) whose bounds are
+/// infinite, discs |(x_i, x_j) - c| <= r: the separable convex set of Tresca friction in 3D (the
+/// two tangential multipliers of a contact node lie in a disc of radius g A, the normal one is
+/// bounded below). MPGP (mpgp.hpp) solves with it; on entries without a disc it acts as
+/// BoxBounds. Over MPI each rank holds the discs of its own entries.
+class SeparableSet final : public ConstraintSet {
+ public:
+  using Pair = std::array<Eigen::Index, 2>;
+  /// centers: 2 per disc. Throws std::invalid_argument when the sizes differ, a bound is NaN or
+  /// empty, a disc's entries are out of range, shared with another disc or bounded, or a radius
+  /// is negative or NaN.
+  SeparableSet(Vec lower, Vec upper, std::vector<Pair> discs, Vec centers, Vec radii);
+  const Vec& lower() const { return lower_; }
+  const Vec& upper() const { return upper_; }
+  const std::vector<Pair>& discs() const { return discs_; }
+  const Vec& centers() const { return centers_; }
+  const Vec& radii() const { return radii_; }
+  Eigen::Index size() const override { return lower_.size(); }
+  void project(Vec& x) const override;
+  std::shared_ptr<const ConstraintSet> shifted(const Vec& s) const override;
+
+ private:
+  Vec lower_, upper_;
+  std::vector<Pair> discs_;
+  Vec centers_, radii_;
 };
 
 /// A shared pointer to an operator that the caller keeps alive (not owned).

@@ -94,13 +94,21 @@ void print_summary(const nlohmann::json& r) {
       r["objective"].get<double>(), k["equality_residual"].get<double>(),
       k["max_violation"].get<double>(), k["min_multiplier"].get<double>(),
       k["complementarity"].get<double>());
-  if (r.contains("friction")) {
-    const auto& f = r["friction"];
-    std::printf(
-        "  Tresca friction (%lld tangential rows): tangential force %.6e, %lld rows in stick, "
-        "%lld in slip\n",
-        r["friction_rows"].get<long long>(), f["tangential_force"].get<double>(),
-        f["stick_rows"].get<long long>(), f["slip_rows"].get<long long>());
+  if (r.contains("contact_summary"))
+    for (const auto& c : r["contact_summary"]) {
+      if (!c.contains("stick_nodes")) continue;
+      const auto& tf = c["tangential_force"];
+      std::string t = tf.is_number() ? std::to_string(tf.get<double>()) : tf.dump();
+      std::printf(
+          "  friction on %s: tangential force %s, %lld nodes in stick, %lld in slip, %lld "
+          "open\n",
+          c["group"].get<std::string>().c_str(), t.c_str(), c["stick_nodes"].get<long long>(),
+          c["slip_nodes"].get<long long>(), c["open_nodes"].get<long long>());
+    }
+  if (r["solver"].contains("coulomb")) {
+    const auto& cf = r["solver"]["coulomb"];
+    std::printf("  Coulomb fixed point: %d Tresca solves, %s\n", cf["solves"].get<int>(),
+                cf["converged"].get<bool>() ? "converged" : "NOT converged");
   }
   const auto& t = r["timings"];
   std::printf(

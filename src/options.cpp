@@ -182,6 +182,16 @@ void add_qp_options(std::vector<OptionSpec>& t) {
       "max_iterations", "--max-it",
       "iteration limit: PCG iterations, or SMALBE-M outer iterations (0: 1000 / 200)",
       [](RunOptions& r) -> int& { return r.solve.max_iterations; }, 0, 100000000));
+  t.push_back(number(
+      "coulomb_rtol", "--coulomb-rtol",
+      "Coulomb friction: the fixed point on the slip bound stops when the bounds change by at "
+      "most this, relative",
+      [](RunOptions& r) -> double& { return r.solve.coulomb_rtol; },
+      [](double x) -> const char* { return x > 0 && x < 1 ? nullptr : "must lie in (0, 1)"; }));
+  t.push_back(integer(
+      "coulomb_max_iterations", "--coulomb-max-it",
+      "Coulomb friction: at most this many Tresca solves in the fixed point",
+      [](RunOptions& r) -> int& { return r.solve.coulomb_max_iterations; }, 1, 10000));
   t.push_back(choice(
       "solver", "norm_estimate", "--norm-estimate",
       "SMALBE-M's estimate of ||PFP||: power (power method) | lanczos (largest Ritz value of the "

@@ -274,6 +274,34 @@ void read_physics(const toml::table& root, ProblemSpec& spec) {
   }
 }
 
+// friction = { law = "tresca", bound = g } or { law = "coulomb", coefficient = mu }.
+void read_friction(const toml::node& fn, const std::string& where, ProblemSpec::Contact& c) {
+  const std::string fw = where + ".friction";
+  if (!fn.is_table())
+    bad(fw,
+        "must be a table: friction = { law = \"tresca\", bound = ... } or { law = "
+        "\"coulomb\", coefficient = ... }");
+  const toml::table& ft = *fn.as_table();
+  check_keys(ft, fw, {"law", "bound", "coefficient"});
+  const std::string law = get_string(ft, fw, "law", "", true);
+  if (law == "tresca") {
+    if (ft.contains("coefficient")) bad(fw + ".coefficient", "belongs to Coulomb friction");
+    if (!ft.contains("bound")) bad(fw + ".bound", "missing (the slip bound, force per area)");
+    c.slip_bound = get_double(ft, fw, "bound", 0);
+    if (!(c.slip_bound >= 0) || !std::isfinite(c.slip_bound))
+      bad(fw + ".bound", "must be a finite number >= 0");
+  } else if (law == "coulomb") {
+    if (ft.contains("bound")) bad(fw + ".bound", "belongs to Tresca friction");
+    if (!ft.contains("coefficient"))
+      bad(fw + ".coefficient", "missing (the friction coefficient mu)");
+    c.friction_coefficient = get_double(ft, fw, "coefficient", 0);
+    if (!(c.friction_coefficient >= 0) || !std::isfinite(c.friction_coefficient))
+      bad(fw + ".coefficient", "must be a finite number >= 0");
+  } else {
+    bad(fw + ".law", "must be \"tresca\" or \"coulomb\"");
+  }
+}
+
 // [[dirichlet]], [[load]] and [[contact]] on named groups.
 void read_conditions(const toml::table& root, ProblemSpec& spec) {
   auto array_of_tables = [&](const char* name) {
@@ -362,11 +390,8 @@ void read_conditions(const toml::table& root, ProblemSpec& spec) {
         if (!(c.search_distance > 0) || !std::isfinite(c.search_distance))
           bad(where + ".search_distance", "must be a finite number > 0");
       }
-      if (t->contains("friction"))
-        bad(where + ".friction",
-            "friction between bodies is not supported yet (only against "
-            "a rigid obstacle)");
       if (spec.physics.kind == PhysicsKind::elasticity) {
+        if (const toml::node* fn = t->get("friction")) read_friction(*fn, where, c);
         spec.contact.push_back(c);
         continue;
       }
@@ -389,21 +414,7 @@ void read_conditions(const toml::table& root, ProblemSpec& spec) {
     for (double& v : c.direction) v /= std::sqrt(norm);
     const toml::node* g = t->get("gap");
     c.gap = g ? number_or_expression(*g, where + ".gap") : "0";
-    if (const toml::node* fn = t->get("friction")) {
-      const std::string fw = where + ".friction";
-      if (!fn->is_table()) bad(fw, "must be a table: friction = { law = \"tresca\", bound = ... }");
-      const toml::table& ft = *fn->as_table();
-      check_keys(ft, fw, {"law", "bound", "coefficient"});
-      const std::string law = get_string(ft, fw, "law", "", true);
-      if (law == "coulomb")
-        bad(fw + ".law", "\"coulomb\" is not supported yet (Tresca is: law = \"tresca\")");
-      if (law != "tresca") bad(fw + ".law", "must be \"tresca\"");
-      if (ft.contains("coefficient")) bad(fw + ".coefficient", "belongs to Coulomb friction");
-      if (!ft.contains("bound")) bad(fw + ".bound", "missing (the slip bound, force per area)");
-      c.slip_bound = get_double(ft, fw, "bound", 0);
-      if (!(c.slip_bound >= 0) || !std::isfinite(c.slip_bound))
-        bad(fw + ".bound", "must be a finite number >= 0");
-    }
+    if (const toml::node* fn = t->get("friction")) read_friction(*fn, where, c);
     spec.contact.push_back(c);
   }
 }

@@ -120,10 +120,7 @@ QpSolve solve_with_contact(DualProblem& dual, DualOperators& ops, Vec& lambda,
   dual_qp.linear = dual.d();
   // Bounds: lambda_I >= 0 on contact rows; with Tresca friction also -g <= lambda_T <= g on the
   // tangential rows (a box: the same MPRGP).
-  if (dual.has_friction())
-    dual_qp.constraints = std::make_shared<qp::BoxBounds>(dual.lower_bounds(), dual.upper_bounds());
-  else
-    dual_qp.constraints = std::make_shared<qp::LowerBounds>(dual.lower_bounds());
+  dual_qp.constraints = dual.constraint_set();
   dual_qp.equality_projector = qp::borrow(ops.P);
   // lambda = lambda~ + x: b = P(d - F lambda~), x_I >= -lambda~_I, A = P F P.
   qp::QuadraticProgram qp = qp::enforce_by_projector(qp::homogenize(dual_qp, dual.lambda_tilde()));
@@ -169,7 +166,7 @@ QpSolve solve_with_contact(DualProblem& dual, DualOperators& ops, Vec& lambda,
       y += (v - pw) / rho;
     };
   Vec x = Vec::Zero(n);
-  const auto r = qp::smalbe(qp, normA, x, red, so, hooks, progress);
+  auto r = qp::smalbe(qp, normA, x, red, so, hooks, progress);
   lambda = qp.shift + x;
   QpSolve out;
   out.outer = r.outer_iterations;
@@ -177,7 +174,40 @@ QpSolve solve_with_contact(DualProblem& dual, DualOperators& ops, Vec& lambda,
   out.matvecs = r.hessian_applications;
   out.converged = r.reason == qp::StopReason::converged;
   out.reason = to_string(r.reason);
-  out.solver = {{"algorithm", "smalbe-m+mprgp"},
+  // Coulomb friction: the fixed point on the slip bound. The first solve had bound 0 on the
+  // Coulomb rows (frictionless); each next one takes mu lambda_n of the last and starts from its
+  // solution (the set changes, the QP's operators and shift do not).
+  nlohmann::json history = nlohmann::json::array();
+  bool fixed_point = !dual.has_coulomb();
+  int solves = 1;
+  for (int it = 1; !fixed_point && out.converged; ++it) {
+    const auto [change, size] = dual.update_coulomb_bounds(lambda, false);
+    const double rel = size > 0 ? change / size : 0.0;
+    history.push_back(rel);
+    // Attainable: the bounds come from multipliers solved to rtol, and change from one solve to
+    // the next by about 5 rtol at the fixed point (measured), so never less than 10 rtol is asked.
+    if (rel <= std::max(options.coulomb_rtol, 10 * options.rtol)) {
+      fixed_point = true;
+      break;
+    }
+    if (it >= options.coulomb_max_iterations) break;
+    dual.update_coulomb_bounds(lambda, true);
+    qp.constraints = dual.constraint_set()->shifted(qp.shift);
+    r = qp::smalbe(qp, normA, x, red, so, hooks, progress);
+    ++solves;
+    lambda = qp.shift + x;
+    out.outer += r.outer_iterations;
+    out.inner += r.inner_iterations;
+    out.matvecs += r.hessian_applications;
+    out.converged = r.reason == qp::StopReason::converged;
+    out.reason = to_string(r.reason);
+  }
+  if (out.converged && !fixed_point) {
+    out.converged = false;
+    out.reason = "coulomb_fixed_point";
+  }
+  const bool discs = dynamic_cast<const qp::SeparableSet*>(qp.constraints.get()) != nullptr;
+  out.solver = {{"algorithm", discs ? "smalbe-m+mpgp" : "smalbe-m+mprgp"},
                 {"projected_gradient", r.projected_gradient},
                 {"equality_residual", r.equality_residual},
                 {"rhs_norm", r.rhs_norm},
@@ -195,6 +225,10 @@ QpSolve solve_with_contact(DualProblem& dual, DualOperators& ops, Vec& lambda,
                 {"cg_steps", r.cg_steps},
                 {"expansion_steps", r.expansion_steps},
                 {"proportioning_steps", r.proportioning_steps}};
+  // The fixed point's history: per step the relative change of the slip bounds.
+  if (dual.has_coulomb())
+    out.solver["coulomb"] = {
+        {"solves", solves}, {"bound_changes", history}, {"converged", fixed_point}};
   return out;
 }
 
@@ -432,6 +466,16 @@ void report_solution(nlohmann::json& rep, const Model& model, DualProblem& dual,
       e["max_penetration"] = summary[i].max_penetration;
       e["resultant"] = std::vector<double>(summary[i].resultant.begin(),
                                            summary[i].resultant.begin() + model.dim());
+      if (summary[i].friction) {
+        // 2D: the force along t = (-n_y, n_x); 3D: the vector in the global frame.
+        e["tangential_force"] =
+            model.dim() == 2 ? nlohmann::json(summary[i].tangential_force)
+                             : nlohmann::json(std::vector<double>(summary[i].tangential.begin(),
+                                                                  summary[i].tangential.end()));
+        e["open_nodes"] = summary[i].open;
+        e["stick_nodes"] = summary[i].stick;
+        e["slip_nodes"] = summary[i].slip;
+      }
       list.push_back(e);
     }
     rep["contact_summary"] = list;

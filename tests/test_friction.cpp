@@ -124,3 +124,127 @@ TEST(TrescaFriction, NoTangentialRowWhereDirichletFixesTheTangent) {
   EXPECT_EQ(out.report["friction_rows"].get<long long>(), 40);
   EXPECT_EQ(out.report["inequalities"].get<long long>(), 41);
 }
+
+// Coulomb in 2D: the fixed point on the slip bound (mu times the normal pressure of the last
+// solve). A large drag slips everywhere: the plane holds the block back with exactly mu N,
+// N = p L the load.
+TEST(CoulombFriction, FullSlipTransmitsMuTimesTheLoad) {
+  Comm comm;
+  ProblemSpec spec = block_on_plane(0.3, 0.1, -1);
+  spec.contact[0].friction_coefficient = 0.2;
+  SolveOptions opt;
+  opt.rtol = 1e-10;
+  opt.coulomb_rtol = 1e-12;
+  const auto out = solve(std::shared_ptr<const Model>(make_model(spec)), opt, comm);
+  ASSERT_TRUE(out.converged) << out.report["stop_reason"];
+  ASSERT_TRUE(out.report["solver"]["coulomb"]["converged"].get<bool>());
+  const auto& c = out.report["contact_summary"][0];
+  EXPECT_EQ(c["slip_nodes"].get<long long>(), 41);
+  EXPECT_NEAR(c["tangential_force"].get<double>(), -0.2 * kPressure * kLength,
+              1e-8 * kPressure * kLength);
+  EXPECT_NEAR(c["normal_force"].get<double>(), kPressure * kLength, 1e-8 * kPressure * kLength);
+}
+
+TEST(CoulombFriction, SmallDragSticksAndTheFixedPointConverges) {
+  Comm comm;
+  ProblemSpec spec = block_on_plane(0.0, 1e-4, -1);
+  spec.contact[0].friction_coefficient = 0.5;
+  SolveOptions opt;
+  opt.rtol = 1e-10;
+  const auto out = solve(std::shared_ptr<const Model>(make_model(spec)), opt, comm);
+  ASSERT_TRUE(out.converged) << out.report["stop_reason"];
+  const auto& cf = out.report["solver"]["coulomb"];
+  EXPECT_TRUE(cf["converged"].get<bool>());
+  EXPECT_GE(cf["solves"].get<int>(), 2);  // frictionless first, then mu p
+  const auto& c = out.report["contact_summary"][0];
+  EXPECT_EQ(c["stick_nodes"].get<long long>(), 41);
+  EXPECT_LT(std::abs(c["tangential_force"].get<double>()), 0.5 * kPressure * kLength);
+}
+
+namespace {
+
+// The 3D block [0, 2] x [0, 2] x [0, 1] of 4 x 4 x 2 hex8 in 2 x 2 x 1 subdomains, nu = 0 (no
+// spreading: a full slip is along the drag exactly), pressed on the plane z = 0 by p on its top
+// and dragged by d in x there; friction: Tresca's g or Coulomb's mu.
+constexpr double kSide = 2.0;
+ProblemSpec block3d_on_plane(double drag, double slip_bound, double mu = -1) {
+  ProblemSpec s;
+  s.box.dim = 3;
+  s.box.cell = CellType::hex8;
+  s.box.size = {kSide, kSide, 1.0};
+  s.box.elements = {4, 4, 2};
+  s.physics.kind = PhysicsKind::elasticity;
+  s.physics.dim = 3;
+  s.physics.material = {1000.0, 0.0};
+  s.dirichlet.push_back({"z1", {drag, 0, 0}, {0, 1}});
+  s.loads.push_back({"z1", ProblemSpec::Load::traction, {0, 0, -kPressure}});
+  ProblemSpec::Contact c;
+  c.group = "z0";
+  c.direction = {0, 0, -1};
+  c.gap = "0";
+  c.slip_bound = slip_bound;
+  c.friction_coefficient = mu;
+  s.contact.push_back(c);
+  s.subdomains = {2, 2, 1};
+  return s;
+}
+
+}  // namespace
+
+// Tresca in 3D: a disc |lambda_t| <= g A per node (MPGP inside SMALBE-M).
+TEST(TrescaFriction3D, FullSlipTransmitsTheBoundTimesTheArea) {
+  Comm comm;
+  const double g = 1.0, area = kSide * kSide;
+  const auto out = run(block3d_on_plane(0.1, g), comm);
+  ASSERT_TRUE(out.converged) << out.report["stop_reason"];
+  EXPECT_EQ(out.report["solver"]["algorithm"], "smalbe-m+mpgp");
+  EXPECT_EQ(out.report["friction_rows"].get<long long>(), 2 * 25);
+  const auto& c = out.report["contact_summary"][0];
+  EXPECT_EQ(c["slip_nodes"].get<long long>(), 25);
+  const auto t = c["tangential_force"].get<std::vector<double>>();
+  ASSERT_EQ(t.size(), 3u);
+  EXPECT_NEAR(t[0], -g * area, 1e-8 * g * area);
+  EXPECT_NEAR(t[1], 0.0, 1e-8 * g * area);
+  EXPECT_NEAR(t[2], 0.0, 1e-8 * g * area);
+  EXPECT_NEAR(c["resultant"][2].get<double>(), kPressure * area, 1e-8 * kPressure * area);
+}
+
+TEST(TrescaFriction3D, SmallDragSticksAndAZeroBoundIsFrictionless) {
+  Comm comm;
+  const auto stuck = run(block3d_on_plane(1e-5, 1.0), comm);
+  ASSERT_TRUE(stuck.converged) << stuck.report["stop_reason"];
+  EXPECT_EQ(stuck.report["contact_summary"][0]["stick_nodes"].get<long long>(), 25);
+  const auto zero = run(block3d_on_plane(1e-3, 0.0), comm);
+  const auto none = run(block3d_on_plane(1e-3, -1), comm);
+  ASSERT_TRUE(zero.converged && none.converged);
+  const double e1 = zero.report["objective"], e2 = none.report["objective"];
+  EXPECT_NEAR(e1, e2, 1e-8 * std::abs(e2));
+}
+
+TEST(TrescaFriction3D, UnreachedBoundIsTheBottomHeldInPlane) {
+  // Stick everywhere: the problem of a bottom held in x and y by Dirichlet conditions.
+  Comm comm;
+  const auto fr = run(block3d_on_plane(1e-3, 1e6), comm);
+  ProblemSpec held = block3d_on_plane(1e-3, -1);
+  held.dirichlet.push_back({"z0", {0, 0, 0}, {0, 1}});
+  const auto h = run(held, comm);
+  ASSERT_TRUE(fr.converged && h.converged);
+  const double e1 = fr.report["objective"], e2 = h.report["objective"];
+  EXPECT_NEAR(e1, e2, 1e-8 * std::abs(e2));
+}
+
+TEST(CoulombFriction3D, FullSlipTransmitsMuTimesTheLoad) {
+  Comm comm;
+  const double mu = 0.3, area = kSide * kSide;
+  SolveOptions opt;
+  opt.rtol = 1e-10;
+  opt.coulomb_rtol = 1e-12;
+  const auto out =
+      solve(std::shared_ptr<const Model>(make_model(block3d_on_plane(0.1, -1, mu))), opt, comm);
+  ASSERT_TRUE(out.converged) << out.report["stop_reason"];
+  const auto& c = out.report["contact_summary"][0];
+  EXPECT_EQ(c["slip_nodes"].get<long long>(), 25);
+  const auto t = c["tangential_force"].get<std::vector<double>>();
+  EXPECT_NEAR(t[0], -mu * kPressure * area, 1e-8 * kPressure * area);
+  EXPECT_NEAR(t[1], 0.0, 1e-8 * kPressure * area);
+}

@@ -165,8 +165,7 @@ TEST(HotPath, SmalbeAllocatesNothingPerIteration) {
       qp::QuadraticProgram qp;
       qp.hessian = qp::borrow(A);
       qp.linear = b;
-      qp.constraints =
-          std::make_shared<qp::LowerBounds>(dual->lower_bounds() - dual->lambda_tilde());
+      qp.constraints = dual->constraint_set()->shifted(dual->lambda_tilde());
       qp.equality_projector = qp::borrow(P);
       DualReducer red(comm, *dual);
       qp::SmalbeOptions so;

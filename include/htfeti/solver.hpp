@@ -40,6 +40,13 @@ struct SolveOptions {
   /// product over many ranks. Projected CG (no contact) always takes 2.
   int coarse_steps_per_product = 2;
   bool progress = false;  ///< print one line per (outer) iteration on rank 0 (stderr)
+  /// Coulomb friction, the fixed point on the slip bound (docs/method.md): Tresca solves, each
+  /// with the bound mu lambda_n of the previous one, until the bounds change by at most
+  /// max(coulomb_rtol, 10 rtol) relative (||g_k - g_{k-1}|| <= that ||g_k||; the bounds come
+  /// from multipliers solved to rtol and move by about 5 rtol at the fixed point), at most
+  /// coulomb_max_iterations solves (then exit 3).
+  double coulomb_rtol = 1e-6;
+  int coulomb_max_iterations = 50;
   /// A robustness check of the iteration counts (bench/perturbation.py): every entry of the load
   /// f is multiplied by 1 + perturb_load r, with r in [-1, 1] a hash of the entry's global node
   /// and component (the same on every rank and thread). 0: the load as given.

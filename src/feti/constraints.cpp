@@ -252,25 +252,36 @@ void subdomain_rows(const FetiLayout& L, const SubdomainInput& in, std::vector<L
     for (int i = 0; i < dpn; ++i)
       if (c.direction[i] != 0.0) row.entries.push_back({c.node * dpn + i, w * c.direction[i]});
     out.push_back(std::move(row));
-    if (c.slip_bound >= 0 && dpn == 2) {
-      // Tresca friction in 2D: the tangential row t.(avg u_a), t = (-n_y, n_x), scaled as the
-      // normal row (its force is scale * lambda), with |lambda| <= g A / scale summed over the
-      // copies of the node (A: the node's contact area). No right-hand side: the tangential
+    if ((c.slip_bound >= 0 || c.friction_coefficient >= 0) && dpn >= 2) {
+      // Friction: the tangential rows t.(sum_j c_j avg u_j), t = (-n_y, n_x) in 2D, t1 and
+      // t2 = n x t1 in 3D, scaled as the normal row (their force is scale * lambda), with
+      // |lambda_t| <= g A / scale summed over the copies of the node (Tresca; A the row's contact
+      // area) or mu lambda_n (Coulomb, set between solves). No right-hand side: the tangential
       // displacement is free where the bound is reached (slip), zero below it (stick).
-      row = LocalRow{};
-      row.key = {0, c.node_a, 3, c.condition, 0, 0};
-      row.kind = MultiplierKind::friction;
-      row.owner_subdomain = c.owner_subdomain;
-      row.scale = scale;
-      row.condition = c.condition;
-      row.point = c.point;
-      row.direction = {-c.direction[1], c.direction[0], 0};
-      row.side = c.side;  // the contact force -B_I^T lambda takes it (contact_forces)
-      row.bound = c.slip_bound * c.area / scale;
-      for (int i = 0; i < dpn; ++i)
-        if (row.direction[i] != 0.0)
-          row.entries.push_back({c.node * dpn + i, w * row.direction[i]});
-      out.push_back(std::move(row));
+      const auto& n = c.direction;
+      std::array<std::array<double, 3>, 2> t{};
+      t[0] = dpn == 2 ? std::array<double, 3>{-n[1], n[0], 0} : c.tangent;
+      t[1] = {n[1] * t[0][2] - n[2] * t[0][1], n[2] * t[0][0] - n[0] * t[0][2],
+              n[0] * t[0][1] - n[1] * t[0][0]};
+      for (int m = 0; m < dpn - 1; ++m) {
+        row = LocalRow{};
+        row.key = {0, c.node_a, 3, c.condition, m, 0};
+        row.kind = MultiplierKind::friction;
+        row.owner_subdomain = c.owner_subdomain;
+        row.scale = scale;
+        row.weight = c.weight;
+        row.condition = c.condition;
+        row.point = c.point;
+        row.direction = t[m];
+        row.side = c.side;  // the contact force -B_I^T lambda takes it (contact_forces)
+        row.key_node = c.key;
+        row.bound = c.slip_bound >= 0 ? c.slip_bound * c.area / scale : 0.0;
+        row.mu = c.friction_coefficient;
+        for (int i = 0; i < dpn; ++i)
+          if (row.direction[i] != 0.0)
+            row.entries.push_back({c.node * dpn + i, w * row.direction[i]});
+        out.push_back(std::move(row));
+      }
     }
   }
   // 4. rows of averaged objects.

@@ -386,12 +386,12 @@ void DualProblem::finish_setup(Setup& st) {
   coarse_solve(coarse_work);
   lambda_tilde_.resize(n_own);
   apply_Gt(coarse_work, lambda_tilde_);
-  lower_.resize(n_own);
-  for (int k = 0; k < n_own; ++k)
-    lower_[k] = multipliers_.kind[k] == MultiplierKind::contact ? 0.0
-                : multipliers_.kind[k] == MultiplierKind::friction
-                    ? -multipliers_.friction_bound[k]
-                    : -std::numeric_limits<double>::infinity();
+  {
+    double mine = 0;
+    for (int k = 0; k < n_own; ++k)
+      mine = std::max(mine, multipliers_.friction_mu[k] >= 0 ? 1.0 : 0.0);
+    coulomb_ = comm_.max(mine) > 0;
+  }
   {
     std::vector<int> dofs_per_node(nsub);
     for (int s = 0; s < nsub; ++s) dofs_per_node[s] = subs_[s]->dofs_per_node();

@@ -6,7 +6,9 @@
 
 #include <algorithm>
 #include <limits>
+#include <map>
 #include <numeric>
+#include <stdexcept>
 
 #include "htfeti/parallel/key_numbering.hpp"
 
@@ -82,6 +84,32 @@ std::vector<std::vector<Subdomain::BEntry>> Multipliers::number(
   }
   inequalities = c.sum(my_inequalities);
   friction_rows = c.sum(my_friction);
+  // Friction rows: their normal row and (3D) their partner, found by key among the owned rows
+  // (a node's contact and friction rows have the same owner).
+  friction_mu.assign(n_own, -1.0);
+  friction_normal.assign(n_own, -1);
+  friction_partner.assign(n_own, -1);
+  if (friction_rows > 0) {
+    std::map<RowKey, int> owned;
+    for (size_t i = 0; i < keys.size(); ++i) {
+      const int k = layout.ext_index(index[i]);
+      if (k < n_own && kind[k] != MultiplierKind::gluing && kind[k] != MultiplierKind::dirichlet)
+        owned[keys[i]] = k;
+    }
+    for (const auto& [key, k] : owned) {
+      if (kind[k] != MultiplierKind::friction) continue;
+      friction_mu[k] = key_row[std::lower_bound(keys.begin(), keys.end(), key) - keys.begin()]->mu;
+      auto normal = owned.find({key[0], key[1], 2, key[3], 0, 0});
+      auto other = owned.find({key[0], key[1], 3, key[3], 1 - key[4], 0});
+      if (normal == owned.end())
+        throw std::logic_error("a friction row without its contact row on the same rank");
+      friction_normal[k] = normal->second;
+      if (fl.dim == 3) {
+        if (other == owned.end()) throw std::logic_error("a 3D friction row without its partner");
+        friction_partner[k] = other->second;
+      }
+    }
+  }
   // Friction rows: per subdomain, (first entry of the row, its part of the bound); contact
   // rows: (first entry, its part of the contact area).
   std::vector<std::vector<std::pair<size_t, double>>> bound_part(nsub), area_part(nsub);

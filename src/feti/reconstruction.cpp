@@ -76,8 +76,8 @@ std::vector<DualProblem::Vec> DualProblem::reconstruct(const Vec& lambda) {
   for (int k = 0; k < n_own; ++k) {
     const bool open = multipliers_.kind[k] == MultiplierKind::contact && !(lambda[k] > 0.0);
     // A friction row holds (t.u = 0) only in stick, below its bound.
-    const bool slip = multipliers_.kind[k] == MultiplierKind::friction &&
-                      !(std::abs(lambda[k]) < (1 - 1e-10) * multipliers_.friction_bound[k]);
+    const bool slip =
+        multipliers_.kind[k] == MultiplierKind::friction && friction_slips(k, lambda, 1e-10);
     if (open || slip) {
       weight[k] = 0.0;
       r[k] = 0.0;
@@ -213,21 +213,34 @@ std::vector<DualProblem::ContactSummary> DualProblem::contact_summary(const std:
   apply_B(u, bu);
   const int n_own = multipliers_.layout.n_owned();
   std::vector<ContactSummary> out(conditions);
-  Vec force(n_own), area(n_own);
+  Vec force(n_own), area(n_own), tangential(n_own);
   for (int c = 0; c < conditions; ++c) {
-    long long rows = 0, active = 0;
+    long long rows = 0, active = 0, friction_rows = 0, open = 0, stick = 0, slip = 0;
     double penetration = 0;
-    force.setZero(), area.setZero();
+    force.setZero(), area.setZero(), tangential.setZero();
     for (int k = 0; k < n_own; ++k) {
-      if (multipliers_.kind[k] != MultiplierKind::contact || multipliers_.contact_condition[k] != c)
-        continue;
+      if (multipliers_.contact_condition[k] != c) continue;
       const double s = multipliers_.contact_scale[k] * multipliers_.contact_weight[k];
-      ++rows;
-      penetration = std::max(penetration, -(multipliers_.rhs[k] - bu[k]) / s);
-      if (lambda[k] > 0) {
-        ++active;
-        force[k] = s * lambda[k];
-        area[k] = multipliers_.contact_area[k];
+      if (multipliers_.kind[k] == MultiplierKind::contact) {
+        ++rows;
+        penetration = std::max(penetration, -(multipliers_.rhs[k] - bu[k]) / s);
+        if (lambda[k] > 0) {
+          ++active;
+          force[k] = s * lambda[k];
+          area[k] = multipliers_.contact_area[k];
+        }
+      } else if (multipliers_.kind[k] == MultiplierKind::friction) {
+        // The force along the row's tangent; the state of its node (a 3D pair once).
+        ++friction_rows;
+        tangential[k] = -s * lambda[k];
+        const int other = multipliers_.friction_partner[k];
+        if (other >= 0 && other < k) continue;
+        if (!(lambda[multipliers_.friction_normal[k]] > 0))
+          ++open;
+        else if (friction_slips(k, lambda, 1e-6))
+          ++slip;
+        else
+          ++stick;
       }
     }
     out[c].rows = comm_.sum(rows);
@@ -235,23 +248,32 @@ std::vector<DualProblem::ContactSummary> DualProblem::contact_summary(const std:
     out[c].normal_force = sum(force);
     out[c].area = sum(area);
     out[c].max_penetration = comm_.max(penetration);
+    out[c].friction = comm_.sum(friction_rows) > 0;
+    if (out[c].friction) {
+      out[c].tangential_force = sum(tangential);
+      out[c].open = comm_.sum(open), out[c].stick = comm_.sum(stick), out[c].slip = comm_.sum(slip);
+    }
   }
   // The resultants: the condition of each row and lambda spread to the ranks that touch it,
-  // then per subdomain the sums over the entries on the key side, added in subdomain order.
+  // then per subdomain the sums over the entries on the key side, added in subdomain order
+  // (slots 0 .. conditions - 1: the normal rows; conditions .. 2 conditions - 1: friction).
   Vec cond = Vec::Constant(multipliers_.layout.n_ext(), -1.0);
-  for (int k = 0; k < n_own; ++k)
+  for (int k = 0; k < n_own; ++k) {
     if (multipliers_.kind[k] == MultiplierKind::contact)
       cond[k] = multipliers_.contact_condition[k];
+    if (multipliers_.kind[k] == MultiplierKind::friction)
+      cond[k] = conditions + multipliers_.contact_condition[k];
+  }
   multipliers_.layout.forward(cond.data());
   multipliers_.gather(lambda);
-  const size_t per = 3 * static_cast<size_t>(conditions);
+  const size_t per = 6 * static_cast<size_t>(conditions);
   std::vector<double> part(per * layout_.num_subdomains, 0.0);
   for (size_t s = 0; s < subs_.size(); ++s) {
     const int dpn = subs_[s]->dofs_per_node();
     double* f = &part[per * subs_[s]->id()];
     for (const auto& r : multipliers_.rows[s]) {
       const int c = static_cast<int>(cond[r.k]);
-      if (c >= 0 && c < conditions && r.side > 0)
+      if (c >= 0 && c < 2 * conditions && r.side > 0)
         f[3 * c + r.dof % dpn] -= r.value * multipliers_.ext_in[r.k];
     }
   }
@@ -260,7 +282,10 @@ std::vector<DualProblem::ContactSummary> DualProblem::contact_summary(const std:
                   comm_.raw());
   for (int s = 0; s < layout_.num_subdomains; ++s)
     for (int c = 0; c < conditions; ++c)
-      for (int d = 0; d < 3; ++d) out[c].resultant[d] += part[per * s + 3 * c + d];
+      for (int d = 0; d < 3; ++d) {
+        out[c].resultant[d] += part[per * s + 3 * c + d];
+        out[c].tangential[d] += part[per * s + 3 * (conditions + c) + d];
+      }
   return out;
 }
 
@@ -287,6 +312,53 @@ std::vector<DualProblem::Vec> DualProblem::contact_pressure_field(const Vec& lam
   return out;
 }
 
+std::shared_ptr<const qp::ConstraintSet> DualProblem::constraint_set() const {
+  const int n = multipliers_.layout.n_owned();
+  const double inf = std::numeric_limits<double>::infinity();
+  Vec lower(n), upper(n);
+  std::vector<qp::SeparableSet::Pair> discs;
+  std::vector<double> radii;
+  for (int k = 0; k < n; ++k) {
+    const MultiplierKind kind = multipliers_.kind[k];
+    lower[k] = kind == MultiplierKind::contact ? 0.0 : -inf;
+    upper[k] = inf;
+    if (kind != MultiplierKind::friction) continue;
+    const double bound = multipliers_.friction_bound[k];
+    const int other = multipliers_.friction_partner[k];
+    if (other < 0) {  // 2D: an interval
+      lower[k] = -bound, upper[k] = bound;
+    } else if (k < other) {  // 3D: one disc per node's pair
+      discs.push_back({k, other});
+      radii.push_back(bound);
+    }
+  }
+  if (!has_friction()) return std::make_shared<qp::LowerBounds>(std::move(lower));
+  if (layout_.dim == 2) return std::make_shared<qp::BoxBounds>(std::move(lower), std::move(upper));
+  Vec r = Eigen::Map<const Vec>(radii.data(), static_cast<Eigen::Index>(radii.size()));
+  return std::make_shared<qp::SeparableSet>(std::move(lower), std::move(upper), std::move(discs),
+                                            Vec::Zero(2 * r.size()), std::move(r));
+}
+
+std::pair<double, double> DualProblem::update_coulomb_bounds(const Vec& lambda, bool apply) {
+  const int n = multipliers_.layout.n_owned();
+  Vec change = Vec::Zero(n), value = Vec::Zero(n);
+  for (int k = 0; k < n; ++k) {
+    const double mu = multipliers_.friction_mu[k];
+    if (multipliers_.kind[k] != MultiplierKind::friction || mu < 0) continue;
+    const double bound = mu * std::max(lambda[multipliers_.friction_normal[k]], 0.0);
+    change[k] = bound - multipliers_.friction_bound[k];
+    value[k] = bound;
+    if (apply) multipliers_.friction_bound[k] = bound;
+  }
+  return {std::sqrt(dot(change, change)), std::sqrt(dot(value, value))};
+}
+
+bool DualProblem::friction_slips(int k, const Vec& lambda, double rel_tol) const {
+  const int other = multipliers_.friction_partner[k];
+  const double t = other < 0 ? std::abs(lambda[k]) : std::hypot(lambda[k], lambda[other]);
+  return !(t < (1 - rel_tol) * multipliers_.friction_bound[k]);
+}
+
 DualProblem::FrictionSummary DualProblem::friction_summary(const Vec& lambda,
                                                            double rel_tol) const {
   FrictionSummary f;
@@ -294,11 +366,13 @@ DualProblem::FrictionSummary DualProblem::friction_summary(const Vec& lambda,
   long long stick = 0, slip = 0;
   for (Eigen::Index k = 0; k < lambda.size(); ++k)
     if (multipliers_.kind[k] == MultiplierKind::friction) {
-      force[k] = -multipliers_.contact_scale[k] * lambda[k];  // on the body, along t
-      if (std::abs(lambda[k]) < (1 - rel_tol) * multipliers_.friction_bound[k])
-        ++stick;
-      else
+      const int other = multipliers_.friction_partner[k];
+      if (other < 0) force[k] = -multipliers_.contact_scale[k] * lambda[k];  // 2D: along t
+      if (other >= 0 && other < k) continue;  // 3D: a node's pair once
+      if (friction_slips(static_cast<int>(k), lambda, rel_tol))
         ++slip;
+      else
+        ++stick;
     }
   f.tangential_force = sum(force);
   f.stick = comm_.sum(stick);

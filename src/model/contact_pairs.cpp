@@ -74,6 +74,24 @@ ContactSurface surface_of(const Mesh& mesh, const MeshPartition& part, const std
 
 }  // namespace
 
+std::array<double, 3> reference_axis(const std::array<double, 3>& n) {
+  int d = 0;
+  for (int i = 1; i < 3; ++i)
+    if (std::abs(n[i]) < std::abs(n[d])) d = i;
+  std::array<double, 3> a{0, 0, 0};
+  a[d] = 1;
+  return a;
+}
+
+std::array<double, 3> friction_tangent(const std::array<double, 3>& n,
+                                       const std::array<double, 3>& a) {
+  const double an = a[0] * n[0] + a[1] * n[1] + a[2] * n[2];
+  std::array<double, 3> t{a[0] - an * n[0], a[1] - an * n[1], a[2] - an * n[2]};
+  const double len = std::sqrt(t[0] * t[0] + t[1] * t[1] + t[2] * t[2]);
+  for (double& v : t) v /= len;
+  return t;
+}
+
 ContactPairs::ContactPairs(const ProblemSpec& spec, const Physics& physics, const Mesh& mesh,
                            const MeshPartition& part) {
   const int dpn = physics.dofs_per_node();
@@ -111,6 +129,13 @@ ContactPairs::ContactPairs(const ProblemSpec& spec, const Physics& physics, cons
                                : 2.0 * std::max(largest_facet_diameter(mesh.coords, slave),
                                                 largest_facet_diameter(mesh.coords, master));
     const auto rows = mortar_rows(mesh.dim, mesh.coords, slave, master, info.search_distance);
+    info.slip_bound = c.slip_bound;
+    info.friction_coefficient = c.friction_coefficient;
+    // Friction in 3D: one reference axis for the condition, from the slave surface's mean normal.
+    std::array<double, 3> mean{0, 0, 0};
+    for (const auto& n : slave.normals)
+      for (int d = 0; d < 3; ++d) mean[d] += n[d];
+    const auto axis = reference_axis(mean);
     std::vector<int> snodes(slave.nodes);
     std::sort(snodes.begin(), snodes.end());
     const Expression gap(c.gap);
@@ -128,6 +153,7 @@ ContactPairs::ContactPairs(const ProblemSpec& spec, const Physics& physics, cons
       } else {
         r.normal = mr.normal;
         r.gap = mr.gap;
+        if (mesh.dim == 3) r.tangent = friction_tangent(r.normal, axis);
       }
       // A row on dofs that Dirichlet conditions hold all of repeats their rows: dropped.
       bool all_fixed = true;
@@ -183,6 +209,10 @@ void ContactPairs::add_rows(const SubdomainMesh& m, SubdomainInput& in) const {
       r.condition = row.condition;
       r.key = g == row.slave;
       r.area = r.key ? row.weight / r.copies : 0.0;
+      const Info& info = info_[row.condition];
+      r.slip_bound = info.slip_bound;
+      r.friction_coefficient = info.friction_coefficient;
+      r.tangent = row.tangent;
       in.contact.push_back(r);
     }
   }

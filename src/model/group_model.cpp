@@ -301,14 +301,13 @@ class GroupModel final : public Model {
       auto it = m.node_groups.find(c.group);
       if (it == m.node_groups.end() || !c.master.empty()) continue;  // pairs: below
       const Expression gap(c.gap);
-      // Friction: each node's share of the group's facets on this subdomain (summed over the
-      // copies later, in the FETI stage).
-      std::vector<double> area;
-      if (c.slip_bound >= 0) {
-        area.assign(m.num_nodes(), 0.0);
-        auto fg = m.facet_groups.find(c.group);
-        if (fg != m.facet_groups.end()) add_facet_shares(m, fg->second, area);
-      }
+      // Each node's share of the group's facets on this subdomain (summed over the copies
+      // later, in the FETI stage): the contact area of its row (pressure, Tresca's bound).
+      std::vector<double> area(m.num_nodes(), 0.0);
+      if (auto fg = m.facet_groups.find(c.group); fg != m.facet_groups.end())
+        add_facet_shares(m, fg->second, area);
+      const bool friction = c.slip_bound >= 0 || c.friction_coefficient >= 0;
+      const auto tangent = friction_tangent(c.direction, reference_axis(c.direction));
       std::set<int> done;
       for (int k : it->second) {
         if (!done.insert(k).second) continue;
@@ -331,14 +330,23 @@ class GroupModel final : public Model {
           throw std::invalid_argument("problem file: contact #" + std::to_string(ci + 1) +
                                       ".gap is not finite at (" + point_text(r.point) + ")");
         r.condition = static_cast<int>(ci);
-        if (c.slip_bound >= 0) {
-          // No tangential row where a Dirichlet condition already fixes t.u (t = (-n_y, n_x)):
-          // it would repeat that row.
-          const double t[2] = {-c.direction[1], c.direction[0]};
-          bool t_fixed = true;
-          for (int d = 0; d < 2; ++d)
-            if (t[d] != 0 && !fixed.count({k, d})) t_fixed = false;
-          if (!t_fixed) r.slip_bound = c.slip_bound, r.area = area[k];
+        r.area = area[k];
+        if (friction) {
+          // No tangential rows where a Dirichlet condition fixes a component of the tangent
+          // plane: in 2D they would repeat its row (t = (-n_y, n_x) fixed); in 3D, where the
+          // node's two rows form a disc, a fixed component would make one of them repeat it.
+          bool t_fixed = dpn == 2;
+          for (int d = 0; d < dpn; ++d) {
+            const bool in_plane =
+                dpn == 2 ? c.direction[1 - d] != 0 : std::abs(c.direction[d]) < 1 - 1e-12;
+            if (dpn == 2 && in_plane && !fixed.count({k, d})) t_fixed = false;
+            if (dpn == 3 && in_plane && fixed.count({k, d})) t_fixed = true;
+          }
+          if (!t_fixed) {
+            r.slip_bound = c.slip_bound;
+            r.friction_coefficient = c.friction_coefficient;
+            r.tangent = tangent;
+          }
         }
         in.contact.push_back(r);
       }
@@ -421,6 +429,8 @@ class GroupModel final : public Model {
           {"direction", std::vector<double>(c.direction.begin(), c.direction.begin() + dpn)},
           {"gap", c.gap}};
       if (c.slip_bound >= 0) cj["friction"] = {{"law", "tresca"}, {"bound", c.slip_bound}};
+      if (c.friction_coefficient >= 0)
+        cj["friction"] = {{"law", "coulomb"}, {"coefficient", c.friction_coefficient}};
       conditions["contact"].push_back(cj);
     }
     j["conditions"] = conditions;
@@ -470,13 +480,13 @@ class GroupModel final : public Model {
         require(c.group, facets, what + " (the slave surface of contact between bodies)");
         require(c.master, facets, what + ".master (a master surface)");
       }
-      if (c.slip_bound < 0) continue;
-      if (physics_.kind != PhysicsKind::elasticity || physics_.dim != 2)
-        throw std::invalid_argument(
-            "problem file: " + what +
-            ".friction: Tresca friction is supported for 2D elasticity only (3D needs disc "
-            "constraints on the tangential multipliers, not yet implemented)");
-      require(c.group, facets, what + ".friction (the slip bound acts on the contact area)");
+      if (c.slip_bound < 0 && c.friction_coefficient < 0) continue;
+      if (physics_.kind != PhysicsKind::elasticity)
+        throw std::invalid_argument("problem file: " + what +
+                                    ".friction: friction needs elasticity (a tangential "
+                                    "displacement), not " +
+                                    to_string(physics_.kind));
+      require(c.group, facets, what + ".friction (the friction acts on the contact area)");
     }
     check_components();
   }

@@ -43,7 +43,8 @@
 
 namespace htfeti {
 
-/// friction: the tangential row of a contact row with Tresca friction, |lambda| <= bound.
+/// friction: a tangential row of a contact row with friction (one in 2D, two in 3D), |lambda| <=
+/// bound (in 3D the node's two rows together: a disc).
 enum class MultiplierKind : std::uint8_t { gluing, dirichlet, contact, friction };
 
 using RowKey = std::array<long long, 6>;
@@ -60,6 +61,7 @@ struct LocalRow {
   double area = 0;          ///< contact: this subdomain's part of the row's contact area
   int condition = 0;        ///< contact, friction: the contact condition (problem-file order)
   double bound = 0;         ///< friction: this subdomain's part of the bound on |lambda| (summed)
+  double mu = -1;           ///< friction: Coulomb's coefficient (< 0: Tresca, the bound above)
   int side = 0;             ///< contact: +1 for the part on node a, -1 on node b
   bool key_node = false;    ///< contact: the part is on the node the row is keyed by
   std::array<double, 3> point{0, 0, 0};         ///< contact: node a

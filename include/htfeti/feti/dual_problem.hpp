@@ -46,6 +46,7 @@
 #include "htfeti/feti/preconditioner.hpp"
 #include "htfeti/feti/sparse_cholesky.hpp"
 #include "htfeti/parallel/dual_layout.hpp"
+#include "htfeti/qp/qp.hpp"
 
 namespace htfeti {
 
@@ -235,15 +236,26 @@ class DualProblem {
   const Vec& e() const { return e_; }
   /// lambda~ = G~^T (G~ G~^T)^{-1} e~: the least-squares solution of G~ lambda = e~.
   const Vec& lambda_tilde() const { return lambda_tilde_; }
-  /// Lower bounds on the owned multipliers: 0 on contact rows, -bound on friction rows,
-  /// -infinity elsewhere.
-  const Vec& lower_bounds() const { return lower_; }
-  /// Upper bounds: the bound on friction rows, +infinity elsewhere.
-  const Vec& upper_bounds() const { return multipliers_.friction_bound; }
-  /// Whether some contact condition has Tresca friction (tangential rows with box bounds).
+  /// The feasible set of the owned multipliers (the dual problem's Omega): lambda_I >= 0 on the
+  /// contact rows (qp::LowerBounds) and, with friction, |lambda_t| <= bound: an interval per
+  /// tangential row in 2D (qp::BoxBounds), a disc per node's two tangential rows in 3D
+  /// (qp::SeparableSet, solved by MPGP).
+  std::shared_ptr<const qp::ConstraintSet> constraint_set() const;
+  /// Whether some contact condition has friction (tangential rows), and Coulomb friction.
   bool has_friction() const { return multipliers_.friction_rows > 0; }
+  bool has_coulomb() const { return coulomb_; }
+  /// Coulomb: the bound of every Coulomb friction row is mu max(lambda_n, 0), lambda_n of its
+  /// node's normal row (a fixed-point step on the slip bound); returns ||new - old|| and ||new||
+  /// over the Coulomb rows (global) and, with `apply`, makes them the bounds in effect (without,
+  /// the bounds the multipliers were solved with stay: the reconstruction tells stick from slip
+  /// by them). Collective.
+  std::pair<double, double> update_coulomb_bounds(const Vec& lambda, bool apply);
+  /// Whether owned friction row k slips at lambda: |lambda_k| (2D) or the length of its node's
+  /// pair (3D) is at its bound within rel_tol.
+  bool friction_slips(int k, const Vec& lambda, double rel_tol) const;
   /// Per friction condition summed over ranks: the total tangential force sum scale * lambda
-  /// and the rows in stick (|lambda| below its bound by more than rel_tol) and in slip.
+  /// along t (2D), and the contact nodes with friction in stick (their tangential multipliers
+  /// below the bound by more than rel_tol) and in slip.
   struct FrictionSummary {
     double tangential_force = 0;
     long long stick = 0, slip = 0;
@@ -299,10 +311,18 @@ class DualProblem {
   /// `resultant`: the force of the condition's rows on the body of its key nodes (the slave
   /// body; the body on an obstacle), -B_I^T lambda summed over those nodes, in the global frame
   /// (Laplace: its one component first).
+  /// With friction also: `tangential` the friction rows' force on the same body (global
+  /// frame), `tangential_force` its sum along each row's tangent (2D: a number along
+  /// t = (-n_y, n_x)), and the nodes with friction rows that are open (lambda_n = 0), in stick
+  /// and in slip (their tangential multipliers at the bound within 1e-6).
   struct ContactSummary {
     long long rows = 0, active = 0;
     double area = 0, normal_force = 0, max_penetration = 0;
     std::array<double, 3> resultant{0, 0, 0};
+    bool friction = false;
+    std::array<double, 3> tangential{0, 0, 0};
+    double tangential_force = 0;
+    long long open = 0, stick = 0, slip = 0;
   };
   std::vector<ContactSummary> contact_summary(const std::vector<Vec>& u, const Vec& lambda,
                                               int conditions);
@@ -384,7 +404,8 @@ class DualProblem {
   // The coarse space: G~, its factor, the projector and the coarse image.
   CoarseSpace coarse_{layout_, comm_, multipliers_};
   int reconstruction_null_ = 0;
-  Vec d_, e_, lambda_tilde_, lower_;
+  Vec d_, e_, lambda_tilde_;
+  bool coulomb_ = false;  // some friction row is Coulomb's
   // work arrays (allocated once)
   std::vector<std::vector<Vec>> x_;           // per cluster, per subdomain
   std::vector<std::vector<double>> contrib_;  // per subdomain, per row entry

@@ -98,8 +98,13 @@ struct ContactRow {
   /// summed over the copies, the node's area; 0 where the group has no facets); a mortar row,
   /// W on the slave node's entry (0 on the others).
   double area = 0;
-  /// Tresca friction (2D): the slip bound per unit area, < 0 without friction.
+  /// Friction on the row: Tresca's slip bound per unit area (>= 0), or Coulomb's coefficient
+  /// mu (>= 0; the bound is then mu times the normal pressure of the previous solve); < 0: none.
+  /// The tangential rows t.(sum_j c_j avg u_j) take the normal row's coefficients: in 2D
+  /// t = (-n_y, n_x), in 3D t1 = `tangent` (unit, orthogonal to n) and t2 = n x t1.
   double slip_bound = -1;
+  double friction_coefficient = -1;
+  std::array<double, 3> tangent{0, 0, 0};
 };
 
 /// One local subdomain's input: moved into the FETI stage, which keeps what it needs.

@@ -95,8 +95,14 @@ struct Multipliers {
   // the slave node).
   std::vector<MultiplierKind> kind;
   Vec rhs;
-  /// Per owned entry: the bound on |lambda| of a friction row (+infinity elsewhere).
+  /// Per owned entry: the bound on |lambda| of a friction row (+infinity elsewhere; in 3D the
+  /// bound on the length of the node's two rows together, the same on both).
   Vec friction_bound;
+  /// Per owned friction row: Coulomb's coefficient (< 0: Tresca), the owned index of the normal
+  /// contact row of its node and condition, and in 3D the node's other friction row (-1 in 2D
+  /// and on other rows).
+  std::vector<double> friction_mu;
+  std::vector<int> friction_normal, friction_partner;
   std::vector<double> contact_scale, contact_weight, contact_gap, contact_area;
   std::vector<int> contact_condition;
   std::vector<std::array<double, 3>> contact_point;

@@ -25,6 +25,15 @@
 
 namespace htfeti {
 
+/// The coordinate axis least aligned with n (the lowest on ties): the reference from which the
+/// first tangent of a contact condition's friction rows is made in 3D.
+std::array<double, 3> reference_axis(const std::array<double, 3>& n);
+/// t1 = (a - (a.n) n) / |a - (a.n) n|, the first tangent of a friction row in 3D (t2 = n x t1):
+/// continuous in n wherever n is not parallel to a, so one reference axis per condition gives
+/// tangent bases continuous over its surface.
+std::array<double, 3> friction_tangent(const std::array<double, 3>& n,
+                                       const std::array<double, 3>& a);
+
 class ContactPairs {
  public:
   ContactPairs() = default;
@@ -44,7 +53,7 @@ class ContactPairs {
   struct Row {
     int condition = 0;
     int slave = 0;  ///< the slave node (global)
-    std::array<double, 3> normal{0, 0, 0};
+    std::array<double, 3> normal{0, 0, 0}, tangent{0, 0, 0};
     double weight = 0, gap = 0, norm_sq = 0;
     int owner = 0;
   };
@@ -61,6 +70,7 @@ class ContactPairs {
     long long rows = 0;
     double search_distance = 0;
     std::vector<int> slave_bodies, master_bodies;
+    double slip_bound = -1, friction_coefficient = -1;
   };
   std::vector<Info> info_;  ///< per condition (empty for obstacles)
 };

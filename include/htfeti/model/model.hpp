@@ -14,10 +14,10 @@
 #include <string>
 #include <vector>
 
-#include "htfeti/model/decomposition.hpp"
 #include "htfeti/fem/physics.hpp"
 #include "htfeti/feti/input.hpp"
 #include "htfeti/mesh/subdomain_mesh.hpp"
+#include "htfeti/model/decomposition.hpp"
 
 namespace htfeti {
 

@@ -45,6 +45,8 @@ struct ProblemSpec {
     /// Tresca friction on the condition (friction = { law = "tresca", bound = g }): the slip
     /// bound g per unit area (force per area) of the tangential traction; < 0: frictionless.
     double slip_bound = -1;
+    /// Coulomb friction (friction = { law = "coulomb", coefficient = mu }): mu >= 0; < 0: none.
+    double friction_coefficient = -1;
     /// Contact between bodies: the master group (empty: a rigid obstacle, `direction`, `gap`).
     /// `group` is then the slave surface, with mortar rows (model/mortar.hpp).
     std::string master;

@@ -174,9 +174,10 @@ QpSolve solve_with_contact(DualProblem& dual, DualOperators& ops, Vec& lambda,
   out.matvecs = r.hessian_applications;
   out.converged = r.reason == qp::StopReason::converged;
   out.reason = to_string(r.reason);
-  // Coulomb friction: the fixed point on the slip bound. The first solve had bound 0 on the
-  // Coulomb rows (frictionless); each next one takes mu lambda_n of the last and starts from its
-  // solution (the set changes, the QP's operators and shift do not).
+  // Coulomb friction: the fixed point on the slip bound. The first solve had no bound on the
+  // Coulomb rows (it sticks, and has a solution whenever the normal contact holds the bodies);
+  // each next one takes mu lambda_n of the last and starts from its solution (the set changes,
+  // the QP's operators and shift do not).
   nlohmann::json history = nlohmann::json::array();
   bool fixed_point = !dual.has_coulomb();
   int solves = 1;
@@ -441,6 +442,11 @@ void report_solution(nlohmann::json& rep, const Model& model, DualProblem& dual,
                          {"gap", c.gap},
                          {"multiplier", c.force},
                          {"pressure", c.pressure}};
+    if (dual.has_friction()) {
+      cj["tangential_traction"] = c.tangential;
+      cj["slip"] = c.slip;
+      cj["state"] = c.state;
+    }
     // Rank 0 holds the gathered arrays; share them so the report is the same everywhere.
     std::string s = comm.rank() == 0 ? cj.dump() : std::string();
     long long len = static_cast<long long>(s.size());

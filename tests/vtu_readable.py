@@ -112,6 +112,20 @@ def run_case(name, args, ranks):
                 worst = r["kkt"]["max_violation"]
                 check(gap[defined].min() >= -worst * (1 + 1e-9) - 1e-14,
                       f"{name}: gap {gap[defined].min()} below -{worst}")
+        # Friction: the state of every contact node with friction (0 open, 1 stick, 2 slip),
+        # counted once per node, as the report counts them per condition.
+        summary = r.get("contact_summary", [])
+        if any("stick_nodes" in c for c in summary):
+            state = array(grid, "point", "contact_state")
+            if check(state is not None and array(grid, "point", "tangential_traction") is not None
+                     and array(grid, "point", "contact_slip") is not None,
+                     f"{name}: friction arrays missing"):
+                xyz0 = vtk_to_numpy(grid.GetPoints().GetData())
+                k0 = np.round(xyz0 / max(1e-300, np.abs(xyz0).max()) * 2**36).astype(np.int64)
+                for value, key in ((0, "open_nodes"), (1, "stick_nodes"), (2, "slip_nodes")):
+                    at = np.unique(k0[state == value], axis=0).shape[0]
+                    want = sum(c.get(key, 0) for c in summary)
+                    check(at == want, f"{name}: {at} nodes in state {value}, the report {want}")
         # Distinct nodes: points with the same coordinates (rounded far below the mesh size) in
         # the same body. Bodies: subdomains joined through shared points off contact interfaces
         # (where two bodies' nodes share coordinates).
@@ -181,6 +195,10 @@ CASES = [
     ("plate-with-hole (Gmsh, METIS, 2D elasticity)",
      [os.path.join(EXAMPLES, "plate-with-hole.toml")], 1),
     ("bracket (Gmsh tet4, 3D elasticity), 2 ranks", [os.path.join(EXAMPLES, "bracket.toml")], 2),
+    ("friction-block (Tresca friction), 2 ranks", [os.path.join(EXAMPLES, "friction-block.toml")],
+     2),
+    ("punch-on-block (contact between bodies, 3D), 2 ranks",
+     [os.path.join(EXAMPLES, "punch-on-block.toml")], 2),
 ]
 
 

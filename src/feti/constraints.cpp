@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cmath>
 #include <map>
+#include <limits>
 #include <numeric>
 #include <stdexcept>
 
@@ -275,7 +276,10 @@ void subdomain_rows(const FetiLayout& L, const SubdomainInput& in, std::vector<L
         row.direction = t[m];
         row.side = c.side;  // the contact force -B_I^T lambda takes it (contact_forces)
         row.key_node = c.key;
-        row.bound = c.slip_bound >= 0 ? c.slip_bound * c.area / scale : 0.0;
+        // Coulomb's rows start unbounded (the first solve sticks: it has a solution whenever
+        // the normal contact holds the body, also under a tangential load).
+        row.bound = c.slip_bound >= 0 ? c.slip_bound * c.area / scale
+                                      : std::numeric_limits<double>::infinity();
         row.mu = c.friction_coefficient;
         for (int i = 0; i < dpn; ++i)
           if (row.direction[i] != 0.0)

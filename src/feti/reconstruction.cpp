@@ -155,7 +155,8 @@ DualProblem::Kkt DualProblem::kkt(const std::vector<Vec>& u, const Vec& lambda) 
   return r;
 }
 
-DualProblem::ContactData DualProblem::contact_data(const std::vector<Vec>& u, const Vec& lambda) {
+DualProblem::ContactRowValues DualProblem::contact_row_values(const std::vector<Vec>& u,
+                                                              const Vec& lambda) {
   // n.(avg u_a) from the entries on node a (coefficients scale n_i / k_a), n.(avg u_b) likewise.
   const int n_own = multipliers_.layout.n_owned();
   Vec a = Vec::Zero(multipliers_.layout.n_ext()), b = Vec::Zero(multipliers_.layout.n_ext());
@@ -168,17 +169,50 @@ DualProblem::ContactData DualProblem::contact_data(const std::vector<Vec>& u, co
     multipliers_.combine_subdomains();
     (side > 0 ? a : b).head(n_own) = multipliers_.ext_out.head(n_own);
   }
+  // Friction: the first tangential row of each contact row.
+  std::vector<int> tangential_of(n_own, -1);
+  for (int k = 0; k < n_own; ++k)
+    if (multipliers_.kind[k] == MultiplierKind::friction) {
+      const int other = multipliers_.friction_partner[k];
+      if (other < 0 || k < other) tangential_of[multipliers_.friction_normal[k]] = k;
+    }
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  ContactRowValues v;
+  v.u_a = a.head(n_own), v.u_b = b.head(n_own);
+  v.pressure = v.tangential = v.slip = v.state = Vec::Constant(n_own, nan);
+  for (int k = 0; k < n_own; ++k) {
+    if (multipliers_.kind[k] != MultiplierKind::contact) continue;
+    const double s = multipliers_.contact_scale[k] * multipliers_.contact_weight[k];
+    const double area = multipliers_.contact_area[k];
+    if (area > 0) v.pressure[k] = s * lambda[k] / area;
+    // The tangential traction on the body (2D: along t, signed; 3D: its length), the slip (the
+    // tangential relative displacement: 2D along t, 3D its length) and the state.
+    if (const int f = tangential_of[k]; f >= 0) {
+      const int g = multipliers_.friction_partner[f];
+      const double sf = multipliers_.contact_scale[f] * multipliers_.contact_weight[f];
+      const double t1 = -sf * lambda[f], d1 = (a[f] - b[f]) / sf;
+      const double t2 = g >= 0 ? -sf * lambda[g] : 0.0, d2 = g >= 0 ? (a[g] - b[g]) / sf : 0.0;
+      if (area > 0) v.tangential[k] = (g < 0 ? t1 : std::hypot(t1, t2)) / area;
+      v.slip[k] = g < 0 ? d1 : std::hypot(d1, d2);
+      v.state[k] = !(lambda[k] > 0) ? 0.0 : friction_slips(f, lambda, 1e-6) ? 2.0 : 1.0;
+    }
+  }
+  return v;
+}
+
+DualProblem::ContactData DualProblem::contact_data(const std::vector<Vec>& u, const Vec& lambda) {
+  const int n_own = multipliers_.layout.n_owned();
+  const ContactRowValues v = contact_row_values(u, lambda);
   std::vector<double> mine;
   for (int k = 0; k < n_own; ++k)
     if (multipliers_.kind[k] == MultiplierKind::contact) {
       const double s = multipliers_.contact_scale[k] * multipliers_.contact_weight[k];
       const auto& p = multipliers_.contact_point[k];
-      const double area = multipliers_.contact_area[k];
-      mine.insert(mine.end(),
-                  {p[0], p[1], p[2], a[k] / s, b[k] / s, multipliers_.contact_gap[k], s * lambda[k],
-                   area > 0 ? s * lambda[k] / area : std::numeric_limits<double>::quiet_NaN()});
+      mine.insert(mine.end(), {p[0], p[1], p[2], v.u_a[k] / s, v.u_b[k] / s,
+                               multipliers_.contact_gap[k], s * lambda[k], v.pressure[k],
+                               v.tangential[k], v.slip[k], v.state[k]});
     }
-  constexpr int W = 8;
+  constexpr int W = 11;
   const int P = comm_.size();
   int count = static_cast<int>(mine.size());
   std::vector<int> counts(P), disp(P + 1, 0);
@@ -202,6 +236,9 @@ DualProblem::ContactData DualProblem::contact_data(const std::vector<Vec>& u, co
     data.gap.push_back(r[5]);
     data.force.push_back(r[6]);
     data.pressure.push_back(r[7]);
+    data.tangential.push_back(r[8]);
+    data.slip.push_back(r[9]);
+    data.state.push_back(r[10]);
   }
   return data;
 }
@@ -289,25 +326,41 @@ std::vector<DualProblem::ContactSummary> DualProblem::contact_summary(const std:
   return out;
 }
 
-std::vector<DualProblem::Vec> DualProblem::contact_pressure_field(const Vec& lambda) {
+DualProblem::ContactFields DualProblem::contact_fields(const std::vector<Vec>& u,
+                                                      const Vec& lambda) {
+  // The per-row values of contact_data (the same formulas), spread to the ranks that touch the
+  // rows and put on the node each row is keyed by.
+  const ContactRowValues v = contact_row_values(u, lambda);
+  const int n_ext = multipliers_.layout.n_ext();
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  Vec p = Vec::Constant(n_ext, nan), t = p, sl = p, st = p;
   const int n_own = multipliers_.layout.n_owned();
-  Vec p = Vec::Constant(multipliers_.layout.n_ext(), std::numeric_limits<double>::quiet_NaN());
   for (int k = 0; k < n_own; ++k)
-    if (multipliers_.kind[k] == MultiplierKind::contact && multipliers_.contact_area[k] > 0)
-      p[k] = multipliers_.contact_scale[k] * multipliers_.contact_weight[k] * lambda[k] /
-             multipliers_.contact_area[k];
-  multipliers_.layout.forward(p.data());
-  std::vector<Vec> out(subs_.size());
-  for (size_t s = 0; s < subs_.size(); ++s) {
-    const int dpn = subs_[s]->dofs_per_node();
-    out[s] = Vec::Constant(subs_[s]->size() / dpn, std::numeric_limits<double>::quiet_NaN());
-    std::vector<int> last(out[s].size(), -1);  // a row has one entry per normal component
-    for (const auto& r : multipliers_.rows[s])
-      if (r.key && !std::isnan(p[r.k]) && last[r.dof / dpn] != r.k) {
-        double& v = out[s][r.dof / dpn];
-        v = std::isnan(v) ? p[r.k] : v + p[r.k];  // rows of several conditions at one node add
-        last[r.dof / dpn] = r.k;
+    if (multipliers_.kind[k] == MultiplierKind::contact)
+      p[k] = v.pressure[k], t[k] = v.tangential[k], sl[k] = v.slip[k], st[k] = v.state[k];
+  for (Vec* f : {&p, &t, &sl, &st}) multipliers_.layout.forward(f->data());
+  ContactFields out;
+  const size_t ns = subs_.size();
+  out.pressure.resize(ns), out.tangential.resize(ns), out.slip.resize(ns), out.state.resize(ns);
+  for (size_t s = 0; s < ns; ++s) {
+    const int dpn = subs_[s]->dofs_per_node(), nodes = subs_[s]->size() / dpn;
+    for (auto* f : {&out.pressure, &out.tangential, &out.slip, &out.state})
+      (*f)[s] = Vec::Constant(nodes, nan);
+    std::vector<int> last(nodes, -1);  // a row has one entry per normal component
+    for (const auto& r : multipliers_.rows[s]) {
+      const int node = r.dof / dpn;
+      if (!r.key || std::isnan(p[r.k]) && std::isnan(st[r.k])) continue;
+      if (last[node] == r.k) continue;
+      double& pv = out.pressure[s][node];
+      if (!std::isnan(p[r.k]))  // rows of several conditions at one node add
+        pv = std::isnan(pv) ? p[r.k] : pv + p[r.k];
+      if (std::isnan(out.state[s][node])) {  // friction: the node's first row with it
+        out.tangential[s][node] = t[r.k];
+        out.slip[s][node] = sl[r.k];
+        out.state[s][node] = st[r.k];
       }
+      last[node] = r.k;
+    }
   }
   return out;
 }
@@ -346,7 +399,8 @@ std::pair<double, double> DualProblem::update_coulomb_bounds(const Vec& lambda, 
     const double mu = multipliers_.friction_mu[k];
     if (multipliers_.kind[k] != MultiplierKind::friction || mu < 0) continue;
     const double bound = mu * std::max(lambda[multipliers_.friction_normal[k]], 0.0);
-    change[k] = bound - multipliers_.friction_bound[k];
+    const double old = multipliers_.friction_bound[k];
+    change[k] = std::isfinite(old) ? bound - old : bound;  // the first step: all of it
     value[k] = bound;
     if (apply) multipliers_.friction_bound[k] = bound;
   }

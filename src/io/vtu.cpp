@@ -54,13 +54,14 @@ void write_ascii_values(std::ostream& o, const std::string& bytes) {
 
 // One subdomain's values of every array (or all of a piece's, for ASCII).
 struct Buffers {
-  std::vector<double> xyz, u, cf, cg, cp, vm;
+  std::vector<double> xyz, u, cf, cg, cp, ct, cs, cst, vm;
   std::vector<std::int64_t> conn, offs;
   std::vector<std::int32_t> conn32, offs32;  // the same, narrowed (Int32 arrays)
   std::vector<std::uint8_t> types;
   std::vector<std::int32_t> sub, clu, rank;
   void clear() {
-    xyz.clear(), u.clear(), cf.clear(), cg.clear(), cp.clear(), vm.clear(), conn.clear(),
+    xyz.clear(), u.clear(), cf.clear(), cg.clear(), cp.clear(), ct.clear(), cs.clear(),
+        cst.clear(), vm.clear(), conn.clear(),
         offs.clear();
     conn32.clear(), offs32.clear(), types.clear(), sub.clear(), clu.clear(), rank.clear();
   }
@@ -153,13 +154,14 @@ class PieceWriter {
  public:
   PieceWriter(const Model& model, const std::vector<Eigen::VectorXd>& u,
               std::vector<Eigen::VectorXd> forces, std::vector<Eigen::VectorXd> gaps,
-              std::vector<Eigen::VectorXd> pressures, bool contact, int rank)
+              DualProblem::ContactFields fields, bool contact, bool friction, int rank)
       : model_(model),
         ph_(model.physics()),
         u_(u),
         forces_(std::move(forces)),
         gaps_(std::move(gaps)),
-        pressures_(std::move(pressures)),
+        fields_(std::move(fields)),
+        friction_(friction),
         dpn_(ph_.dofs_per_node()),
         elastic_(ph_.kind == PhysicsKind::elasticity),
         contact_(contact),
@@ -169,6 +171,11 @@ class PieceWriter {
       pa_.push_back({"contact_force", "Float64", 3, {}});
       pa_.push_back({"contact_gap", "Float64", 1, {}});
       pa_.push_back({"contact_pressure", "Float64", 1, {}});
+      if (friction_) {
+        pa_.push_back({"tangential_traction", "Float64", 1, {}});
+        pa_.push_back({"contact_slip", "Float64", 1, {}});
+        pa_.push_back({"contact_state", "Float64", 1, {}});
+      }
     }
     ca_ = {{"subdomain", "Int32", 1, {}}, {"cluster", "Int32", 1, {}}, {"rank", "Int32", 1, {}}};
     if (elastic_) ca_.push_back({"von_mises", "Float64", 1, {}});
@@ -217,7 +224,9 @@ class PieceWriter {
   const Model& model_;
   const Physics& ph_;
   const std::vector<Eigen::VectorXd>& u_;
-  const std::vector<Eigen::VectorXd> forces_, gaps_, pressures_;
+  const std::vector<Eigen::VectorXd> forces_, gaps_;
+  const DualProblem::ContactFields fields_;
+  const bool friction_;
   const int dpn_;
   const bool elastic_, contact_;
   const int rank_;
@@ -242,7 +251,12 @@ void PieceWriter::fill(int i, const SubdomainMesh& m, std::int64_t base, std::in
     if (contact_) {
       for (int d = 0; d < 3; ++d) b.cf.push_back(d < dpn_ ? forces_[i][k * dpn_ + d] : 0.0);
       b.cg.push_back(gaps_[i][k]);
-      b.cp.push_back(pressures_[i][k]);
+      b.cp.push_back(fields_.pressure[i][k]);
+      if (friction_) {
+        b.ct.push_back(fields_.tangential[i][k]);
+        b.cs.push_back(fields_.slip[i][k]);
+        b.cst.push_back(fields_.state[i][k]);
+      }
     }
   }
   const Eigen::MatrixXd D = elastic_ ? elasticity_matrix(m.dim, ph_.material) : Eigen::MatrixXd();
@@ -277,6 +291,9 @@ std::pair<const char*, size_t> PieceWriter::bytes_of(const Array& a, const Buffe
   if (a.name == "contact_force") return raw(b.cf);
   if (a.name == "contact_gap") return raw(b.cg);
   if (a.name == "contact_pressure") return raw(b.cp);
+  if (a.name == "tangential_traction") return raw(b.ct);
+  if (a.name == "contact_slip") return raw(b.cs);
+  if (a.name == "contact_state") return raw(b.cst);
   if (a.name == "subdomain") return raw(b.sub);
   if (a.name == "cluster") return raw(b.clu);
   if (a.name == "rank") return raw(b.rank);
@@ -335,7 +352,8 @@ PieceWriter::Layout PieceWriter::layout(const std::vector<int>& subdomains) {
   L.P = L.nodes[ns], L.C = L.cells[ns], L.K = L.corners[ns];
   L.narrow = use_int32(L.P, L.K);
   for (const Array* a : arrays_) {
-    const bool point = a == &coords_ || a->name == "u" || a->name.rfind("contact_", 0) == 0;
+    const bool point = a == &coords_ || std::any_of(pa_.begin(), pa_.end(),
+                                                    [&](const Array& p) { return &p == a; });
     const std::uint64_t width = a->type == "Float64" || a->type == "Int64" ? 8
                                 : a->type == "Int32"                       ? 4
                                                                            : 1;
@@ -472,6 +490,7 @@ std::string PieceWriter::write_binary(const std::vector<int>& subdomains, const 
 
 // The parallel file that lists the ranks' pieces (rank 0, several ranks).
 void write_pvtu(const std::string& tmp, const std::vector<std::string>& files, bool elastic,
+                bool friction,
                 bool contact) {
   std::ofstream o(tmp);
   if (!o) throw std::runtime_error("cannot write " + files[0]);
@@ -483,6 +502,10 @@ void write_pvtu(const std::string& tmp, const std::vector<std::string>& files, b
     o << "<PDataArray type=\"Float64\" Name=\"contact_force\" NumberOfComponents=\"3\"/>\n"
       << "<PDataArray type=\"Float64\" Name=\"contact_gap\"/>\n"
       << "<PDataArray type=\"Float64\" Name=\"contact_pressure\"/>\n";
+  if (friction)
+    o << "<PDataArray type=\"Float64\" Name=\"tangential_traction\"/>\n"
+      << "<PDataArray type=\"Float64\" Name=\"contact_slip\"/>\n"
+      << "<PDataArray type=\"Float64\" Name=\"contact_state\"/>\n";
   o << "</PPointData>\n<PCellData>\n<PDataArray type=\"Int32\" Name=\"subdomain\"/>\n"
        "<PDataArray type=\"Int32\" Name=\"cluster\"/>\n<PDataArray type=\"Int32\" "
        "Name=\"rank\"/>\n";
@@ -516,8 +539,9 @@ VtuWritten write_vtu(const std::string& path, const Model& model, DualProblem& d
   for (const auto& s : dual.subdomains()) subdomains.push_back(s->id());
   auto forces = dual.contact_forces(lambda);  // (collective, in this order on every rank)
   auto gaps = dual.contact_gap_field(u);
-  auto pressures = dual.contact_pressure_field(lambda);
-  PieceWriter writer(model, u, std::move(forces), std::move(gaps), std::move(pressures), contact,
+  auto fields = dual.contact_fields(u, lambda);
+  PieceWriter writer(model, u, std::move(forces), std::move(gaps), std::move(fields), contact,
+                     dual.has_friction(),
                      comm.rank());
   std::string error;
   try {
@@ -526,7 +550,7 @@ VtuWritten write_vtu(const std::string& path, const Model& model, DualProblem& d
     else
       written.io = writer.write_binary(subdomains, piece, piece_tmp, options);
     if (comm.size() > 1 && comm.rank() == 0)
-      write_pvtu(temp_name(files[0]), files, elastic, contact);
+      write_pvtu(temp_name(files[0]), files, elastic, dual.has_friction(), contact);
   } catch (const std::exception& e) {
     error = e.what();
   }

@@ -35,9 +35,9 @@ SeparableSet::SeparableSet(Vec lower, Vec upper, std::vector<Pair> discs, Vec ce
   std::vector<char> taken(n, 0);
   const double inf = std::numeric_limits<double>::infinity();
   for (Eigen::Index d = 0; d < nd; ++d) {
-    if (!(radii_[d] >= 0) || !std::isfinite(radii_[d]) || !centers_.segment(2 * d, 2).allFinite())
+    if (!(radii_[d] >= 0) || !centers_.segment(2 * d, 2).allFinite())
       throw std::invalid_argument("SeparableSet: disc " + std::to_string(d) +
-                                  " has a negative or non-finite radius or center");
+                                  " has a negative or NaN radius or a non-finite center");
     for (Eigen::Index i : discs_[d]) {
       if (i < 0 || i >= n || taken[i] || lower_[i] != -inf || upper_[i] != inf)
         throw std::invalid_argument("SeparableSet: disc " + std::to_string(d) +

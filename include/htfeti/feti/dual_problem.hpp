@@ -298,10 +298,21 @@ class DualProblem {
   /// n.u_b (0 for an obstacle; for a mortar row the averages over the slave and master sides,
   /// weighted by D and M), the remaining gap (length), the row's force (W scale lambda) and its
   /// pressure (the force over the row's contact area; NaN where the group has no facets).
+  /// With friction also the tangential traction on the body (2D: along t = (-n_y, n_x), 3D:
+  /// its length), the slip (the tangential relative displacement, likewise) and the state (0
+  /// open, 1 stick, 2 slip); NaN on rows without friction.
   struct ContactData {
-    std::vector<double> x, y, z, u_a, u_b, gap, force, pressure;
+    std::vector<double> x, y, z, u_a, u_b, gap, force, pressure, tangential, slip, state;
   };
   ContactData contact_data(const std::vector<Vec>& u, const Vec& lambda);
+  /// The per-row values behind contact_data and contact_fields, on the owned rows (NaN on rows
+  /// that are not contact rows or lack the value): the side sums n.(avg u_a) and n.(avg u_b)
+  /// times the row's scale, the pressure, the tangential traction, the slip and the state.
+  /// Collective.
+  struct ContactRowValues {
+    Vec u_a, u_b, pressure, tangential, slip, state;
+  };
+  ContactRowValues contact_row_values(const std::vector<Vec>& u, const Vec& lambda);
 
   /// Per contact condition (0 .. conditions - 1, the problem file's order; the rows carry their
   /// condition): rows, rows in contact (lambda > 0), the contact area of those rows, the total
@@ -326,10 +337,14 @@ class DualProblem {
   };
   std::vector<ContactSummary> contact_summary(const std::vector<Vec>& u, const Vec& lambda,
                                               int conditions);
-  /// The pressure of each contact row at the node it is keyed by (a, an obstacle's node, a
-  /// mortar row's slave node), per local subdomain one value per node (NaN elsewhere).
+  /// Per local subdomain one value per node, at the node each contact row is keyed by (a, an
+  /// obstacle's node, a mortar row's slave node; NaN elsewhere): the pressure (of all the node's
+  /// rows), and with friction the tangential traction, the slip and the state of contact_data.
   /// Collective.
-  std::vector<Vec> contact_pressure_field(const Vec& lambda);
+  struct ContactFields {
+    std::vector<Vec> pressure, tangential, slip, state;
+  };
+  ContactFields contact_fields(const std::vector<Vec>& u, const Vec& lambda);
 
   /// The force of the contact rows on each local subdomain's copy, -B_I^T lambda (one vector per
   /// local subdomain; summed over a node's copies it is the nodal contact force). Collective.

@@ -75,9 +75,9 @@ class BoxBounds final : public ConstraintSet {
 class SeparableSet final : public ConstraintSet {
  public:
   using Pair = std::array<Eigen::Index, 2>;
-  /// centers: 2 per disc. Throws std::invalid_argument when the sizes differ, a bound is NaN or
-  /// empty, a disc's entries are out of range, shared with another disc or bounded, or a radius
-  /// is negative or NaN.
+  /// centers: 2 per disc; a radius may be +infinity (no constraint on the pair). Throws
+  /// std::invalid_argument when the sizes differ, a bound is NaN or empty, a disc's entries are
+  /// out of range, shared with another disc or bounded, or a radius is negative or NaN.
   SeparableSet(Vec lower, Vec upper, std::vector<Pair> discs, Vec centers, Vec radii);
   const Vec& lower() const { return lower_; }
   const Vec& upper() const { return upper_; }

@@ -288,3 +288,37 @@ TEST(Multibody, BadPairsAreRefused) {
   box.subdomains = {2, 2};
   refused(box, "needs a mesh of several bodies");
 }
+
+// Friction between bodies: the upper block dragged over the lower one (its top moved by 0.5 in x,
+// pressed by p; the lower block clamped at its bottom; nu = 0 in 3D, so that the blocks do not
+// spread and a full slip is along x). A large drag slips everywhere: the lower
+// block holds the upper one back with exactly g A (Tresca) or mu p A (Coulomb), A = 1, through
+// the tangential mortar rows.
+TEST(Multibody, FrictionBetweenBodiesTransmitsTheBoundAtFullSlip) {
+  Comm comm;
+  for (const char* law : {"tresca", "coulomb"}) {
+    for (const char* mesh : {"two-squares-quad.msh", "two-cubes-hex.msh"}) {
+      ProblemSpec s = stacked_blocks(mesh, true, false);
+      const bool three = std::string(mesh).find("cubes") != std::string::npos;
+      s.dirichlet.clear();
+      s.dirichlet.push_back({"bottom", {0, 0, 0}, {}});
+      s.dirichlet.push_back(
+          {"top", {0.5, 0, 0}, three ? std::vector<int>{0, 1} : std::vector<int>{0}});
+      if (three) s.physics.material.poisson = 0.0;  // no spreading: the slip is along x
+      if (std::string(law) == "tresca")
+        s.contact[0].slip_bound = 1.0;
+      else
+        s.contact[0].friction_coefficient = 0.2;
+      SolveOptions opt;
+      opt.rtol = 1e-10;
+      const auto out = solve(std::shared_ptr<const Model>(make_model(s)), opt, comm);
+      ASSERT_TRUE(out.converged) << law << " " << mesh << ": " << out.report["stop_reason"];
+      const auto& c = out.report["contact_summary"][0];
+      EXPECT_EQ(c["stick_nodes"].get<long long>(), 0) << law << " " << mesh;
+      const double expected = std::string(law) == "tresca" ? -1.0 : -0.2 * kPressure;
+      const double tx =
+          three ? c["tangential_force"][0].get<double>() : c["tangential_force"].get<double>();
+      EXPECT_NEAR(tx, expected, 1e-7 * std::abs(expected)) << law << " " << mesh;
+    }
+  }
+}

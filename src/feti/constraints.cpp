@@ -3,8 +3,8 @@
 #include <Eigen/Dense>
 #include <algorithm>
 #include <cmath>
-#include <map>
 #include <limits>
+#include <map>
 #include <numeric>
 #include <stdexcept>
 
@@ -255,10 +255,10 @@ void subdomain_rows(const FetiLayout& L, const SubdomainInput& in, std::vector<L
     out.push_back(std::move(row));
     if ((c.slip_bound >= 0 || c.friction_coefficient >= 0) && dpn >= 2) {
       // Friction: the tangential rows t.(sum_j c_j avg u_j), t = (-n_y, n_x) in 2D, t1 and
-      // t2 = n x t1 in 3D, scaled as the normal row (their force is scale * lambda), with
-      // |lambda_t| <= g A / scale summed over the copies of the node (Tresca; A the row's contact
-      // area) or mu lambda_n (Coulomb, set between solves). No right-hand side: the tangential
-      // displacement is free where the bound is reached (slip), zero below it (stick).
+      // t2 = n x t1 in 3D, scaled as the normal row (their force is W scale lambda), with
+      // |lambda_t| <= g A / (W scale) summed over the copies of the node (Tresca; A the row's
+      // contact area) or mu lambda_n (Coulomb, set between solves). No right-hand side: the
+      // tangential displacement is free where the bound is reached (slip), zero below it (stick).
       const auto& n = c.direction;
       std::array<std::array<double, 3>, 2> t{};
       t[0] = dpn == 2 ? std::array<double, 3>{-n[1], n[0], 0} : c.tangent;
@@ -278,7 +278,8 @@ void subdomain_rows(const FetiLayout& L, const SubdomainInput& in, std::vector<L
         row.key_node = c.key;
         // Coulomb's rows start unbounded (the first solve sticks: it has a solution whenever
         // the normal contact holds the body, also under a tangential load).
-        row.bound = c.slip_bound >= 0 ? c.slip_bound * c.area / scale
+        // (the row's force is W scale lambda: |W scale lambda| <= g A)
+        row.bound = c.slip_bound >= 0 ? c.slip_bound * c.area / (scale * c.weight)
                                       : std::numeric_limits<double>::infinity();
         row.mu = c.friction_coefficient;
         for (int i = 0; i < dpn; ++i)

@@ -76,7 +76,8 @@ SmalbeResult smalbe(const QuadraticProgram& qp, double normA, Vec& x, const Redu
   Vec nu = Vec::Zero(n), rhs(n), g(n), lag(n);
   MprgpWorkspace work;  // shared by all inner solves: no allocation inside the outer loop
   double L_prev = 0;
-  double qnorm = 0;
+  double qnorm = 0, qnorm_prev = 0;
+  int stalls = 0;  // consecutive stalled outer iterations (step 4)
   bool global_stop = false;
   bool late = false;  // an inner solve has met the gradient test: only feasibility is left
   // The inner stopping test with ||G x|| = ||Q x|| from the tracked image (no projection); the
@@ -128,9 +129,15 @@ SmalbeResult smalbe(const QuadraticProgram& qp, double normA, Vec& x, const Redu
     g += rho * qx;   // the gradient of L moves with nu; x does not change
     if (k > 0 && L < L_prev + 0.5 * rho * qnorm * qnorm) M /= opt.beta;
     L_prev = L;
-    // Step 4: the late penalty update.
+    // Step 4: the late penalty update, also when the multiplier updates stall: an inner solve
+    // that took no step and ||G x|| down by less than kStallFactor since the last outer
+    // iteration (only mu moves, at a rate set by rho).
     late = late || inner.projected_gradient <= grad_tol;
-    if (late && opt.rho_update_late > 1 && normA * qnorm >= inner.projected_gradient &&
+    stalls = k > 0 && qnorm > kStallFactor * qnorm_prev ? stalls + 1 : 0;
+    const bool stalled = stalls >= kStallCount;
+    if (stalled) stalls = 0;
+    qnorm_prev = qnorm;
+    if ((late || stalled) && opt.rho_update_late > 1 && normA * qnorm >= inner.projected_gradient &&
         rho * opt.rho_update_late <= kMaxRhoGrowth * rho0) {
       const double next = rho * opt.rho_update_late;
       g += (next - rho) * qx;  // H_rho x moves by (rho' - rho) Q x

@@ -47,6 +47,10 @@ inline constexpr double kRoundoffFloor = 64.0;
 /// The late penalty update never takes rho beyond this multiple of its first value (the
 /// expansion step length of MPRGP, 2 / max(||A||, rho), shrinks with rho).
 inline constexpr double kMaxRhoGrowth = 1024.0;
+/// An outer iteration stalls when its inner solve took no step and ||G x|| fell by less than
+/// this factor; kStallCount consecutive stalls raise rho (step 4).
+inline constexpr double kStallFactor = 0.9;
+inline constexpr int kStallCount = 5;
 
 struct SmalbeOptions {
   double rtol = 1e-4;            ///< relative precision eps (paper: 1e-4)

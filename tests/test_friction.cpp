@@ -7,6 +7,9 @@
 // Runs under mpiexec -n 1 and 2.
 #include <gtest/gtest.h>
 
+#include <Eigen/SparseCholesky>
+#include <cmath>
+
 #include "helpers.hpp"
 #include "htfeti/model/problem_spec.hpp"
 #include "htfeti/solver.hpp"
@@ -247,4 +250,112 @@ TEST(CoulombFriction3D, FullSlipTransmitsMuTimesTheLoad) {
   const auto t = c["tangential_force"].get<std::vector<double>>();
   EXPECT_NEAR(t[0], -mu * kPressure * area, 1e-8 * kPressure * area);
   EXPECT_NEAR(t[1], 0.0, 1e-8 * kPressure * area);
+}
+
+namespace {
+
+// The undecomposed Tresca problem of a spec, solved by an independent method: the stiffness
+// with the Dirichlet dofs eliminated (sparse LDL'), the dense dual operator of the contact and
+// friction rows (one normal row n.u <= gap and two tangential rows t.u per contact node, with
+// the node's force as the multiplier), and FISTA projected gradient (its own projections onto
+// lambda_n >= 0 and the discs |lambda_t| <= g A) run until its iterate stops moving.
+struct TrescaReference {
+  Eigen::VectorXd u;  ///< per global dof
+  double energy = 0;
+  double projected_gradient = 0;  ///< of the dual QP at the solution, relative to ||d||
+};
+
+TrescaReference solve_tresca_directly(ProblemSpec spec, double g) {
+  spec.subdomains = {1, 1, 1};
+  spec.cluster_size = 1;
+  const auto model = make_model(spec);
+  const SubdomainInput in = model->input(0);
+  const SubdomainMesh mesh = model->mesh(0);
+  const int dpn = 3;
+  const test::EliminatedSystem sys = test::eliminate_dirichlet(in, dpn);
+  Eigen::SparseMatrix<double> K(sys.nf, sys.nf);
+  K.setFromTriplets(sys.trip.begin(), sys.trip.end());
+  Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> ldlt(K);
+  EXPECT_EQ(ldlt.info(), Eigen::Success);
+  // Rows: per contact node n, t1, t2 (all its dofs are free here), on the free dofs.
+  const int nodes = static_cast<int>(in.contact.size()), m = 3 * nodes;
+  Eigen::MatrixXd A = Eigen::MatrixXd::Zero(m, sys.nf);
+  Eigen::VectorXd c = Eigen::VectorXd::Zero(m), radius(nodes);
+  for (int i = 0; i < nodes; ++i) {
+    const ContactRow& r = in.contact[i];
+    const auto& n = r.direction;
+    const auto& t = r.tangent;
+    const std::array<double, 3> t2{n[1] * t[2] - n[2] * t[1], n[2] * t[0] - n[0] * t[2],
+                                   n[0] * t[1] - n[1] * t[0]};
+    for (int d = 0; d < 3; ++d) {
+      const int col = sys.free_of[r.node * dpn + d];
+      EXPECT_GE(col, 0);
+      A(3 * i, col) = n[d];
+      A(3 * i + 1, col) = t[d];
+      A(3 * i + 2, col) = t2[d];
+    }
+    c[3 * i] = r.gap;
+    radius[i] = g * r.area;
+  }
+  const Eigen::MatrixXd KiAt = ldlt.solve(Eigen::MatrixXd(A.transpose()));
+  const Eigen::MatrixXd F = A * KiAt;
+  const Eigen::VectorXd d = A * ldlt.solve(sys.b) - c;
+  const double L = Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(F).eigenvalues().maxCoeff();
+  auto project = [&](Eigen::VectorXd& x) {
+    for (int i = 0; i < nodes; ++i) {
+      x[3 * i] = std::max(x[3 * i], 0.0);
+      const double len = std::hypot(x[3 * i + 1], x[3 * i + 2]);
+      if (len > radius[i]) x[3 * i + 1] *= radius[i] / len, x[3 * i + 2] *= radius[i] / len;
+    }
+  };
+  Eigen::VectorXd x = Eigen::VectorXd::Zero(m), y = x, prev = x;
+  double tk = 1;
+  for (int it = 0; it < 2000000; ++it) {
+    prev = x;
+    x = y - (F * y - d) / L;
+    project(x);
+    const double tn = 0.5 * (1 + std::sqrt(1 + 4 * tk * tk));
+    y = x + ((tk - 1) / tn) * (x - prev);
+    tk = tn;
+    if ((x - prev).dot(y - x) > 0) y = x, tk = 1;  // adaptive restart
+    if ((x - prev).norm() <= 1e-16 * x.norm() && it > 10) break;
+  }
+  // The gradient mapping at x (zero exactly at the solution).
+  Eigen::VectorXd step = x - (F * x - d) / L;
+  project(step);
+  TrescaReference ref;
+  ref.projected_gradient = (L * (x - step)).norm() / d.norm();
+  const Eigen::VectorXd u = sys.expand(ldlt.solve(sys.b - A.transpose() * x));
+  ref.energy = 0.5 * u.dot(in.system.K * u) - in.system.f.dot(u);
+  ref.u.resize(static_cast<Eigen::Index>(model->num_nodes()) * dpn);
+  for (int k = 0; k < mesh.num_nodes(); ++k)
+    for (int dd = 0; dd < dpn; ++dd) ref.u[mesh.global_node[k] * dpn + dd] = u[k * dpn + dd];
+  return ref;
+}
+
+}  // namespace
+
+// Tresca friction on the paper's cube-obstacle (a coarse mesh, g = 1e6: some nodes stick, the
+// others slip) against the independent dual solver above: the same displacement and energy.
+TEST(TrescaFriction3D, CubeObstacleMatchesAnIndependentSolver) {
+  Comm comm;
+  const double g = 1e6;
+  ProblemSpec spec = cube_obstacle_spec({8, 4, 4}, {2, 1, 1}, 1);
+  spec.contact[0].slip_bound = g;
+  const TrescaReference ref = solve_tresca_directly(spec, g);
+  EXPECT_LT(ref.projected_gradient, 1e-12);
+  SolveOptions opt;
+  opt.rtol = 1e-11;
+  for (auto [sub, m] : {std::pair<std::vector<int>, int>{{2, 1, 1}, 1}, {{4, 2, 2}, 2}}) {
+    spec.subdomains = sub;
+    spec.cluster_size = m;
+    std::shared_ptr<const Model> model = make_model(spec);
+    const auto out = solve(model, opt, comm);
+    ASSERT_TRUE(out.converged) << out.report["stop_reason"];
+    const auto& s = out.report["contact_summary"][0];
+    EXPECT_GT(s["stick_nodes"].get<long long>(), 0);
+    EXPECT_GT(s["slip_nodes"].get<long long>(), 0);
+    EXPECT_LT(test::relative_error(*model, *out.dual, out.u, ref.u), 1e-8) << "m = " << m;
+    EXPECT_NEAR(out.report["objective"].get<double>(), ref.energy, 1e-9 * std::abs(ref.energy));
+  }
 }

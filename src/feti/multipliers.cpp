@@ -84,32 +84,7 @@ std::vector<std::vector<Subdomain::BEntry>> Multipliers::number(
   }
   inequalities = c.sum(my_inequalities);
   friction_rows = c.sum(my_friction);
-  // Friction rows: their normal row and (3D) their partner, found by key among the owned rows
-  // (a node's contact and friction rows have the same owner).
-  friction_mu.assign(n_own, -1.0);
-  friction_normal.assign(n_own, -1);
-  friction_partner.assign(n_own, -1);
-  if (friction_rows > 0) {
-    std::map<RowKey, int> owned;
-    for (size_t i = 0; i < keys.size(); ++i) {
-      const int k = layout.ext_index(index[i]);
-      if (k < n_own && kind[k] != MultiplierKind::gluing && kind[k] != MultiplierKind::dirichlet)
-        owned[keys[i]] = k;
-    }
-    for (const auto& [key, k] : owned) {
-      if (kind[k] != MultiplierKind::friction) continue;
-      friction_mu[k] = key_row[std::lower_bound(keys.begin(), keys.end(), key) - keys.begin()]->mu;
-      auto normal = owned.find({key[0], key[1], 2, key[3], 0, 0});
-      auto other = owned.find({key[0], key[1], 3, key[3], 1 - key[4], 0});
-      if (normal == owned.end())
-        throw std::logic_error("a friction row without its contact row on the same rank");
-      friction_normal[k] = normal->second;
-      if (fl.dim == 3) {
-        if (other == owned.end()) throw std::logic_error("a 3D friction row without its partner");
-        friction_partner[k] = other->second;
-      }
-    }
-  }
+  pair_friction_rows(fl, keys, index, key_row);
   // Friction rows: per subdomain, (first entry of the row, its part of the bound); contact
   // rows: (first entry, its part of the contact area).
   std::vector<std::vector<std::pair<size_t, double>>> bound_part(nsub), area_part(nsub);
@@ -195,6 +170,38 @@ std::vector<std::vector<Subdomain::BEntry>> Multipliers::number(
   if (inequalities > 0) sum_parts(area_part, MultiplierKind::contact, area);
   contact_area.assign(area.data(), area.data() + n_own);
   return local_b;
+}
+
+void Multipliers::pair_friction_rows(const FetiLayout& fl, const std::vector<RowKey>& keys,
+                                     const std::vector<long long>& index,
+                                     const std::vector<const LocalRow*>& key_row) {
+  const int n_own = layout.n_owned();
+  // Their normal row and (3D) their partner, found by key among the owned rows
+  // (a node's contact and friction rows have the same owner).
+  friction_mu.assign(n_own, -1.0);
+  friction_normal.assign(n_own, -1);
+  friction_partner.assign(n_own, -1);
+  if (friction_rows > 0) {
+    std::map<RowKey, int> owned;
+    for (size_t i = 0; i < keys.size(); ++i) {
+      const int k = layout.ext_index(index[i]);
+      if (k < n_own && kind[k] != MultiplierKind::gluing && kind[k] != MultiplierKind::dirichlet)
+        owned[keys[i]] = k;
+    }
+    for (const auto& [key, k] : owned) {
+      if (kind[k] != MultiplierKind::friction) continue;
+      friction_mu[k] = key_row[std::lower_bound(keys.begin(), keys.end(), key) - keys.begin()]->mu;
+      auto normal = owned.find({key[0], key[1], 2, key[3], 0, 0});
+      auto other = owned.find({key[0], key[1], 3, key[3], 1 - key[4], 0});
+      if (normal == owned.end())
+        throw std::logic_error("a friction row without its contact row on the same rank");
+      friction_normal[k] = normal->second;
+      if (fl.dim == 3) {
+        if (other == owned.end()) throw std::logic_error("a 3D friction row without its partner");
+        friction_partner[k] = other->second;
+      }
+    }
+  }
 }
 
 void Multipliers::combine_row_entries(const std::vector<std::vector<double>>& per_entry) {

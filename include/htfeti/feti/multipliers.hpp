@@ -110,6 +110,12 @@ struct Multipliers {
   std::vector<int> pair_first;
   OrderedSum subdomain_sum;  ///< the fixed-order sums of the pairs on the owners
 
+  /// Sets friction_mu, friction_normal and friction_partner (number()'s last step): per owned
+  /// friction row, found by key among the owned rows (a node's rows have one owner).
+  void pair_friction_rows(const FetiLayout& layout, const std::vector<RowKey>& keys,
+                          const std::vector<long long>& index,
+                          const std::vector<const LocalRow*>& key_row);
+
   // Work vectors (allocated by number()): one value per pair; extended dual vectors.
   Vec pairs, ext_in, ext_out;
   mutable std::vector<double> partial;  // per cluster (all clusters): dot() and sum()

@@ -1,0 +1,68 @@
+// The parts of one solve that the driver (solver.cpp) and the report (report.cpp) share: the
+// dual problem's operators as the QP solvers see them, what a QP solve gives the report, and the
+// functions that write the report's sections. Private to src/.
+#pragma once
+
+#include <nlohmann/json.hpp>
+#include <string>
+#include <vector>
+
+#include "htfeti/feti/dual_problem.hpp"
+#include "htfeti/memory_estimate.hpp"
+#include "htfeti/model/model.hpp"
+#include "htfeti/qp/operator.hpp"
+#include "htfeti/solver.hpp"
+
+namespace htfeti::solve_parts {
+
+using Vec = Eigen::VectorXd;
+
+// The dual problem's operators for the QP solvers, each counted and timed apart (qp::Operator):
+// F, the projector P onto Ker G~ and the preconditioner M^{-1}; and the one-step products.
+struct DualOperators {
+  explicit DualOperators(DualProblem& dual)
+      : F([&dual](const Vec& x, Vec& y) { dual.apply_F(x, y); }),
+        P([&dual](const Vec& x, Vec& y) { dual.project(x, y); }),
+        M([&dual](const Vec& x, Vec& y) { dual.apply_preconditioner(x, y); }),
+        preconditioned(dual.preconditioner() != PreconditionerKind::none) {}
+  qp::FunctionOperator F, P, M;
+  bool preconditioned;
+  long merged_steps = 0;      // products taken in one coarse step
+  double merged_seconds = 0;  // their time after F v
+};
+
+// What a QP solve gives the report.
+struct QpSolve {
+  bool converged = false;
+  std::string reason;
+  int outer = 0, inner = 0;
+  long matvecs = 0;
+  nlohmann::json solver;
+};
+
+// What one solve leaves for its report (make_report).
+struct SolveRecord {
+  const SolveOptions& options;
+  const FetiOptions& feti;  // with the automatic choices resolved
+  const MemoryEstimate& estimate;
+  const std::string& preconditioner_reason;
+  const QpSolve& qs;
+  const DualOperators& ops;
+  bool merged;
+  double t_setup, t_image, t_solve, t_rec, t_checks, peak_mb_solve;
+  DualProblem::Kkt kkt;
+  double energy;
+  DualProblem::FrictionSummary friction;
+};
+
+// The problem, the choices in effect and the solver's counts.
+void report_problem_and_solve(nlohmann::json& rep, const Model& model, DualProblem& dual,
+                              const Comm& comm, const SolveRecord& r);
+// Timings by phase and memory by phase (maxima or sums over the ranks).
+void report_timings_and_memory(nlohmann::json& rep, DualProblem& dual, const Comm& comm,
+                               const SolveRecord& r);
+// The contact rows and the displacement summary (collective).
+void report_solution(nlohmann::json& rep, const Model& model, DualProblem& dual, const Comm& comm,
+                     const std::vector<Vec>& u, const Vec& lambda);
+
+}  // namespace htfeti::solve_parts

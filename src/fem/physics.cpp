@@ -292,23 +292,11 @@ AssembledSubdomain assemble_subdomain(const SubdomainMesh& mesh, const Physics& 
   }
 
   // Connected parts (through shared cells), numbered by their lowest node.
-  std::vector<int> parent(nn);
-  std::iota(parent.begin(), parent.end(), 0);
-  auto find = [&](int a) {
-    while (parent[a] != a) a = parent[a] = parent[parent[a]];
-    return a;
-  };
-  for (int e = 0; e < ne; ++e) {
-    const int* cn = mesh.cells.data() + static_cast<size_t>(e) * nc;
-    for (int a = 1; a < nc; ++a) {
-      const int r0 = find(cn[0]), r1 = find(cn[a]);
-      if (r0 != r1) parent[std::max(r0, r1)] = std::min(r0, r1);
-    }
-  }
+  const std::vector<int> component = node_components(mesh.cells, nc, nn);
   std::vector<int> part_of(nn), root_part(nn, -1);
   int parts = 0;
   for (int k = 0; k < nn; ++k) {
-    const int r = find(k);
+    const int r = component[k];
     if (root_part[r] < 0) root_part[r] = parts++;
     part_of[k] = root_part[r];
   }

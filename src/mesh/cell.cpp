@@ -1,6 +1,8 @@
 // Cell topology (cell.hpp).
 #include "htfeti/mesh/cell.hpp"
 
+#include <algorithm>
+
 namespace htfeti {
 
 CellType parse_cell_type(const std::string& name) {
@@ -47,6 +49,25 @@ int cell_facet(CellType t, int f, int* nodes) {
       return 4;
   }
   return 0;
+}
+
+std::vector<int> node_components(const std::vector<int>& cells, int nc, int nodes) {
+  std::vector<int> parent(nodes);
+  for (int k = 0; k < nodes; ++k) parent[k] = k;
+  auto root = [&](int a) {
+    while (parent[a] != a) a = parent[a] = parent[parent[a]];
+    return a;
+  };
+  const size_t ne = nc > 0 ? cells.size() / nc : 0;
+  for (size_t e = 0; e < ne; ++e) {
+    const int* cn = cells.data() + e * nc;
+    for (int a = 1; a < nc; ++a) {
+      const int r0 = root(cn[0]), r1 = root(cn[a]);
+      if (r0 != r1) parent[std::max(r0, r1)] = std::min(r0, r1);
+    }
+  }
+  for (int k = 0; k < nodes; ++k) parent[k] = root(k);
+  return parent;
 }
 
 }  // namespace htfeti

@@ -55,24 +55,12 @@ std::vector<std::pair<FacetKey, int>> all_facets(const Mesh& mesh) {
 // of their first cell. Union-find over the nodes.
 int find_bodies(const Mesh& mesh, std::vector<int>& cell_body) {
   const int ne = mesh.num_cells(), nn = mesh.num_nodes(), nc = cell_nodes(mesh.type);
-  std::vector<int> parent(nn);
-  std::iota(parent.begin(), parent.end(), 0);
-  auto root = [&](int a) {
-    while (parent[a] != a) a = parent[a] = parent[parent[a]];
-    return a;
-  };
-  for (int e = 0; e < ne; ++e) {
-    const int* cn = mesh.cells.data() + static_cast<size_t>(e) * nc;
-    for (int a = 1; a < nc; ++a) {
-      const int r0 = root(cn[0]), r1 = root(cn[a]);
-      if (r0 != r1) parent[std::max(r0, r1)] = std::min(r0, r1);
-    }
-  }
+  const std::vector<int> component = node_components(mesh.cells, nc, nn);
   std::vector<int> body_of_root(nn, -1);
   int bodies = 0;
   cell_body.resize(ne);
   for (int e = 0; e < ne; ++e) {
-    const int r = root(mesh.cells[static_cast<size_t>(e) * nc]);
+    const int r = component[mesh.cells[static_cast<size_t>(e) * nc]];
     if (body_of_root[r] < 0) body_of_root[r] = bodies++;
     cell_body[e] = body_of_root[r];
   }

@@ -5,6 +5,7 @@
 
 #include <array>
 #include <string>
+#include <vector>
 
 #include "htfeti/enum_names.hpp"
 
@@ -26,5 +27,10 @@ int vtk_cell_type(CellType type);
 /// cells (triangles or quads). Used to find the domain boundary and to apply tractions.
 int cell_facet_count(CellType type);
 int cell_facet(CellType type, int facet, int* nodes);  // returns the number of nodes
+
+/// The connected components of cells that share nodes: per node the smallest node index of its
+/// component (union-find over the cells' nodes; `cells`: nodes_per_cell node indices per cell,
+/// `nodes` nodes in all). Nodes of no cell are their own component.
+std::vector<int> node_components(const std::vector<int>& cells, int nodes_per_cell, int nodes);
 
 }  // namespace htfeti

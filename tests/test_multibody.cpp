@@ -322,3 +322,26 @@ TEST(Multibody, FrictionBetweenBodiesTransmitsTheBoundAtFullSlip) {
     }
   }
 }
+
+// An obstacle and a pair in one problem: the upper block pressed on the lower one, both on a
+// frictionless floor at y = 0 (an obstacle under the lower block, instead of its rollers): the
+// rows of both kinds on the same subdomains, the contact summary in the file's order.
+TEST(Multibody, AnObstacleAndAPairTogether) {
+  Comm comm;
+  ProblemSpec s = stacked_blocks("two-squares-quad.msh", true);
+  s.dirichlet.erase(s.dirichlet.begin());  // no roller at the bottom
+  ProblemSpec::Contact floor;
+  floor.group = "bottom";
+  floor.direction = {0, -1, 0};
+  floor.gap = "0";
+  s.contact.insert(s.contact.begin(), floor);
+  const auto out = run(s, comm);
+  ASSERT_TRUE(out.converged) << out.report["stop_reason"];
+  const auto& sum = out.report["contact_summary"];
+  ASSERT_EQ(sum.size(), 2u);
+  EXPECT_EQ(sum[0]["group"], "bottom");
+  EXPECT_FALSE(sum[0].contains("master"));
+  EXPECT_EQ(sum[1]["master"], "lower_top");
+  for (int i = 0; i < 2; ++i)
+    EXPECT_NEAR(sum[i]["normal_force"].get<double>(), kPressure, 1e-8 * kPressure) << i;
+}

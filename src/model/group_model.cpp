@@ -353,9 +353,6 @@ class GroupModel final : public Model {
     }
     for (size_t i = first_row; i < in.contact.size(); ++i)
       at_node[in.contact[i].node].push_back(&in.contact[i]);
-    // Contact between bodies: the parts of the mortar rows on this subdomain's nodes (after the
-    // check above, which is for obstacles).
-    pairs_.add_rows(m, in);
     for (const auto& rows : at_node)
       for (size_t a = 0; a < rows.size(); ++a)
         for (size_t b = a + 1; b < rows.size(); ++b) {
@@ -370,6 +367,9 @@ class GroupModel final : public Model {
                 "): opposite directions whose gaps add up to " +
                 std::to_string(rows[a]->gap + rows[b]->gap) + " < 0 (no feasible position)");
         }
+    // Contact between bodies: the parts of the mortar rows on this subdomain's nodes (after the
+    // check above, which is for obstacles and holds pointers into in.contact).
+    pairs_.add_rows(m, in);
   }
   nlohmann::json describe() const override {
     nlohmann::json j;
@@ -421,6 +421,9 @@ class GroupModel final : public Model {
         for (const auto& [k, v] : pair.items()) cj[k] = v;
         if (physics_.kind == PhysicsKind::laplace)
           cj["direction"] = c.direction[0], cj["gap"] = c.gap;
+        if (c.slip_bound >= 0) cj["friction"] = {{"law", "tresca"}, {"bound", c.slip_bound}};
+        if (c.friction_coefficient >= 0)
+          cj["friction"] = {{"law", "coulomb"}, {"coefficient", c.friction_coefficient}};
         conditions["contact"].push_back(cj);
         continue;
       }

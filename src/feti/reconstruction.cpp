@@ -349,7 +349,7 @@ DualProblem::ContactFields DualProblem::contact_fields(const std::vector<Vec>& u
     std::vector<int> last(nodes, -1);  // a row has one entry per normal component
     for (const auto& r : multipliers_.rows[s]) {
       const int node = r.dof / dpn;
-      if (!r.key || std::isnan(p[r.k]) && std::isnan(st[r.k])) continue;
+      if (!r.key || (std::isnan(p[r.k]) && std::isnan(st[r.k]))) continue;
       if (last[node] == r.k) continue;
       double& pv = out.pressure[s][node];
       if (!std::isnan(p[r.k]))  // rows of several conditions at one node add

@@ -12,8 +12,8 @@ contact_summary resultant and tangential_force). In 3D the stick zone is the dis
     c = a (1 - Q / (mu P))^(1/3),   a^3 = 3 P R / (4 E*),
 P and Q the forces on the whole sphere (twice the half model's), and its radius is taken halfway
 between the farthest stick node and the nearest slip node from the axis. (The 3D run is not in
-bench/results: at h = 0.03 it took 55,348 Hessian products over 5 Coulomb solves, MPGP's
-gradient projection steps on the active discs being slow; docs/results.md.) The Coulomb fixed point stops at a relative
+bench/results: at h = 0.03 it took 55,348 Hessian products over 5 Coulomb solves, CG steps in the
+face on this graded mesh; docs/results.md.) The Coulomb fixed point stops at a relative
 change of the bounds of 1e-4: at rtol 1e-8 its changes level off between 1e-6 and 2e-5 on these
 meshes (the precision of the normal multipliers), so a tighter test would not be met. The half-width of the discrete stick zone is
 taken halfway between the outermost stick nodes and their slip neighbours.

@@ -197,8 +197,9 @@ void report_solution(nlohmann::json& rep, const Model& model, DualProblem& dual,
                      const std::vector<Vec>& u, const Vec& lambda) {
   if (dual.has_inequalities()) {
     const auto c = dual.contact_data(u, lambda);
-    // Per contact row: node a's coordinates, n.u_a ("u_left"), n.u_b ("u_right", 0 for a rigid
-    // obstacle), the gap and the contact force ("multiplier", nodal force units).
+    // Per contact row (DualProblem::ContactData): node a's (or the slave node's) coordinates,
+    // n.u_a ("u_left"), n.u_b ("u_right", 0 for a rigid obstacle), the remaining gap, the row's
+    // force ("multiplier"), its pressure and, with friction, the tangential values.
     nlohmann::json cj = {{"x", c.x},
                          {"y", c.y},
                          {"z", c.z},

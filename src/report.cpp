@@ -46,6 +46,7 @@ void report_problem_and_solve(nlohmann::json& rep, const Model& model, DualProbl
   // along those motions are chosen zero (DualProblem::CoarseFactor).
   rep["unrestrained_rigid_motions"] = dual.unrestrained_rigid_motions();
   rep["unrestrained_at_solution"] = dual.unrestrained_at_solution();
+  if (dual.inequalities() > 0 || dual.has_friction()) rep["lambda_tilde"] = dual.lambda_tilde_choice();
   rep["ranks"] = comm.size();
   rep["threads"] = omp_get_max_threads();
   rep["rtol"] = options.rtol;

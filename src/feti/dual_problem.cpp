@@ -386,6 +386,7 @@ void DualProblem::finish_setup(Setup& st) {
   coarse_solve(coarse_work);
   lambda_tilde_.resize(n_own);
   apply_Gt(coarse_work, lambda_tilde_);
+  choose_feasible_lambda_tilde();
   {
     double mine = 0;
     for (int k = 0; k < n_own; ++k)
@@ -465,6 +466,37 @@ long DualProblem::cluster_dense_doubles() const {
   std::unordered_set<const void*> seen;  // blocks shared by equal subdomains counted once
   for (const auto& c : clusters_) n += c->dense_doubles(&seen);
   return n;
+}
+
+void DualProblem::choose_feasible_lambda_tilde() {
+  const int n_own = multipliers_.layout.n_owned();
+  double violation = 0;  // of the least-squares lambda~ against the bounds
+  for (int k = 0; k < n_own; ++k) {
+    const MultiplierKind kind = multipliers_.kind[k];
+    if (kind == MultiplierKind::contact) violation = std::max(violation, -lambda_tilde_[k]);
+    if (kind == MultiplierKind::friction)
+      violation = std::max(violation, std::abs(lambda_tilde_[k]));
+  }
+  if (comm_.max(violation) <= 0) return;
+  std::vector<double> weight(n_own);
+  for (int k = 0; k < n_own; ++k) {
+    const MultiplierKind kind = multipliers_.kind[k];
+    weight[k] = kind == MultiplierKind::contact || kind == MultiplierKind::friction ? 0.0 : 1.0;
+  }
+  Vec coarse = e_;
+  if (coarse_.solve_weighted(weight, coarse) > 0) return;  // contact holds some rigid motion
+  Vec candidate(n_own);
+  apply_Gt(coarse, candidate);
+  for (int k = 0; k < n_own; ++k) candidate[k] *= weight[k];
+  // A semidefinite G~ W G~^T can factor with a round-off pivot instead of failing (a body that
+  // only contact holds, as the sphere of examples/sphere-on-block.toml): then G~ lambda = e~
+  // does not hold. Keep the candidate only if it solves the equation to round-off.
+  Vec residual(coarse_dimension());
+  apply_G(candidate, residual);
+  residual -= e_;
+  if (!(residual.norm() <= 1e-9 * e_.norm())) return;
+  lambda_tilde_ = std::move(candidate);
+  lambda_tilde_choice_ = "equality rows";
 }
 
 }  // namespace htfeti

@@ -234,8 +234,13 @@ class DualProblem {
   const Vec& d() const { return d_; }
   /// e~ = R~^T f (all clusters).
   const Vec& e() const { return e_; }
-  /// lambda~ = G~^T (G~ G~^T)^{-1} e~: the least-squares solution of G~ lambda = e~.
+  /// A solution of G~ lambda = e~ (the paper's (12)): the least-squares one,
+  /// G~^T (G~ G~^T)^{-1} e~, or, when that one leaves the feasible set and the equality rows alone
+  /// restrain every rigid motion, W G~^T (G~ W G~^T)^{-1} e~ with W = 0 on the bounded rows
+  /// (then zero is feasible for the homogenized QP: see choose_feasible_lambda_tilde).
   const Vec& lambda_tilde() const { return lambda_tilde_; }
+  /// How lambda~ was chosen: "least squares" or "equality rows".
+  const std::string& lambda_tilde_choice() const { return lambda_tilde_choice_; }
   /// The feasible set of the owned multipliers (the dual problem's Omega): lambda_I >= 0 on the
   /// contact rows (qp::LowerBounds) and, with friction, |lambda_t| <= bound: an interval per
   /// tangential row in 2D (qp::BoxBounds), a disc per node's two tangential rows in 3D
@@ -391,6 +396,13 @@ class DualProblem {
   void set_up_coarse_space(Setup& st);
   // The coarse factor, d, e~, lambda~, the bounds and the scaling.
   void finish_setup(Setup& st);
+  // lambda~ with zero on the contact and friction rows, when the least-squares lambda~ violates
+  // their bounds and G~ restricted to the other rows has full rank. Homogenized by it, the QP's
+  // start x = 0 is feasible and in Ker G~: MPRGP then starts on the equality constraint instead
+  // of from the projection of 0 onto the shifted bounds, which SMALBE-M's outer loop has to
+  // bring back to Ker G~ (47 outer iterations instead of 1 on the METIS-split 40^3 cube).
+  // Costs one more coarse factorization, only when the least-squares lambda~ is infeasible.
+  void choose_feasible_lambda_tilde();
   void cluster_rhs_from_ext(int c, bool add_f,
                             double sign);  // x_i = (f_i) + sign B_i^T multipliers_.ext_in
   void b_of_x(int c);                      // contrib_ = B_i x_i, per row entry
@@ -420,6 +432,7 @@ class DualProblem {
   CoarseSpace coarse_{layout_, comm_, multipliers_};
   int reconstruction_null_ = 0;
   Vec d_, e_, lambda_tilde_;
+  std::string lambda_tilde_choice_ = "least squares";
   bool coulomb_ = false;  // some friction row is Coulomb's
   // work arrays (allocated once)
   std::vector<std::vector<Vec>> x_;           // per cluster, per subdomain

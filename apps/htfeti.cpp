@@ -140,12 +140,14 @@ const CLI::Validator kPositive(
 // What selects the problem (not options of the solve): a problem file or a built-in, and the
 // built-ins' sizes. Each has a problem-file key of its own in [mesh] or [decomposition].
 struct ProblemArgs {
-  std::string file, problem = "membranes", element = "q1", glue = "averages";
+  std::string file, problem = "membranes", element = "q1", glue = "averages",
+                    objective = "volume";
   std::string elements = "128", subdomains = "8";
   int cluster_size = 1;
   double amplitude = 1.0;
   CLI::Option *o_problem = nullptr, *o_elements = nullptr, *o_subdomains = nullptr, *o_m = nullptr,
-              *o_glue = nullptr, *o_element = nullptr, *o_amplitude = nullptr;
+              *o_glue = nullptr, *o_element = nullptr, *o_amplitude = nullptr,
+              *o_objective = nullptr;
 };
 
 void add_problem_args(CLI::App* cmd, ProblemArgs& p) {
@@ -176,6 +178,11 @@ void add_problem_args(CLI::App* cmd, ProblemArgs& p) {
                              "primal gluing inside clusters: corners | averages | "
                              "corners+averages [decomposition.glue]")
                  ->capture_default_str();
+  p.o_objective = cmd->add_option("--partition-objective", p.objective,
+                                  "problem files split by METIS: what METIS minimizes, volume "
+                                  "(communication volume: interface nodes) | cut (cut facets) "
+                                  "[decomposition.objective]")
+                      ->capture_default_str();
   p.o_element =
       cmd->add_option("--element", p.element, "built-ins: q1 (bilinear) | p1 (linear triangles)")
           ->capture_default_str();
@@ -248,6 +255,12 @@ std::shared_ptr<const Model> file_model(const ProblemArgs& p, const TableArgs& a
   if (p.o_subdomains->count()) spec.subdomains = parse_int_list(p.subdomains, "--subdomains");
   if (p.o_m->count()) spec.cluster_size = p.cluster_size;
   if (p.o_glue->count()) spec.glue = parse_glue(p.glue);
+  if (p.o_objective->count()) {
+    spec.partition_objective = parse_partition_objective(p.objective);
+    if (spec.subdomains.size() != 1)
+      throw std::invalid_argument(
+          "--partition-objective is for meshes split by METIS (decomposition.subdomains = N)");
+  }
   if (!spec.builtin.empty() && p.o_elements->count()) {
     const auto e = parse_int_list(p.elements, "--elements");
     if (e.size() != 1) throw std::invalid_argument("--elements takes one number for a built-in");
@@ -288,6 +301,8 @@ std::shared_ptr<const Model> builtin_model(const ProblemArgs& p, const TableArgs
   }
   if (p.o_amplitude->count())
     throw std::invalid_argument("--obstacle-amplitude is for --problem cube-obstacle");
+  if (p.o_objective->count())
+    throw std::invalid_argument("--partition-objective is for problem files split by METIS");
   DecompositionOptions& d = run.solve.decomposition;
   d.problem = parse_problem(p.problem);
   d.element = parse_element(p.element);

@@ -419,10 +419,11 @@ void read_conditions(const toml::table& root, ProblemSpec& spec) {
   }
 }
 
-// [decomposition]: subdomains (METIS: N; a generated box: one per axis), cluster_size, glue.
+// [decomposition]: subdomains (METIS: N; a generated box: one per axis), cluster_size, glue,
+// objective (METIS's).
 void read_decomposition(const toml::table& root, ProblemSpec& spec) {
   if (const toml::table* dec = table_of(root, "decomposition", false)) {
-    check_keys(*dec, "decomposition", {"subdomains", "cluster_size", "glue"});
+    check_keys(*dec, "decomposition", {"subdomains", "cluster_size", "glue", "objective"});
     if (const toml::node* s = dec->get("subdomains")) {
       spec.subdomains.clear();
       if (s->is_integer()) {
@@ -445,6 +446,12 @@ void read_decomposition(const toml::table& root, ProblemSpec& spec) {
       spec.glue = parse_glue(get_string(*dec, "decomposition", "glue", "averages"));
     } catch (const std::invalid_argument& e) {
       bad("decomposition.glue", e.what());
+    }
+    try {
+      spec.partition_objective =
+          parse_partition_objective(get_string(*dec, "decomposition", "objective", "volume"));
+    } catch (const std::invalid_argument& e) {
+      bad("decomposition.objective", e.what());
     }
   }
 }

@@ -411,6 +411,31 @@ TEST_F(Cli, BadContactPairsExitWithCode2) {
       "given twice");
 }
 
+// METIS's objective: a problem-file key and a flag; a bad word is refused with exit 2, and the
+// report names the objective in effect.
+TEST_F(Cli, PartitionObjective) {
+  const std::string ex = std::string(HTFETI_SOURCE_DIR) + "/examples/plate-with-hole.toml";
+  ASSERT_EQ(run(bin + " solve " + ex + " --partition-objective cut --no-vtu --report r.json"), 0)
+      << stderr_text();
+  {
+    std::ifstream f("r.json");
+    EXPECT_EQ(nlohmann::json::parse(f)["partition_objective"], "cut");
+  }
+  EXPECT_EQ(run(bin + " solve " + ex + " --partition-objective edges --no-vtu --report q.json"), 2);
+  EXPECT_NE(stderr_text().find("unknown partition objective 'edges'"), std::string::npos)
+      << stderr_text();
+  EXPECT_FALSE(fs::exists("q.json"));
+  std::ifstream in(ex);
+  std::string text((std::istreambuf_iterator<char>(in)), {});
+  const std::string dir = std::string(HTFETI_SOURCE_DIR) + "/examples/meshes/";
+  text.replace(text.find("file = \"meshes/"), 15, "file = \"" + dir);
+  text.replace(text.find("[decomposition]"), 15, "[decomposition]\nobjective = \"nodes\"");
+  std::ofstream("obj.toml") << text;
+  EXPECT_EQ(run(bin + " solve obj.toml --no-vtu --report q.json"), 2);
+  EXPECT_NE(stderr_text().find("decomposition.objective"), std::string::npos) << stderr_text();
+  EXPECT_EQ(run(bin + " solve --problem membranes --partition-objective cut --no-vtu"), 2);
+}
+
 TEST_F(Cli, OversubscribedThreadsAreNoted) {
   // Ranks x threads beyond the machine's cores: a note naming the fix, and the run goes on.
   const int cores = static_cast<int>(std::thread::hardware_concurrency());

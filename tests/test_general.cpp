@@ -112,6 +112,7 @@ struct Case {
   std::vector<int> subdomains;
   int cluster_size;
   Glue glue;
+  PartitionObjective objective = PartitionObjective::volume;
 };
 
 ProblemSpec laplace_plate() { return laplace_on("plate-with-hole.msh", "left", "hole"); }
@@ -253,6 +254,7 @@ TEST_P(AgainstUndecomposed, SameSolution) {
   spec.subdomains = c.subdomains;
   spec.cluster_size = c.cluster_size;
   spec.glue = c.glue;
+  spec.partition_objective = c.objective;
   std::shared_ptr<const Model> model = make_model(spec);
   SolveOptions opt;
   opt.rtol = 1e-12;
@@ -290,6 +292,10 @@ INSTANTIATE_TEST_SUITE_P(
                       Case{"hex8_box_tfeti", hex8_box, {4, 2, 2}, 1, Glue::averages},
                       Case{"hex8_box_averages", hex8_box, {4, 2, 2}, 2, Glue::averages},
                       Case{"hex8_box_metis", hex8_box, {6}, 3, Glue::averages},
+                      Case{"plane_strain_metis_cut", plane_strain_plate, {8}, 1, Glue::averages,
+                           PartitionObjective::cut},
+                      Case{"hex8_box_metis_cut", hex8_box, {6}, 3, Glue::averages,
+                           PartitionObjective::cut},
                       Case{"hinged_square_3", hinged_square, {3}, 1, Glue::averages},
                       Case{"hinged_square_4", hinged_square, {4}, 1, Glue::averages},
                       Case{"hinged_square_6", hinged_square, {6}, 1, Glue::averages}),

@@ -137,7 +137,7 @@ class MetisSplit final : public MeshSource {
   // Split after the physics was checked (the dimension comes from the mesh).
   void split(const ProblemSpec& spec) {
     part_ = std::make_unique<MeshPartition>(
-        partition_mesh(*mesh_, spec.subdomains.at(0), spec.cluster_size));
+        partition_mesh(*mesh_, spec.subdomains.at(0), spec.cluster_size, spec.partition_objective));
   }
   // Every cell valid (fem/element.hpp: cell_is_valid): an inverted, self-intersecting or
   // degenerate element is refused with its tag, not solved with a wrong stiffness.
@@ -185,6 +185,7 @@ class MetisSplit final : public MeshSource {
                                                         {"nodes", mesh_->num_nodes()},
                                                         {"cells", mesh_->num_cells()}};
     j["partitioner"] = "metis";
+    j["partition_objective"] = to_string(spec.partition_objective);
   }
 
  private:

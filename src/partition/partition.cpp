@@ -70,7 +70,7 @@ int find_bodies(const Mesh& mesh, std::vector<int>& cell_body) {
 // METIS k-way on the dual graph of the given cells (all cells: the whole mesh as it is);
 // part[e] in [0, nparts) for e in cells.
 void split_cells(const Mesh& mesh, const std::vector<int>* cells, int nparts_in,
-                 std::vector<idx_t>& part, bool contiguous = false) {
+                 PartitionObjective objective, std::vector<idx_t>& part, bool contiguous = false) {
   if (nparts_in <= 1) {
     if (cells)
       for (int e : *cells) part[e] = 0;
@@ -102,19 +102,27 @@ void split_cells(const Mesh& mesh, const std::vector<int>* cells, int nparts_in,
   options[METIS_OPTION_SEED] = 1;
   options[METIS_OPTION_NUMBERING] = 0;
   if (contiguous) options[METIS_OPTION_CONTIG] = 1;
+  options[METIS_OPTION_OBJTYPE] =
+      objective == PartitionObjective::volume ? METIS_OBJTYPE_VOL : METIS_OBJTYPE_CUT;
   metis_check(METIS_PartMeshDual(&e, &nn, eptr.data(), eind.data(), nullptr, nullptr, &ncommon,
                                  &nparts, nullptr, options, &objval, out.data(), npart.data()),
               "mesh");
   for (int i = 0; i < ne; ++i) part[cells ? (*cells)[i] : i] = out[i];
 }
 
-// Whether some part's cells are joined only through single nodes (2D) or edges (3D) somewhere:
-// fewer components when cells that share any node are joined than when only cells that share
-// a facet are. Such a part is a mechanism (two pieces hinged at a node), whose stiffness the
-// kernel of rigid body motions does not make regular. `facets`: all_facets(mesh).
-bool has_hinged_part(const Mesh& mesh, const std::vector<int>& cells,
-                     const std::vector<idx_t>& part,
-                     const std::vector<std::pair<FacetKey, int>>& facets) {
+// The parts of a body's split that are a mechanism or in pieces. hinged: some part's cells are
+// joined only through single nodes (2D) or edges (3D) somewhere (fewer components when cells
+// that share any node are joined than when only cells that share a facet are): two pieces
+// hinged at a node, whose stiffness the kernel of rigid body motions does not make regular.
+// pieces: some part falls into pieces that share no node (METIS's parts need not be
+// connected): solved right, each piece with its own rigid motions, but a larger coarse problem
+// and a worse-conditioned one. `facets`: all_facets(mesh).
+struct SplitDefects {
+  bool hinged = false, pieces = false;
+};
+SplitDefects split_defects(const Mesh& mesh, const std::vector<int>& cells,
+                           const std::vector<idx_t>& part,
+                           const std::vector<std::pair<FacetKey, int>>& facets) {
   const int nc = cell_nodes(mesh.type);
   std::vector<int> local(mesh.num_cells(), -1);
   for (size_t i = 0; i < cells.size(); ++i) local[cells[i]] = static_cast<int>(i);
@@ -148,7 +156,11 @@ bool has_hinged_part(const Mesh& mesh, const std::vector<int>& cells,
       if (at[i][0] == at[i - 1][0] && at[i][1] == at[i - 1][1])
         join(static_cast<int>(at[i][2]), static_cast<int>(at[i - 1][2]));
   });
-  return by_node < by_facet;
+  std::vector<char> used(cells.size(), 0);
+  int parts = 0;
+  for (int e : cells)
+    if (!used[part[e]]) used[part[e]] = 1, ++parts;
+  return {by_node < by_facet, by_node > parts};
 }
 
 // Subdomains per body, proportional to the bodies' cell counts (largest remainders, at least
@@ -175,7 +187,16 @@ std::vector<int> parts_per_body(const std::vector<long long>& cells_of_body, int
 
 }  // namespace
 
-MeshPartition partition_mesh(const Mesh& mesh, int subdomains, int cluster_size) {
+PartitionObjective parse_partition_objective(const std::string& name) {
+  return parse_name(kPartitionObjectiveNames, name, "partition objective");
+}
+
+std::string to_string(PartitionObjective objective) {
+  return name_of(kPartitionObjectiveNames, objective);
+}
+
+MeshPartition partition_mesh(const Mesh& mesh, int subdomains, int cluster_size,
+                             PartitionObjective objective) {
   if (subdomains < 1) throw std::invalid_argument("decomposition.subdomains must be positive");
   if (cluster_size < 1) throw std::invalid_argument("decomposition.cluster_size must be positive");
   const int ne = mesh.num_cells(), nn = mesh.num_nodes(), nc = cell_nodes(mesh.type);
@@ -191,9 +212,9 @@ MeshPartition partition_mesh(const Mesh& mesh, int subdomains, int cluster_size)
                                 " bodies of the mesh (a subdomain never spans two bodies)");
   // 1. Subdomains: METIS on the dual graph, of the whole mesh (one body) or of each body with
   // a share of the subdomains proportional to its cells (subdomain ids body-major).
-  // A body whose METIS split left a subdomain hinged at a node (METIS's parts need not be
-  // connected) is split again with connected parts asked for (METIS_OPTION_CONTIG); splits
-  // without hinges are kept as METIS gave them.
+  // A body whose METIS split left a subdomain hinged at a node or in pieces (METIS's parts need
+  // not be connected) is split again with connected parts asked for (METIS_OPTION_CONTIG);
+  // other splits are kept as METIS gave them.
   std::vector<idx_t> part(ne, 0);
   std::vector<int> body_first(nb + 1, 0);  // first subdomain of each body
   const auto facets = all_facets(mesh);
@@ -205,10 +226,12 @@ MeshPartition partition_mesh(const Mesh& mesh, int subdomains, int cluster_size)
       nb == 1 ? std::vector<int>{subdomains} : parts_per_body(counts, subdomains);
   for (int b = 0; b < nb; ++b) {
     const std::vector<int>* subset = nb == 1 ? nullptr : &cells[b];
-    split_cells(mesh, subset, n[b], part);
-    if (n[b] > 1 && has_hinged_part(mesh, cells[b], part, facets)) {
-      split_cells(mesh, subset, n[b], part, true);
-      if (has_hinged_part(mesh, cells[b], part, facets))
+    split_cells(mesh, subset, n[b], objective, part);
+    const SplitDefects defects =
+        n[b] > 1 ? split_defects(mesh, cells[b], part, facets) : SplitDefects{};
+    if (defects.hinged || defects.pieces) {
+      split_cells(mesh, subset, n[b], objective, part, true);
+      if (split_defects(mesh, cells[b], part, facets).hinged)
         throw std::invalid_argument(
             "METIS could not split body " + std::to_string(b + 1) + " into " +
             std::to_string(n[b]) +

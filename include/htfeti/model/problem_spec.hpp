@@ -15,6 +15,7 @@
 #include "htfeti/mesh/box.hpp"
 #include "htfeti/model/decomposition.hpp"
 #include "htfeti/model/model.hpp"
+#include "htfeti/partition/partition.hpp"
 
 namespace htfeti {
 
@@ -60,6 +61,8 @@ struct ProblemSpec {
   std::vector<int> subdomains{1};  ///< one number (METIS) or one per axis (generated box)
   int cluster_size = 1;
   Glue glue = Glue::averages;
+  /// METIS's objective when a mesh is split (not a box split into boxes).
+  PartitionObjective partition_objective = PartitionObjective::volume;
 };
 
 /// The cube-obstacle benchmark (DESIGN.md; the paper's Table 4, ESPRESO's former obstacle

@@ -10,12 +10,26 @@
 // computes the same partition.
 #pragma once
 
+#include <array>
+#include <string>
 #include <vector>
 
+#include "htfeti/enum_names.hpp"
 #include "htfeti/mesh/mesh.hpp"
 #include "htfeti/mesh/subdomain_mesh.hpp"
 
 namespace htfeti {
+
+/// What METIS minimizes when it splits the cells into subdomains: the total communication volume
+/// (METIS_OBJTYPE_VOL: roughly the interface nodes counted once per extra subdomain holding them)
+/// or the edge cut of the dual graph (METIS_OBJTYPE_CUT: the cut facets). Volume is the
+/// default: on the METIS-split cube-obstacle it halves the Hessian products against the cut
+/// (docs/performance.md, bench/metis_partition.py).
+enum class PartitionObjective { volume, cut };
+inline constexpr std::array<EnumName<PartitionObjective>, 2> kPartitionObjectiveNames{
+    {{PartitionObjective::volume, "volume"}, {PartitionObjective::cut, "cut"}}};
+PartitionObjective parse_partition_objective(const std::string& name);  // std::invalid_argument
+std::string to_string(PartitionObjective objective);
 
 struct MeshPartition {
   int num_bodies = 1;          ///< connected components of the cells (numbered by first cell)
@@ -32,7 +46,8 @@ struct MeshPartition {
 
 /// Throws std::invalid_argument if the numbers do not fit the mesh (an empty subdomain).
 /// cluster_size: subdomains per cluster (1: TFETI).
-MeshPartition partition_mesh(const Mesh& mesh, int subdomains, int cluster_size);
+MeshPartition partition_mesh(const Mesh& mesh, int subdomains, int cluster_size,
+                             PartitionObjective objective = PartitionObjective::volume);
 
 /// The SubdomainMesh of subdomain s (local nodes in global order, groups restricted to it).
 SubdomainMesh extract_subdomain(const Mesh& mesh, const MeshPartition& part, int s);

@@ -31,7 +31,7 @@ struct SolveOptions {
   /// solver.norm_estimate_matvecs. The power method stays the default because the committed
   /// tables (docs/results.md) were measured with it; Lanczos needs fewer products in total
   /// (docs/performance.md) and moves SMALBE-M's counts through rho = 1.1 ||PFP||.
-  qp::NormEstimate norm_estimate = qp::NormEstimate::power;
+  qp::NormEstimate norm_estimate = qp::NormEstimate::lanczos;
   /// Coarse steps per SMALBE-M Hessian product: 2 (P v, F, P: two global reductions, each
   /// waiting for the last) or 1 (F v, then [G~ v, G~ F v] in one reduction, with E = F G~^T and
   /// C = G~ F G~^T formed once in setup: DualProblem::build_coarse_image). 1 costs memory (about

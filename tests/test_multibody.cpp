@@ -349,15 +349,19 @@ TEST(Multibody, AnObstacleAndAPairTogether) {
 
 // The sphere of examples/sphere-on-block.toml is held in z by the contact alone, and its
 // least-squares lambda~ has negative contact entries. lambda~ from the equality rows does not
-// exist then, but G~ W G~^T factors with a round-off pivot instead of failing: the candidate
-// misses G~ lambda~ = e~ (residual 2 relative) and must be refused. Taken, it gave exit 0 with
-// no contact force at all and the sphere 0.014 into the block. Equilibrium checks it: the
-// contact carries the whole load.
-TEST(Multibody, SphereHeldByContactAloneCarriesItsLoad) {
+// exist then. Split with the cut objective, G~ W G~^T factors with a round-off pivot instead of
+// failing (rcond 1.2e-16), and the candidate misses G~ lambda~ = e~ (residual 2 relative): the
+// rcond test of the coarse factor, and behind it the residual test, must refuse it. Taken, it
+// gave exit 0 with no contact force at all and the sphere 0.014 into the block. Equilibrium
+// checks it: the contact carries the whole load.
+class SphereOnBlock : public ::testing::TestWithParam<PartitionObjective> {};
+
+TEST_P(SphereOnBlock, HeldByContactAloneItCarriesItsLoad) {
   Comm comm;
   RunOptions run_options;
   ProblemSpec spec =
       read_problem_file(HTFETI_SOURCE_DIR "/examples/sphere-on-block.toml", run_options);
+  spec.partition_objective = GetParam();
   SolveOptions opt = run_options.solve;
   const auto out = solve(std::shared_ptr<const Model>(make_model(spec)), opt, comm);
   ASSERT_TRUE(out.converged) << out.report["stop_reason"];
@@ -371,3 +375,7 @@ TEST(Multibody, SphereHeldByContactAloneCarriesItsLoad) {
   EXPECT_NEAR(sum["resultant"][2].get<double>(), load, 1e-3 * load);
   EXPECT_LT(sum["max_penetration"].get<double>(), 1e-6);
 }
+
+INSTANTIATE_TEST_SUITE_P(Multibody, SphereOnBlock,
+                         ::testing::Values(PartitionObjective::volume, PartitionObjective::cut),
+                         [](const auto& info) { return to_string(info.param); });

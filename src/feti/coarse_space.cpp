@@ -296,6 +296,12 @@ void CoarseSpace::assemble(const std::vector<double>& weight, Factor& factor) {
     try {
       inject_failure("coarse", comm_.rank());
       factor.sparse.factorize(GGt);
+      // A semidefinite G~ W G~^T (a rigid motion that only the masked rows restrain) can factor
+      // with a round-off pivot instead of failing: the sphere of examples/sphere-on-block.toml,
+      // split with the cut objective, with its contact rows masked did (rcond 1.2e-16; its null
+      // eigenvalue 3e-17 of 0.84). rcond >= 1 / cond, so below 1e-15 the matrix is singular to
+      // working precision: taken as singular (the dense path finds its null space).
+      if (factor.sparse.rcond() < kSingularRcond) singular = true;
     } catch (const std::bad_alloc&) {
       oom = true;  // this rank alone, maybe: agreed on below
     } catch (const std::exception&) {

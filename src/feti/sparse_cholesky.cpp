@@ -689,6 +689,11 @@ std::shared_ptr<const SparseCholesky::SchurInverse> SparseCholesky::schur_invers
   return impl_->slot->value;
 }
 
+double SparseCholesky::rcond() const {
+  if (!impl_->factor) return 0;
+  return cholmod_rcond(impl_->factor, &impl_->common);
+}
+
 long SparseCholesky::factor_nonzeros() const {
   const cholmod_factor* L = impl_->factor;
   if (!L) return 0;

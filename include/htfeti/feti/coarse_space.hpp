@@ -119,6 +119,7 @@ class CoarseSpace {
     int null_dimension() const { return static_cast<int>(null.cols()); }
   };
   static constexpr int kMaxDense = 4000;
+  static constexpr double kSingularRcond = 1e-15;  // SparseCholesky::rcond() below it: singular
   void assemble(const std::vector<double>& weight, Factor& factor);
   void gt_into_ext(const Vec& coarse);  // m_.ext_out = G~^T coarse (owners summed)
   int local_clusters() const { return static_cast<int>(rows_.size()); }

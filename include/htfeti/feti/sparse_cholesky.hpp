@@ -134,6 +134,10 @@ class SparseCholesky {
       const Eigen::MatrixXd& key, const std::vector<int>& tag,
       const std::function<Eigen::MatrixXd()>& compute);
   int rows() const;
+  /// CHOLMOD's estimate of the reciprocal condition number, (min_j L_jj / max_j L_jj)^2: at least
+  /// 1 / cond(A), so a value below round-off means a matrix that is singular to working precision
+  /// (a semidefinite A can factor with a round-off pivot instead of failing). 0 without a factor.
+  double rcond() const;
   /// Nonzeros of the factor L (memory is about 8 bytes per nonzero plus the pattern).
   long factor_nonzeros() const;
   /// Bytes held by the factor: values, row indices and the supernode/permutation arrays.

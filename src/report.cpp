@@ -64,7 +64,12 @@ void report_problem_and_solve(nlohmann::json& rep, const Model& model, DualProbl
   rep["preconditioner"] = to_string(dual.preconditioner());
   // Why: "requested", or the automatic rule (resolve_preconditioner); a Dirichlet choice of auto
   // whose dense blocks did not fit fell back to none.
-  rep["preconditioner_reason"] = preconditioner_reason;
+  rep["preconditioner_reason"] =
+      feti.preconditioner == PreconditionerKind::dirichlet &&
+              dual.preconditioner() != PreconditionerKind::dirichlet
+          ? preconditioner_reason + "; Dirichlet's dense S_i exceed dirichlet_budget_gb: " +
+                to_string(dual.preconditioner())
+          : preconditioner_reason;
   rep["scaling"] = to_string(dual.scaling());
   if (ops.preconditioned)
     // lumped: the sparse K_bb; Dirichlet: S_i dense on every rank, or implicit somewhere.

@@ -230,3 +230,22 @@ TEST(PreconditionedSolves, SameSolution) {
       }
   }
 }
+
+// auto picks Dirichlet for H-TFETI-DP with contact, but not when its dense S_i exceed the
+// budget: then none, and the report says why (not only the rule that asked for Dirichlet).
+TEST(AutomaticPreconditioner, SaysWhenDirichletDidNotFit) {
+  Comm comm;
+  const auto model = cube(2, false);
+  SolveOptions o;
+  o.check_memory = false;
+  o.max_iterations = 2;  // the choice is made in the setup
+  const SolveOutput fits = solve(model, o, comm);
+  EXPECT_EQ(fits.report["preconditioner"], "dirichlet");
+  EXPECT_EQ(fits.report["preconditioner_reason"], "automatic: elasticity, H-TFETI-DP with contact");
+  o.feti.dirichlet_dense_budget_bytes = 0;
+  const SolveOutput over = solve(model, o, comm);
+  EXPECT_EQ(over.report["preconditioner"], "none");
+  EXPECT_EQ(over.report["preconditioner_reason"],
+            "automatic: elasticity, H-TFETI-DP with contact; Dirichlet's dense S_i exceed "
+            "dirichlet_budget_gb: none");
+}

@@ -140,8 +140,7 @@ const CLI::Validator kPositive(
 // What selects the problem (not options of the solve): a problem file or a built-in, and the
 // built-ins' sizes. Each has a problem-file key of its own in [mesh] or [decomposition].
 struct ProblemArgs {
-  std::string file, problem = "membranes", element = "q1", glue = "averages",
-                    objective = "volume";
+  std::string file, problem = "membranes", element = "q1", glue = "averages", objective = "volume";
   std::string elements = "128", subdomains = "8";
   int cluster_size = 1;
   double amplitude = 1.0;

@@ -46,7 +46,8 @@ void report_problem_and_solve(nlohmann::json& rep, const Model& model, DualProbl
   // along those motions are chosen zero (DualProblem::CoarseFactor).
   rep["unrestrained_rigid_motions"] = dual.unrestrained_rigid_motions();
   rep["unrestrained_at_solution"] = dual.unrestrained_at_solution();
-  if (dual.inequalities() > 0 || dual.has_friction()) rep["lambda_tilde"] = dual.lambda_tilde_choice();
+  if (dual.inequalities() > 0 || dual.has_friction())
+    rep["lambda_tilde"] = dual.lambda_tilde_choice();
   rep["ranks"] = comm.size();
   rep["threads"] = omp_get_max_threads();
   rep["rtol"] = options.rtol;
@@ -64,12 +65,12 @@ void report_problem_and_solve(nlohmann::json& rep, const Model& model, DualProbl
   rep["preconditioner"] = to_string(dual.preconditioner());
   // Why: "requested", or the automatic rule (resolve_preconditioner); a Dirichlet choice of auto
   // whose dense blocks did not fit fell back to none.
-  rep["preconditioner_reason"] =
-      feti.preconditioner == PreconditionerKind::dirichlet &&
-              dual.preconditioner() != PreconditionerKind::dirichlet
-          ? preconditioner_reason + "; Dirichlet's dense S_i exceed dirichlet_budget_gb: " +
-                to_string(dual.preconditioner())
-          : preconditioner_reason;
+  std::string why = preconditioner_reason;
+  if (feti.preconditioner == PreconditionerKind::dirichlet &&
+      dual.preconditioner() != PreconditionerKind::dirichlet)
+    why +=
+        "; Dirichlet's dense S_i exceed dirichlet_budget_gb: " + to_string(dual.preconditioner());
+  rep["preconditioner_reason"] = why;
   rep["scaling"] = to_string(dual.scaling());
   if (ops.preconditioned)
     // lumped: the sparse K_bb; Dirichlet: S_i dense on every rank, or implicit somewhere.

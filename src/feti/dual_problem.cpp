@@ -470,19 +470,16 @@ long DualProblem::cluster_dense_doubles() const {
 
 void DualProblem::choose_feasible_lambda_tilde() {
   const int n_own = multipliers_.layout.n_owned();
-  double violation = 0;  // of the least-squares lambda~ against the bounds
+  double violation = 0;                    // of the least-squares lambda~ against the bounds
+  std::vector<double> weight(n_own, 1.0);  // 0 on the bounded rows
   for (int k = 0; k < n_own; ++k) {
     const MultiplierKind kind = multipliers_.kind[k];
     if (kind == MultiplierKind::contact) violation = std::max(violation, -lambda_tilde_[k]);
     if (kind == MultiplierKind::friction)
       violation = std::max(violation, std::abs(lambda_tilde_[k]));
+    if (kind == MultiplierKind::contact || kind == MultiplierKind::friction) weight[k] = 0.0;
   }
   if (comm_.max(violation) <= 0) return;
-  std::vector<double> weight(n_own);
-  for (int k = 0; k < n_own; ++k) {
-    const MultiplierKind kind = multipliers_.kind[k];
-    weight[k] = kind == MultiplierKind::contact || kind == MultiplierKind::friction ? 0.0 : 1.0;
-  }
   Vec coarse = e_;
   if (coarse_.solve_weighted(weight, coarse) > 0) return;  // contact holds some rigid motion
   Vec candidate(n_own);

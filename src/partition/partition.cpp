@@ -160,7 +160,10 @@ SplitDefects split_defects(const Mesh& mesh, const std::vector<int>& cells,
   int parts = 0;
   for (int e : cells)
     if (!used[part[e]]) used[part[e]] = 1, ++parts;
-  return {by_node < by_facet, by_node > parts};
+  SplitDefects defects;
+  defects.hinged = by_node < by_facet;
+  defects.pieces = by_node > parts;
+  return defects;
 }
 
 // Subdomains per body, proportional to the bodies' cell counts (largest remainders, at least

@@ -1,0 +1,176 @@
+#!/usr/bin/env python3
+"""The cube-obstacle side by side with PETSc's contact solver (issue 32): htfeti on the box split
+(equal subdomains, H/h = 10) and on the same cube split by METIS (as a user's mesh is), and the
+PETSc peer, in one run on the same machine and cores; writes the ratios.
+
+The problem (../shared/DESIGN.md, examples/cube-obstacle.toml): [0,100]^3, n^3 hex8, E = 2.1e7,
+nu = 0.3, own weight, clamped at x = 0, the obstacle u_z >= -A sin(pi x / 50) under z = 0.
+  - PETSc: bench/petsc_cube_obstacle.c, the same discrete problem assembled by PETSc (DMDA)
+    and solved by SNES VI (reduced-space active-set Newton) with CG + GAMG and the rigid body
+    modes as near-null space; -snes_rtol and -ksp_rtol = --rtol; --ranks MPI ranks, 1 thread.
+  - htfeti: TFETI (clusters of 1), defaults otherwise, stopping at relative precision --rtol;
+    1 rank x --ranks threads. Box split: (n/10)^3 subdomains; METIS split: the same number.
+The two stopping tests are not the same quantity; each row also gives its energy's distance
+from the reference energy (the peer's solve at rtol 1e-10), so the accuracy reached can be
+compared. --check-energy also solves each case with htfeti at rtol 1e-8 and asserts that its
+energy equals the reference to 1e-8 (relative): the two codes solve the same discrete problem.
+
+Wall times: the whole process (mpiexec and start-up included), medians of --repeat runs where a
+run takes under a minute, one run above. Peak RSS: htfeti's report (one rank); the peer's sum
+over its ranks (getrusage).
+
+Installs petsc-dev with apt-get if it is missing (as root). Usage:
+  bench/cube_obstacle_peer.py [--n 40 80] [--amplitude 1 20] [--ranks 2] [--repeat 3]
+                              [--check-energy] [--out cube_obstacle_peer.json]
+Writes bench/results/OUT and prints a markdown table."""
+import argparse
+import json
+import os
+import shutil
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+
+from common import ROOT, env, save, solve
+
+p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+p.add_argument("--n", type=int, nargs="+", default=[40, 80])
+p.add_argument("--amplitude", type=float, nargs="+", default=[1.0, 20.0])
+p.add_argument("--ranks", type=int, default=2)
+p.add_argument("--repeat", type=int, default=3)
+p.add_argument("--rtol", type=float, default=1e-4)
+p.add_argument("--check-energy", action="store_true")
+p.add_argument("--out", default="cube_obstacle_peer.json")
+a = p.parse_args()
+
+exe = os.path.join(ROOT, "build", "petsc_cube_obstacle")
+if subprocess.run(["pkg-config", "--exists", "petsc"]).returncode != 0:
+    print("installing petsc-dev (Debian) ...", file=sys.stderr)
+    subprocess.run(["apt-get", "install", "-y", "--no-install-recommends", "petsc-dev"],
+                   check=True, env=dict(os.environ, DEBIAN_FRONTEND="noninteractive"))
+src = os.path.join(ROOT, "bench", "petsc_cube_obstacle.c")
+if not os.path.exists(exe) or os.path.getmtime(exe) < os.path.getmtime(src):
+    flags = subprocess.run(["pkg-config", "--cflags", "--libs", "petsc"], check=True,
+                           capture_output=True, text=True).stdout.split()
+    subprocess.run([shutil.which("mpicc") or "mpicc", "-O3", "-o", exe, src, *flags, "-lm"],
+                   check=True)
+
+TEMPLATE = """[mesh]
+generator = "box"
+size = [100.0, 100.0, 100.0]
+elements = [{n}, {n}, {n}]
+element = "hex8"
+
+[physics]
+type = "elasticity"
+young = 2.1e7
+poisson = 0.3
+density = 7850
+gravity = [0.0, 0.0, -9.8066]
+
+[[dirichlet]]
+group = "x0"
+value = [0.0, 0.0, 0.0]
+
+[[contact]]
+group = "z0"
+direction = [0.0, 0.0, -1.0]
+gap = "{amp!r}*sin(pi*x/50)"
+
+[decomposition]
+subdomains = {subdomains}
+cluster_size = 1
+
+[solver]
+rtol = {rtol!r}
+"""
+
+
+def peer(n, amp, rtol):
+    cmd = ["mpiexec", "-n", str(a.ranks), "--oversubscribe", "--bind-to", "none", exe,
+           "-n", str(n), "-amp", repr(amp), "-rtol", repr(rtol)]
+    t0 = time.perf_counter()
+    out = subprocess.run(cmd, check=True, env=env(1), capture_output=True, text=True).stdout
+    r = json.loads(out.strip().splitlines()[-1])
+    r["wall_s"] = time.perf_counter() - t0
+    if not r["converged"]:
+        sys.exit(f"the peer did not converge: {r}")
+    return r
+
+
+def repeated(run):
+    runs = [run()]
+    while len(runs) < a.repeat and runs[-1]["wall_s"] < 60:
+        runs.append(run())
+    return runs
+
+
+def htfeti(path):
+    r = solve([path], threads=a.ranks)
+    r["wall_s"] = r["wall_seconds"]
+    if not r["converged"]:
+        sys.exit(f"htfeti did not converge on {path}")
+    return r
+
+
+rows = []
+with tempfile.TemporaryDirectory() as tmp:
+    for n in a.n:
+        ns = n // 10
+        for amp in a.amplitude:
+            ref = peer(n, amp, 1e-10)["objective"]
+            err = lambda e: abs(e - ref) / abs(ref)  # noqa: E731
+            runs = repeated(lambda: peer(n, amp, a.rtol))
+            r = runs[0]
+            row = {"n": n, "amplitude": amp, "reference_energy": ref, "peer": {
+                "code": f"PETSc SNES VI (rsls) + CG/GAMG, {a.ranks} ranks",
+                "runs": len(runs), "wall_s": statistics.median(x["wall_s"] for x in runs),
+                "total_s": statistics.median(x["total_s"] for x in runs),
+                "newton_iterations": r["newton_iterations"], "cg_iterations": r["cg_iterations"],
+                "peak_rss_gb": r["peak_rss_mb_sum"] / 1024, "energy": r["objective"],
+                "energy_error": err(r["objective"]), "contact_nodes": r["contact_nodes"]}}
+            for split, sub in (("box", f"[{ns}, {ns}, {ns}]"), ("metis", str(ns ** 3))):
+                path = os.path.join(tmp, f"c{n}_{split}_{amp}.toml")
+                with open(path, "w") as f:
+                    f.write(TEMPLATE.format(n=n, amp=amp, subdomains=sub, rtol=a.rtol))
+                hr = repeated(lambda: htfeti(path))
+                h = hr[0]
+                row[split] = {"code": f"htfeti TFETI, {split} split, 1 rank x {a.ranks} threads",
+                              "runs": len(hr), "wall_s": statistics.median(x["wall_s"] for x in hr),
+                              "total_s": statistics.median(x["timings"]["total"] for x in hr),
+                              "products": h["matvecs"], "outer_iterations": h["outer_iterations"],
+                              "preconditioner": h.get("preconditioner"),
+                              "peak_rss_gb": h["memory"]["peak_rss_mb_max_rank"] / 1024,
+                              "energy": h["objective"], "energy_error": err(h["objective"])}
+                if a.check_energy:
+                    with open(path, "w") as f:
+                        f.write(TEMPLATE.format(n=n, amp=amp, subdomains=sub, rtol=1e-8))
+                    tight = htfeti(path)["objective"]
+                    row[split]["tight_energy_error"] = err(tight)
+                    if err(tight) > 1e-8:
+                        sys.exit(f"n={n} A={amp} {split}: htfeti's energy at rtol 1e-8 "
+                                 f"{tight!r} differs from the peer's {ref!r} by {err(tight):.2e}")
+            row["ratio_box_to_peer"] = row["box"]["wall_s"] / row["peer"]["wall_s"]
+            row["ratio_metis_to_peer"] = row["metis"]["wall_s"] / row["peer"]["wall_s"]
+            row["products_metis_to_box"] = row["metis"]["products"] / row["box"]["products"]
+            rows.append(row)
+            print(json.dumps(row), flush=True)
+
+print(f"\ncube-obstacle, {a.ranks} cores (PETSc: {a.ranks} ranks; htfeti: 1 rank x {a.ranks} "
+      f"threads), rtol {a.rtol}\n")
+print("| n | A | code | iterations | wall s | peak RSS GB | energy error | wall / peer |")
+print("|---:|---:|---|---|---:|---:|---:|---:|")
+for r in rows:
+    pe = r["peer"]
+    print(f"| {r['n']} | {r['amplitude']:g} | {pe['code']} | {pe['newton_iterations']} Newton, "
+          f"{pe['cg_iterations']} CG | {pe['wall_s']:.1f} | {pe['peak_rss_gb']:.2f} | "
+          f"{pe['energy_error']:.1e} | 1 |")
+    for split in ("box", "metis"):
+        h = r[split]
+        print(f"| {r['n']} | {r['amplitude']:g} | {h['code']} | {h['products']} products | "
+              f"{h['wall_s']:.1f} | {h['peak_rss_gb']:.2f} | {h['energy_error']:.1e} | "
+              f"{h['wall_s'] / pe['wall_s']:.2f} |")
+print("\nwritten:", save(a.out, {"ranks": a.ranks, "rtol": a.rtol, "repeat": a.repeat,
+                                 "rows": rows}))

@@ -53,6 +53,12 @@ void print_summary(const nlohmann::json& r) {
               r["dual_operator_reason"].get<std::string>().c_str(),
               r["preconditioner"].get<std::string>().c_str(),
               r["preconditioner_reason"].get<std::string>().c_str());
+  if (r.contains("dual_operator_check"))
+    std::printf(
+        "  checked operator: the explicit F differs from the implicit one by at most %.2e "
+        "(relative, over %ld products)\n",
+        r["dual_operator_check"]["max_relative_difference"].get<double>(),
+        r["dual_operator_check"]["cluster_applications"].get<long>());
   const int free_motions = std::max(r["unrestrained_rigid_motions"].get<int>(),
                                     r["unrestrained_at_solution"].get<int>());
   if (free_motions > 0)
@@ -351,6 +357,7 @@ int dry_run(const Model& model, RunOptions run, const Comm& comm) {
   if (run.solve.check_memory) {
     const char* op = feti.dual_operator == DualOperator::explicit_  ? "explicit"
                      : feti.dual_operator == DualOperator::implicit ? "implicit"
+                     : feti.dual_operator == DualOperator::checked  ? "checked"
                      : estimate.explicit_operator                   ? "explicit"
                                                                     : "implicit";
     std::printf("  dual operator: %s (%s)\n", op,

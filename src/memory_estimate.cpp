@@ -84,6 +84,7 @@ MemoryEstimate estimate_memory(const Model& model, const FetiOptions& options, c
   const double explicit_bytes = subdomains * value_bytes * nmult * (nmult + 1) / 2;
   const bool is_explicit =
       options.dual_operator == DualOperator::explicit_ ||
+      options.dual_operator == DualOperator::checked ||
       (options.dual_operator == DualOperator::automatic && explicit_for_speed(layout.dim, nodes) &&
        explicit_bytes <= options.explicit_budget_bytes);
   const Ordering ordering = options.ordering == Ordering::automatic
@@ -122,7 +123,7 @@ MemoryEstimate estimate_memory(const Model& model, const FetiOptions& options, c
     // Released factors (FetiOptions::keep_factors): at most the clusters being set up at one
     // time hold theirs (threads x the rank's largest cluster).
     const bool released =
-        !options.keep_factors &&
+        !options.keep_factors && options.dual_operator != DualOperator::checked &&
         (options.factor_budget_bytes < 0 || 8.0 * 100.0 * unknowns > options.factor_budget_bytes);
     if (released) {
       int largest = 1;

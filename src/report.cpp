@@ -52,7 +52,12 @@ void report_problem_and_solve(nlohmann::json& rep, const Model& model, DualProbl
   rep["threads"] = omp_get_max_threads();
   rep["rtol"] = options.rtol;
   rep["ordering"] = dual.ordering_in_effect();
-  rep["dual_operator"] = dual.explicit_operator() ? "explicit" : "implicit";
+  rep["dual_operator"] = dual.dual_operator_name();
+  if (options.feti.dual_operator == DualOperator::checked) {
+    const DualProblem::OperatorCheck check = dual.dual_operator_check();
+    rep["dual_operator_check"] = {{"cluster_applications", check.applications},
+                                  {"max_relative_difference", check.max_relative_difference}};
+  }
   // Why: "requested", "automatic" (FetiOptions' rule) or "memory" (the implicit operator would
   // not fit: check_memory).
   rep["dual_operator_reason"] = estimate.explicit_for_memory ? "memory"

@@ -350,7 +350,7 @@ SolveOutput solve(std::shared_ptr<const Model> model_ptr, const SolveOptions& op
   if (verbose)
     std::fprintf(stderr, "  setup done in %.2f s (dual dimension %lld, coarse %d, %s operator)\n",
                  t_setup, dual.dual_dimension(), dual.coarse_dimension(),
-                 dual.explicit_operator() ? "explicit" : "implicit");
+                 dual.dual_operator_name().c_str());
   DualOperators ops(dual);
   Vec lambda;
   // One coarse step per Hessian product: only SMALBE-M's products take it (PCG's iterates stay

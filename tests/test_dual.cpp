@@ -125,6 +125,38 @@ TEST_P(DualOperators, ExplicitEqualsImplicit) {
   EXPECT_LT((a.d() - b.d()).norm(), 1e-11 * (1 + a.d().norm()));
 }
 
+// The checked operator applies the explicit one (bit for bit what the explicit operator gives)
+// and measures it against the implicit one at every product: within round-off in double
+// precision, the rounding of the blocks in single precision (visible, and small).
+TEST_P(DualOperators, CheckedMeasuresTheExplicitAgainstTheImplicit) {
+  for (Precision precision : {Precision::double_, Precision::single}) {
+    FetiOptions exp, chk;
+    exp.dual_operator = DualOperator::explicit_;
+    chk.dual_operator = DualOperator::checked;
+    exp.explicit_precision = chk.explicit_precision = precision;
+    auto pe = test::make_dual(*model, comm, exp), pc = test::make_dual(*model, comm, chk);
+    DualProblem &e = *pe, &c = *pc;
+    EXPECT_EQ(c.dual_operator_name(), "checked");
+    EXPECT_EQ(e.dual_operator_name(), "explicit");
+    EXPECT_EQ(c.dual_operator_check().applications, 0);
+    Eigen::VectorXd fe, fc;
+    for (double seed : {1.0, 5.0, 9.0}) {
+      const Eigen::VectorXd x = test::pseudo_random(e, seed);
+      e.apply_F(x, fe);
+      c.apply_F(x, fc);
+      if (fe.size() > 0) EXPECT_EQ((fe - fc).cwiseAbs().maxCoeff(), 0.0);
+    }
+    const DualProblem::OperatorCheck check = c.dual_operator_check();
+    EXPECT_EQ(check.applications, 3);
+    if (precision == Precision::double_) {
+      EXPECT_LT(check.max_relative_difference, 1e-11);
+    } else {
+      EXPECT_GT(check.max_relative_difference, 1e-10);
+      EXPECT_LT(check.max_relative_difference, 1e-5);
+    }
+  }
+}
+
 // The coarse image: E = F G~^T column by column (each from its own G~^T and F application,
 // against the colour-at-a-time construction), and the Hessian product with one coarse step
 // against P F P v + rho Q v with two projections.

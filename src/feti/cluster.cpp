@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <limits>
 #include <stdexcept>
 #include <string>
 
@@ -40,17 +41,24 @@ Eigen::MatrixXd null_space(const Eigen::MatrixXd& A) {
 
 Cluster::Cluster(int id, std::vector<Subdomain*> subs, std::vector<std::vector<ConstraintEntry>> C,
                  Ordering ordering, std::vector<std::vector<Subdomain::BEntry>> b,
-                 std::vector<int> nmult, bool explicit_F, SubdomainCache* cache,
+                 std::vector<int> nmult, DualOperator kind, SubdomainCache* cache,
                  Precision precision)
-    : id_(id), subs_(std::move(subs)), explicit_(explicit_F) {
+    : id_(id), subs_(std::move(subs)), explicit_(kind != DualOperator::implicit) {
+  if (kind == DualOperator::automatic)
+    throw std::logic_error("cluster " + std::to_string(id) + ": the dual operator is not chosen");
   const int s = static_cast<int>(subs_.size());
   // The cluster's dual operator (ClusterDualOperator): the explicit one's blocks are formed
-  // below, while the factors are at hand; the implicit one keeps the rows of B~.
+  // below, while the factors are at hand; the implicit one keeps the rows of B~; the checked one
+  // holds both.
   ExplicitClusterOperator* ex = nullptr;
   if (explicit_) {
     auto op = std::make_unique<ExplicitClusterOperator>(*this, nmult, precision);
     ex = op.get();
-    dual_ = std::move(op);
+    if (kind == DualOperator::checked)
+      dual_ = std::make_unique<CheckedClusterOperator>(
+          std::move(op), std::make_unique<ImplicitClusterOperator>(*this, b, nmult));
+    else
+      dual_ = std::move(op);
     ex->F_.resize(s), ex->V_.resize(s), interface_.resize(s);
   } else {
     dual_ = std::make_unique<ImplicitClusterOperator>(*this, std::move(b), nmult);
@@ -289,6 +297,32 @@ void ImplicitClusterOperator::do_apply(const std::vector<Eigen::VectorXd>& lam,
     out[i].setZero();
     for (const auto& e : b_[i]) out[i][e.mult] += e.value * xw_[i][e.dof];  // B_i x_i
   }
+}
+
+CheckedClusterOperator::CheckedClusterOperator(std::unique_ptr<ClusterDualOperator> applied,
+                                               std::unique_ptr<ClusterDualOperator> reference)
+    : ClusterDualOperator(applied->sizes()),
+      applied_(std::move(applied)),
+      reference_(std::move(reference)) {
+  if (reference_->sizes() != sizes())
+    throw std::logic_error("checked dual operator: the two operators have different sizes");
+  for (int n : sizes()) ref_.push_back(Eigen::VectorXd::Zero(n));
+}
+
+void CheckedClusterOperator::do_apply(const std::vector<Eigen::VectorXd>& lam,
+                                      std::vector<Eigen::VectorXd>& out) {
+  applied_->apply(lam, out);
+  reference_->apply(lam, ref_);
+  double diff = 0, norm = 0;  // over the cluster's subdomains, in a fixed order
+  for (size_t i = 0; i < ref_.size(); ++i) {
+    diff += (out[i] - ref_[i]).squaredNorm();
+    norm += ref_[i].squaredNorm();
+  }
+  ++applications_;
+  const double r = norm > 0   ? std::sqrt(diff / norm)
+                   : diff > 0 ? std::numeric_limits<double>::infinity()
+                              : 0.0;
+  if (!(r <= max_relative_difference_)) max_relative_difference_ = r;  // NaN is kept
 }
 
 long ExplicitClusterOperator::bytes() const {

@@ -205,7 +205,8 @@ void DualProblem::choose_operator(Setup& st) {
     explicit_bytes += packed_bytes[s] = value_bytes * m * (m + 1) / 2;
   }
   explicit_bytes = comm_.max(explicit_bytes);
-  explicit_ = options.dual_operator == DualOperator::explicit_ ||
+  checked_ = options.dual_operator == DualOperator::checked;
+  explicit_ = options.dual_operator == DualOperator::explicit_ || checked_ ||
               (options.dual_operator == DualOperator::automatic &&
                explicit_for_speed(layout_.dim, min_nodes) &&
                explicit_bytes <= options.explicit_budget_bytes);
@@ -236,7 +237,8 @@ void DualProblem::set_up_clusters(Setup& st) {
   for (int c = 0; c < ncl; ++c)
     for (int i = 0; i < members(c); ++i)
       cluster_explicit_mb[c] += packed_bytes[sub_of(c, i)] / 1048576.0;
-  FactorRelease release_policy(options, explicit_, st.local_dofs, comm_,
+  // The checked operator applies the implicit one too: it keeps the factors.
+  FactorRelease release_policy(options, explicit_ && !checked_, st.local_dofs, comm_,
                                std::move(cluster_explicit_mb));
   released_.assign(ncl, 0);
   contrib_.resize(nsub);
@@ -263,9 +265,13 @@ void DualProblem::set_up_clusters(Setup& st) {
     }
     try {
       if (c == 0) inject_failure("factorization", comm_.rank());
-      clusters_[c] = std::make_unique<Cluster>(
-          first_cluster_ + c, std::move(ptrs), std::move(primal[c]), ordering_, std::move(b),
-          std::move(nmult), explicit_, factor_cache(), options.explicit_precision);
+      clusters_[c] =
+          std::make_unique<Cluster>(first_cluster_ + c, std::move(ptrs), std::move(primal[c]),
+                                    ordering_, std::move(b), std::move(nmult),
+                                    checked_    ? DualOperator::checked
+                                    : explicit_ ? DualOperator::explicit_
+                                                : DualOperator::implicit,
+                                    factor_cache(), options.explicit_precision);
       // The cluster's part of d = B~ K~^+ f, while its factors are at hand.
       cluster_rhs_from_ext(c, true, 0.0);
       clusters_[c]->solve(x_[c]);
@@ -459,6 +465,21 @@ long DualProblem::explicit_bytes() const {
   long n = 0;
   for (const auto& c : clusters_) n += c->explicit_bytes();
   return n;
+}
+
+DualProblem::OperatorCheck DualProblem::dual_operator_check() const {
+  OperatorCheck check;
+  double worst = 0;
+  for (const auto& c : clusters_)
+    if (const auto* op = dynamic_cast<const CheckedClusterOperator*>(&c->dual_operator())) {
+      check.applications = std::max(check.applications, op->applications());
+      if (!(op->max_relative_difference() <= worst)) worst = op->max_relative_difference();
+    }
+  // Every cluster is applied once per product with F: the count is the same on every rank that
+  // holds a cluster.
+  check.applications = static_cast<long>(comm_.max(static_cast<double>(check.applications)));
+  check.max_relative_difference = comm_.max(worst);
+  return check;
 }
 
 long DualProblem::cluster_dense_doubles() const {

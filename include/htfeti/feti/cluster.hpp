@@ -44,11 +44,14 @@ namespace htfeti {
 /// How F = B~ K~^+ B~^T is applied on a cluster: by sparse triangular solves every time
 /// (implicit), or by dense local blocks F_i = B_i K_i^+ B_i^T built once from the Schur complement
 /// of each subdomain onto its interface (explicit), plus the low-rank cluster correction
-/// B_i K_i^+ C_i^T and B_i R_i (see apply_dual).
-enum class DualOperator { implicit, explicit_, automatic };
-inline constexpr std::array<EnumName<DualOperator>, 3> kDualOperatorNames{
+/// B_i K_i^+ C_i^T and B_i R_i (see apply_dual). checked: the explicit operator, compared with
+/// the implicit one at every application (a diagnostic: what the explicit blocks, in double or
+/// single precision, change in F; CheckedClusterOperator).
+enum class DualOperator { implicit, explicit_, checked, automatic };
+inline constexpr std::array<EnumName<DualOperator>, 4> kDualOperatorNames{
     {{DualOperator::implicit, "implicit"},
      {DualOperator::explicit_, "explicit"},
+     {DualOperator::checked, "checked"},
      {DualOperator::automatic, "auto"}}};
 DualOperator parse_dual_operator(const std::string& name);
 std::string to_string(DualOperator kind);
@@ -124,21 +127,50 @@ class ExplicitClusterOperator final : public ClusterDualOperator {
   std::vector<Eigen::MatrixXd> V_;  // B_i R_i
 };
 
+/// The explicit operator checked against the implicit one: out = F_explicit lam (what the solve
+/// uses), and at every application also F_implicit lam, recording the largest relative
+/// difference ||F_explicit lam - F_implicit lam|| / ||F_implicit lam|| over the cluster's
+/// subdomains. A user sees what the explicit blocks (single precision, or an ill-conditioned
+/// factor) change in F; a new operator is verified the same way. Cost: both operators' (the
+/// factors are kept). Allocates nothing per application.
+class CheckedClusterOperator final : public ClusterDualOperator {
+ public:
+  CheckedClusterOperator(std::unique_ptr<ClusterDualOperator> applied,
+                         std::unique_ptr<ClusterDualOperator> reference);
+  std::string name() const override {
+    return applied_->name() + " checked against " + reference_->name();
+  }
+  long bytes() const override { return applied_->bytes() + reference_->bytes(); }
+  long applications() const { return applications_; }
+  double max_relative_difference() const { return max_relative_difference_; }
+
+ protected:
+  void do_apply(const std::vector<Eigen::VectorXd>& lam,
+                std::vector<Eigen::VectorXd>& out) override;
+
+ private:
+  std::unique_ptr<ClusterDualOperator> applied_, reference_;
+  std::vector<Eigen::VectorXd> ref_;  // F_reference lam
+  long applications_ = 0;
+  double max_relative_difference_ = 0;
+};
+
 class Cluster {
  public:
   /// subs: the cluster's subdomains in id order (assembled); C: its primal constraints
   /// (cluster_primal_constraints); b[i]: the rows of B~ on subdomain i, numbered 0..nmult[i]-1
-  /// locally. Factors the subdomains. explicit_F: build the dense local blocks.
+  /// locally. Factors the subdomains. kind: implicit, explicit_ (builds the dense local blocks)
+  /// or checked (builds them and keeps the rows of B~ for the implicit operator too).
   Cluster(int id, std::vector<Subdomain*> subs, std::vector<std::vector<ConstraintEntry>> C,
           Ordering ordering, std::vector<std::vector<Subdomain::BEntry>> b, std::vector<int> nmult,
-          bool explicit_F, SubdomainCache* cache = nullptr,
+          DualOperator kind, SubdomainCache* cache = nullptr,
           Precision precision = Precision::double_);
   /// Without dual rows: for tests of the generalized inverse alone.
   Cluster(int id, std::vector<Subdomain*> subs, std::vector<std::vector<ConstraintEntry>> C,
           Ordering ordering)
       : Cluster(id, subs, std::move(C), ordering,
                 std::vector<std::vector<Subdomain::BEntry>>(subs.size()),
-                std::vector<int>(subs.size(), 0), false) {}
+                std::vector<int>(subs.size(), 0), DualOperator::implicit) {}
 
   int id() const { return id_; }
   const std::vector<Subdomain*>& subdomains() const { return subs_; }
@@ -179,6 +211,8 @@ class Cluster {
   double setup_seconds() const { return setup_seconds_; }
   /// Bytes held by the explicit blocks F_i (packed), U_i, V_i.
   long explicit_bytes() const;
+  /// F on this cluster (its name, sizes; a CheckedClusterOperator's record).
+  const ClusterDualOperator& dual_operator() const { return *dual_; }
 
  private:
   struct LocalRow {

@@ -53,7 +53,9 @@ namespace htfeti {
 struct FetiOptions {
   Ordering ordering = Ordering::automatic;  ///< fill-reducing ordering of the subdomain factors
   /// implicit, explicit, or automatic: explicit_for_speed() when its blocks fit
-  /// explicit_budget_bytes, and explicit when only it fits in memory (check_memory).
+  /// explicit_budget_bytes, and explicit when only it fits in memory (check_memory). checked:
+  /// the explicit operator compared with the implicit one at every product (a diagnostic; the
+  /// factors are kept, keep_factors ignored).
   DualOperator dual_operator = DualOperator::automatic;
   /// With the explicit operator the subdomain factors are needed only for d (setup) and the
   /// primal reconstruction. A cluster frees them right after its setup, and factors again for
@@ -361,7 +363,20 @@ class DualProblem {
   std::vector<Vec> contact_gap_field(const std::vector<Vec>& u);
 
   long factor_nonzeros() const;  ///< summed over this rank's subdomains
+  /// Whether the explicit blocks apply F (explicit or checked).
   bool explicit_operator() const { return explicit_; }
+  /// The dual operator in effect: "implicit", "explicit" or "checked".
+  std::string dual_operator_name() const {
+    return checked_ ? "checked" : explicit_ ? "explicit" : "implicit";
+  }
+  /// With the checked operator: the products with F and the largest relative difference
+  /// ||F_explicit lam - F_implicit lam|| / ||F_implicit lam|| of a cluster over them (all ranks).
+  /// Collective.
+  struct OperatorCheck {
+    long applications = 0;
+    double max_relative_difference = 0;
+  };
+  OperatorCheck dual_operator_check() const;
   /// The ordering of the subdomain factors in effect (automatic resolved). The explicit operator
   /// orders the interface last, the rest by constrained AMD (amd) or by METIS nested dissection.
   std::string ordering_in_effect() const {
@@ -441,6 +456,7 @@ class DualProblem {
   // The preconditioner with its scaling.
   DualPreconditioner preconditioner_;
   bool explicit_ = false;
+  bool checked_ = false;  // the explicit operator checked against the implicit one
   bool factors_released_ = false;
   std::vector<char> released_;   // per local cluster: factors freed after setup
   bool outer_parallel_ = false;  // threads over clusters (true) or inside each cluster

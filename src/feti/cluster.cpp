@@ -37,6 +37,46 @@ Eigen::MatrixXd null_space(const Eigen::MatrixXd& A) {
   return Q.rightCols(n - rank);
 }
 
+// The cluster kernel N = Null(CR) made canonical: the coefficients beta_J it fixes are chosen
+// greedily in coefficient order (rows of N independent of those chosen before), N <- N N_J^{-1}
+// (so N_J = I), then orthonormalized column by column. Returns J.
+std::vector<int> canonical_kernel(const Eigen::MatrixXd& CR, int id, Eigen::MatrixXd& N_out) {
+  const int nk = static_cast<int>(CR.cols());
+  const Eigen::MatrixXd N0 = null_space(CR);
+  const int dk = static_cast<int>(N0.cols());
+  std::vector<int> J;
+  {
+    Eigen::MatrixXd basis(dk, dk);
+    int r = 0;
+    for (int g = 0; g < nk && r < dk; ++g) {
+      Eigen::VectorXd v = N0.row(g).transpose();
+      const double n0 = v.norm();
+      if (n0 < 1e-8) continue;
+      for (int pass = 0; pass < 2; ++pass)
+        for (int q = 0; q < r; ++q) v -= basis.col(q).dot(v) * basis.col(q);
+      if (v.norm() < 1e-6 * n0) continue;
+      basis.col(r++) = v.normalized();
+      J.push_back(g);
+    }
+    if (r < dk)
+      throw std::runtime_error("cluster " + std::to_string(id) + ": kernel selection failed");
+  }
+  if (dk > 0) {
+    Eigen::MatrixXd NJ(dk, dk);
+    for (int j = 0; j < dk; ++j) NJ.row(j) = N0.row(J[j]);
+    Eigen::MatrixXd N = N0 * NJ.inverse();
+    for (int j = 0; j < dk; ++j) {
+      for (int pass = 0; pass < 2; ++pass)
+        for (int q = 0; q < j; ++q) N.col(j) -= N.col(q).dot(N.col(j)) * N.col(q);
+      N.col(j).normalize();
+    }
+    N_out = N;
+  } else {
+    N_out = Eigen::MatrixXd(nk, 0);
+  }
+  return J;
+}
+
 }  // namespace
 
 Cluster::Cluster(int id, std::vector<Subdomain*> subs, std::vector<std::vector<ConstraintEntry>> C,
@@ -100,45 +140,13 @@ Cluster::Cluster(int id, std::vector<Subdomain*> subs, std::vector<std::vector<C
       auto& cols = cols_of_sub_[e.member];
       if (cols.empty() || cols.back() != j) cols.push_back(j);
     }
-  // Cluster kernel N = Null(C R), made canonical: beta_J fixed by a greedy choice in coefficient
-  // order, N <- N N_J^{-1} (so N_J = I), then orthonormalized column by column.
+  // Cluster kernel N = Null(C R), made canonical (canonical_kernel).
   Eigen::MatrixXd CR = Eigen::MatrixXd::Zero(nc_, nk);
   for (int i = 0; i < s; ++i)
     for (const auto& e : c_of_sub_[i])
       CR.row(e.constraint).segment(beta_offset_[i], subs_[i]->kernel_dimension()) +=
           e.value * subs_[i]->kernel().row(e.dof);
-  const Eigen::MatrixXd N0 = null_space(CR);
-  const int dk = static_cast<int>(N0.cols());
-  std::vector<int> J;
-  {
-    Eigen::MatrixXd basis(dk, dk);
-    int r = 0;
-    for (int g = 0; g < nk && r < dk; ++g) {
-      Eigen::VectorXd v = N0.row(g).transpose();
-      const double n0 = v.norm();
-      if (n0 < 1e-8) continue;
-      for (int pass = 0; pass < 2; ++pass)
-        for (int q = 0; q < r; ++q) v -= basis.col(q).dot(v) * basis.col(q);
-      if (v.norm() < 1e-6 * n0) continue;
-      basis.col(r++) = v.normalized();
-      J.push_back(g);
-    }
-    if (r < dk)
-      throw std::runtime_error("cluster " + std::to_string(id) + ": kernel selection failed");
-  }
-  if (dk > 0) {
-    Eigen::MatrixXd NJ(dk, dk);
-    for (int j = 0; j < dk; ++j) NJ.row(j) = N0.row(J[j]);
-    Eigen::MatrixXd N = N0 * NJ.inverse();
-    for (int j = 0; j < dk; ++j) {
-      for (int pass = 0; pass < 2; ++pass)
-        for (int q = 0; q < j; ++q) N.col(j) -= N.col(q).dot(N.col(j)) * N.col(q);
-      N.col(j).normalize();
-    }
-    N_ = N;
-  } else {
-    N_ = Eigen::MatrixXd(nk, 0);
-  }
+  const std::vector<int> J = canonical_kernel(CR, id, N_);
   beta_index_.assign(nk, -1);
   int dim = nc_;
   for (int g = 0; g < nk; ++g)

@@ -9,7 +9,9 @@ nu = 0.3, own weight, clamped at x = 0, the obstacle u_z >= -A sin(pi x / 50) un
     and solved by SNES VI (reduced-space active-set Newton) with CG + GAMG and the rigid body
     modes as near-null space; -snes_rtol and -ksp_rtol = --rtol; --ranks MPI ranks, 1 thread.
   - htfeti: TFETI (clusters of 1), defaults otherwise, stopping at relative precision --rtol;
-    1 rank x --ranks threads. Box split: (n/10)^3 subdomains; METIS split: the same number.
+    1 rank x --ranks threads. Box split: (n/10)^3 subdomains; METIS split: the same number;
+    each also with --mprgp-expansion preconditioned (MPRGP's expansion step along the
+    preconditioned free gradient).
 The two stopping tests are not the same quantity; each row also gives its energy's distance
 from the reference energy (the peer's solve at rtol 1e-10), so the accuracy reached can be
 compared. --check-energy also solves each case with htfeti at rtol 1e-8 and asserts that its
@@ -21,7 +23,8 @@ over its ranks (getrusage).
 
 Installs petsc-dev with apt-get if it is missing (as root). Usage:
   bench/cube_obstacle_peer.py [--n 40 80] [--amplitude 1 20] [--ranks 2] [--repeat 3]
-                              [--check-energy] [--out cube_obstacle_peer.json]
+                              [--check-energy] [--splits box metis ...]
+                              [--out cube_obstacle_peer.json]
 Writes bench/results/OUT and prints a markdown table."""
 import argparse
 import json
@@ -42,6 +45,9 @@ p.add_argument("--ranks", type=int, default=2)
 p.add_argument("--repeat", type=int, default=3)
 p.add_argument("--rtol", type=float, default=1e-4)
 p.add_argument("--check-energy", action="store_true")
+p.add_argument("--splits", nargs="+", default=["box", "metis", "box_preconditioned",
+                                               "metis_preconditioned"],
+               help="the htfeti rows to run (default: all four)")
 p.add_argument("--out", default="cube_obstacle_peer.json")
 a = p.parse_args()
 
@@ -107,8 +113,8 @@ def repeated(run):
     return runs
 
 
-def htfeti(path):
-    r = solve([path], threads=a.ranks)
+def htfeti(path, extra=()):
+    r = solve([path, *extra], threads=a.ranks)
     r["wall_s"] = r["wall_seconds"]
     if not r["converged"]:
         sys.exit(f"htfeti did not converge on {path}")
@@ -131,30 +137,44 @@ with tempfile.TemporaryDirectory() as tmp:
                 "newton_iterations": r["newton_iterations"], "cg_iterations": r["cg_iterations"],
                 "peak_rss_gb": r["peak_rss_mb_sum"] / 1024, "energy": r["objective"],
                 "energy_error": err(r["objective"]), "contact_nodes": r["contact_nodes"]}}
-            for split, sub in (("box", f"[{ns}, {ns}, {ns}]"), ("metis", str(ns ** 3))):
+            pre = ["--mprgp-expansion", "preconditioned"]
+            for split, sub, extra in (("box", f"[{ns}, {ns}, {ns}]", []),
+                                      ("metis", str(ns ** 3), []),
+                                      ("box_preconditioned", f"[{ns}, {ns}, {ns}]", pre),
+                                      ("metis_preconditioned", str(ns ** 3), pre)):
+                if split not in a.splits:
+                    continue
                 path = os.path.join(tmp, f"c{n}_{split}_{amp}.toml")
                 with open(path, "w") as f:
                     f.write(TEMPLATE.format(n=n, amp=amp, subdomains=sub, rtol=a.rtol))
-                hr = repeated(lambda: htfeti(path))
+                hr = repeated(lambda: htfeti(path, extra))
                 h = hr[0]
-                row[split] = {"code": f"htfeti TFETI, {split} split, 1 rank x {a.ranks} threads",
+                what = split.replace("_preconditioned", " split, preconditioned expansion")
+                what = what if "expansion" in what else what + " split"
+                row[split] = {"code": f"htfeti TFETI, {what}, 1 rank x {a.ranks} threads",
                               "runs": len(hr), "wall_s": statistics.median(x["wall_s"] for x in hr),
                               "total_s": statistics.median(x["timings"]["total"] for x in hr),
                               "products": h["matvecs"], "outer_iterations": h["outer_iterations"],
+                              "expansion_steps": h["solver"].get("expansion_steps"),
+                              "expansion_cost_increases":
+                                  h["solver"].get("expansion_cost_increases"),
                               "preconditioner": h.get("preconditioner"),
                               "peak_rss_gb": h["memory"]["peak_rss_mb_max_rank"] / 1024,
                               "energy": h["objective"], "energy_error": err(h["objective"])}
                 if a.check_energy:
                     with open(path, "w") as f:
                         f.write(TEMPLATE.format(n=n, amp=amp, subdomains=sub, rtol=1e-8))
-                    tight = htfeti(path)["objective"]
+                    tight = htfeti(path, extra)["objective"]
                     row[split]["tight_energy_error"] = err(tight)
                     if err(tight) > 1e-8:
                         sys.exit(f"n={n} A={amp} {split}: htfeti's energy at rtol 1e-8 "
                                  f"{tight!r} differs from the peer's {ref!r} by {err(tight):.2e}")
-            row["ratio_box_to_peer"] = row["box"]["wall_s"] / row["peer"]["wall_s"]
-            row["ratio_metis_to_peer"] = row["metis"]["wall_s"] / row["peer"]["wall_s"]
-            row["products_metis_to_box"] = row["metis"]["products"] / row["box"]["products"]
+            for split in a.splits:
+                row[f"ratio_{split}_to_peer"] = row[split]["wall_s"] / row["peer"]["wall_s"]
+            for split in ("metis", "metis_preconditioned"):
+                if split in row and "box" in row:
+                    row[f"products_{split}_to_box"] = (row[split]["products"] /
+                                                       row["box"]["products"])
             rows.append(row)
             print(json.dumps(row), flush=True)
 
@@ -167,7 +187,7 @@ for r in rows:
     print(f"| {r['n']} | {r['amplitude']:g} | {pe['code']} | {pe['newton_iterations']} Newton, "
           f"{pe['cg_iterations']} CG | {pe['wall_s']:.1f} | {pe['peak_rss_gb']:.2f} | "
           f"{pe['energy_error']:.1e} | 1 |")
-    for split in ("box", "metis"):
+    for split in a.splits:
         h = r[split]
         print(f"| {r['n']} | {r['amplitude']:g} | {h['code']} | {h['products']} products | "
               f"{h['wall_s']:.1f} | {h['peak_rss_gb']:.2f} | {h['energy_error']:.1e} | "

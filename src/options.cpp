@@ -193,6 +193,14 @@ void add_qp_options(std::vector<OptionSpec>& t) {
       "Coulomb friction: at most this many Tresca solves in the fixed point",
       [](RunOptions& r) -> int& { return r.solve.coulomb_max_iterations; }, 1, 10000));
   t.push_back(choice(
+      "solver", "mprgp_expansion", "--mprgp-expansion",
+      "MPRGP's expansion step: gradient (fixed length 2 / ||H|| along the free gradient) | "
+      "preconditioned (along the preconditioned free gradient with its optimal length, one "
+      "more product; fewer products on large METIS-split contact problems, more on some small "
+      "ones: docs/performance.md)",
+      qp::kExpansionNames,
+      +[](RunOptions& r) -> qp::Expansion& { return r.solve.smalbe.expansion; }));
+  t.push_back(choice(
       "solver", "norm_estimate", "--norm-estimate",
       "SMALBE-M's estimate of ||PFP||: power (power method) | lanczos (largest Ritz value of the "
       "Lanczos process); at most 50 products, relative change 1e-3",

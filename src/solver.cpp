@@ -204,6 +204,7 @@ QpSolve solve_with_contact(DualProblem& dual, DualOperators& ops, Vec& lambda,
                 {"alpha", r.alpha},
                 {"cg_steps", r.cg_steps},
                 {"expansion_steps", r.expansion_steps},
+                {"expansion_cost_increases", r.expansion_cost_increases},
                 {"proportioning_steps", r.proportioning_steps}};
   // The fixed point's history: per step the relative change of the slip bounds.
   if (dual.has_coulomb())

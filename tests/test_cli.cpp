@@ -44,14 +44,14 @@ class Cli : public ::testing::Test {
 }  // namespace
 
 TEST_F(Cli, BadArgumentsExitWithCode2AndWriteNothing) {
-  const char* bad[] = {"--problem plate", "-n 10 --subdomains 3", "-n -4", "--subdomains 0",
-                       "--rtol 1.5", "--rtol 0", "-n 16 --subdomains 4 -m 3", "--glue faces",
-                       "--element q2", "--no-such-option", "-n abc", "--beta 1", "--gamma 0",
-                       "--rho-factor -1", "--dual-operator dense", "--ordering nd",
-                       "--preconditioner jacobi", "--scaling rho", "--memory-limit 0",
-                       "--explicit-budget -1", "--coarse-steps-per-product 3",
-                       // cannot fit in memory: refused by the estimate before any work
-                       "-n 20000 --subdomains 100", "-n 100000 --subdomains 10"};
+  const char* bad[] = {
+      "--problem plate", "-n 10 --subdomains 3", "-n -4", "--subdomains 0", "--rtol 1.5",
+      "--rtol 0", "-n 16 --subdomains 4 -m 3", "--glue faces", "--element q2", "--no-such-option",
+      "-n abc", "--beta 1", "--gamma 0", "--rho-factor -1", "--dual-operator dense",
+      "--ordering nd", "--preconditioner jacobi", "--scaling rho", "--memory-limit 0",
+      "--explicit-budget -1", "--coarse-steps-per-product 3", "--mprgp-expansion steep",
+      // cannot fit in memory: refused by the estimate before any work
+      "-n 20000 --subdomains 100", "-n 100000 --subdomains 10"};
   for (const char* args : bad) {
     EXPECT_EQ(run(bin + " solve " + args + " --report r.json --vtu u.vtu"), 2) << args;
     EXPECT_NE(stderr_text().find("error"), std::string::npos) << args;

@@ -181,9 +181,52 @@ TEST_P(MprgpConformance, MatchesEnumeratedActiveSets) {
   EXPECT_LT((xp - exact_solution(q, bounded)).norm(), 1e-8);
   expect_kkt(q, xp, 1e-9);
   EXPECT_GT(Z.count(), 0);
+  // The preconditioned expansion step, with Z and without: the same solution.
+  for (Operator* z : {static_cast<Operator*>(&Z), static_cast<Operator*>(nullptr)}) {
+    opt.preconditioner = z;
+    opt.expansion = Expansion::preconditioned;
+    Vec xe = Vec::Zero(n), ge(n);
+    const auto re = mprgp(A, q.b, q.l, xe, ge, red, opt,
+                          [&](const Vec&, const Vec&, double gpn) { return gpn <= tol; });
+    ASSERT_EQ(re.reason, StopReason::converged);
+    EXPECT_LT((xe - exact_solution(q, bounded)).norm(), 1e-8);
+    expect_kkt(q, xe, 1e-9);
+    EXPECT_LE(re.expansion_cost_increases, re.expansion_steps);
+  }
 }
 
 INSTANTIATE_TEST_SUITE_P(Random, MprgpConformance, ::testing::Range(1u, 9u));
+
+// The preconditioned expansion step is taken in these random cases, and the runs end at the
+// enumerated solution; a step that raised the cost is counted, at most one per expansion step.
+TEST(Mprgp, PreconditionedExpansionStepsAreTakenAndReachTheSolution) {
+  const int n = 10, bounded = 7;
+  int taken = 0;
+  for (unsigned seed = 1; seed < 9; ++seed) {
+    Qp q = random_qp(n, bounded, 0, seed, false);
+    q.b *= 2.0;
+    DenseOperator A(q.A);
+    SerialReducer red;
+    MprgpOptions opt;
+    opt.alpha = 1.9 / estimate_norm(A, Vec::Ones(n), red, 200, 1e-10);
+    DenseOperator Z(Eigen::MatrixXd(q.A.diagonal().cwiseInverse().asDiagonal()));
+    opt.preconditioner = &Z;
+    opt.expansion = Expansion::preconditioned;
+    Vec x = Vec::Zero(n), g(n);
+    const long before = A.count();
+    const auto r = mprgp(A, q.b, q.l, x, g, red, opt, [&](const Vec&, const Vec&, double gp) {
+      return gp <= 1e-11 * q.b.norm();
+    });
+    ASSERT_EQ(r.reason, StopReason::converged);
+    EXPECT_LT((x - exact_solution(q, bounded)).norm(), 1e-8) << "seed " << seed;
+    EXPECT_LE(r.expansion_cost_increases, r.expansion_steps);
+    // One product per iteration, one more per expansion step and per preconditioned one, and
+    // one for the start.
+    EXPECT_LE(A.count() - before, 1 + r.iterations + 2 * r.expansion_steps);
+    taken += r.expansion_steps;
+  }
+  EXPECT_GT(taken, 0);
+}
 
 class SmalbeConformance : public ::testing::TestWithParam<std::tuple<unsigned, bool>> {};
 
@@ -356,6 +399,12 @@ TEST_P(MprgpBoxConformance, MatchesEnumeratedActiveSets) {
   Vec xp = Vec::Zero(n), gp(n);
   ASSERT_EQ(mprgp(A, q.b, q.l, u, xp, gp, red, opt, stop).reason, StopReason::converged);
   EXPECT_LT((xp - exact).norm(), 1e-8);
+  // With the preconditioned expansion step: the same solution.
+  opt.expansion = Expansion::preconditioned;
+  Vec xe = Vec::Zero(n), ge(n);
+  ASSERT_EQ(mprgp(A, q.b, q.l, u, xe, ge, red, opt, stop).reason, StopReason::converged);
+  EXPECT_LT((xe - exact).norm(), 1e-8);
+  for (int i = 0; i < n; ++i) EXPECT_TRUE(xe[i] >= q.l[i] && xe[i] <= u[i]);
 }
 
 INSTANTIATE_TEST_SUITE_P(Random, MprgpBoxConformance, ::testing::Range(1u, 13u));

@@ -6,6 +6,12 @@
 
 namespace htfeti::qp {
 
+Expansion parse_expansion(const std::string& name) {
+  return parse_name(kExpansionNames, name, "MPRGP expansion");
+}
+
+std::string to_string(Expansion value) { return name_of(kExpansionNames, value); }
+
 namespace {
 // Upper bounds given (u.size() == n) or none (empty: +infinity everywhere).
 bool has_upper(const Vec& u, Eigen::Index n) {
@@ -26,6 +32,9 @@ void split_gradient(const Vec& x, const Vec& g, const Vec& l, const Vec& u, Vec&
                                    : 0.0;
   }
 }
+// Preconditioned expansion steps that may raise the cost in one MPRGP run (then gradient ones).
+constexpr int kMaxCostIncreases = 10;
+
 // x <- the projection of x onto [l, u].
 void clamp(Vec& x, const Vec& l, const Vec& u) {
   x = x.cwiseMax(l);
@@ -58,6 +67,7 @@ MprgpResult mprgp(Operator& A, const Vec& b, const Vec& l, const Vec& u, Vec& x,
   w.phi.resize(n), w.beta.resize(n), w.p.resize(n), w.Ap.resize(n);  // no-ops when reused
   if (Z) w.z.resize(n);
   Vec &phi = w.phi, &beta = w.beta, &p = w.p, &Ap = w.Ap, &z = w.z;
+  int cost_increases = 0;  // preconditioned expansion steps that raised the cost in this run
   // z = D_F Z phi: the preconditioned free gradient (phi itself without a preconditioner).
   auto precondition = [&]() -> const Vec& {
     if (!Z) return phi;
@@ -133,11 +143,37 @@ MprgpResult mprgp(Operator& A, const Vec& b, const Vec& l, const Vec& u, Vec& x,
         clamp(x, l, u);
         g -= a_f * Ap;
         split_gradient(x, g, l, u, phi, beta);
-        x -= opt.alpha * phi;
-        clamp(x, l, u);
-        A.apply(x, g);
-        image_reset();
-        g -= b;
+        bool done = false;
+        if (opt.expansion == Expansion::preconditioned && cost_increases < kMaxCostIncreases) {
+          // Along d = D_F Z phi with the length that minimizes the cost along d. The projected
+          // step may raise the cost f = 1/2 x'(g - b); it is kept all the same (it finds the
+          // active set faster), but after kMaxCostIncreases such steps in this run the
+          // remaining expansion steps are the fixed-length gradient steps of the theory, so
+          // the run ends as MPRGP does.
+          const double f_before = 0.5 * (red.dot(x, g) - red.dot(x, b));
+          const Vec& d = precondition();
+          A.apply(d, Ap);
+          const double dAd = red.dot(d, Ap);
+          if (dAd > 0) {
+            x -= (red.dot(phi, d) / dAd) * d;
+            clamp(x, l, u);
+            A.apply(x, g);
+            image_reset();
+            g -= b;
+            done = true;
+            if (!(0.5 * (red.dot(x, g) - red.dot(x, b)) < f_before)) {
+              ++cost_increases;
+              ++res.expansion_cost_increases;
+            }
+          }
+        }
+        if (!done) {
+          x -= opt.alpha * phi;
+          clamp(x, l, u);
+          A.apply(x, g);
+          image_reset();
+          g -= b;
+        }
         split_gradient(x, g, l, u, phi, beta);
         p = precondition();
       }

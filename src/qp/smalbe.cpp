@@ -67,6 +67,7 @@ SmalbeResult smalbe(const QuadraticProgram& qp, double normA, Vec& x, const Redu
   FunctionOperator Z([&](const Vec& v, Vec& y) { hooks.preconditioner(v, H.rho(), y); });
   MprgpOptions mo;
   mo.gamma = opt.gamma;
+  mo.expansion = opt.expansion;
   mo.alpha = res.alpha;
   if (hooks.preconditioner) mo.preconditioner = &Z;
   TrackedImage image;
@@ -103,6 +104,7 @@ SmalbeResult smalbe(const QuadraticProgram& qp, double normA, Vec& x, const Redu
     res.inner_iterations += inner.iterations;
     res.cg_steps += inner.cg_steps;
     res.expansion_steps += inner.expansion_steps;
+    res.expansion_cost_increases += inner.expansion_cost_increases;
     res.proportioning_steps += inner.proportioning_steps;
     res.outer_iterations = k + 1;
     res.projected_gradient = inner.projected_gradient;

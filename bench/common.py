@@ -3,6 +3,7 @@ import json
 import os
 import platform
 import resource
+import shutil
 import subprocess
 import sys
 import tempfile
@@ -71,6 +72,24 @@ def solve(args, ranks=1, threads=1, extra_env=None, binary=None, vtu=False):
         r["process"] = {"user_s": u1.ru_utime - u0.ru_utime, "system_s": u1.ru_stime - u0.ru_stime,
                         "minor_faults": u1.ru_minflt - u0.ru_minflt}
         return r
+
+
+def petsc_program(name):
+    """Builds bench/NAME.c against PETSc into build/NAME when it is missing or older than its
+    source (installing Debian's petsc-dev with apt-get first if PETSc is missing; as root), and
+    returns its path."""
+    exe = os.path.join(ROOT, "build", name)
+    if subprocess.run(["pkg-config", "--exists", "petsc"]).returncode != 0:
+        print("installing petsc-dev (Debian) ...", file=sys.stderr)
+        subprocess.run(["apt-get", "install", "-y", "--no-install-recommends", "petsc-dev"],
+                       check=True, env=dict(os.environ, DEBIAN_FRONTEND="noninteractive"))
+    src = os.path.join(ROOT, "bench", name + ".c")
+    if not os.path.exists(exe) or os.path.getmtime(exe) < os.path.getmtime(src):
+        flags = subprocess.run(["pkg-config", "--cflags", "--libs", "petsc"], check=True,
+                               capture_output=True, text=True).stdout.split()
+        subprocess.run([shutil.which("mpicc") or "mpicc", "-O3", "-o", exe, src, *flags, "-lm"],
+                       check=True)
+    return exe
 
 
 def machine():

@@ -29,14 +29,13 @@ Writes bench/results/OUT and prints a markdown table."""
 import argparse
 import json
 import os
-import shutil
 import statistics
 import subprocess
 import sys
 import tempfile
 import time
 
-from common import ROOT, env, save, solve
+from common import env, petsc_program, save, solve
 
 p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
 p.add_argument("--n", type=int, nargs="+", default=[40, 80])
@@ -51,17 +50,7 @@ p.add_argument("--splits", nargs="+", default=["box", "metis", "box_precondition
 p.add_argument("--out", default="cube_obstacle_peer.json")
 a = p.parse_args()
 
-exe = os.path.join(ROOT, "build", "petsc_cube_obstacle")
-if subprocess.run(["pkg-config", "--exists", "petsc"]).returncode != 0:
-    print("installing petsc-dev (Debian) ...", file=sys.stderr)
-    subprocess.run(["apt-get", "install", "-y", "--no-install-recommends", "petsc-dev"],
-                   check=True, env=dict(os.environ, DEBIAN_FRONTEND="noninteractive"))
-src = os.path.join(ROOT, "bench", "petsc_cube_obstacle.c")
-if not os.path.exists(exe) or os.path.getmtime(exe) < os.path.getmtime(src):
-    flags = subprocess.run(["pkg-config", "--cflags", "--libs", "petsc"], check=True,
-                           capture_output=True, text=True).stdout.split()
-    subprocess.run([shutil.which("mpicc") or "mpicc", "-O3", "-o", exe, src, *flags, "-lm"],
-                   check=True)
+exe = petsc_program("petsc_cube_obstacle")
 
 TEMPLATE = """[mesh]
 generator = "box"

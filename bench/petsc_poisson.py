@@ -18,13 +18,10 @@ Installs petsc-dev with apt-get if it is missing (as root). Usage:
 Writes bench/results/petsc_poisson.json and prints a markdown table."""
 import argparse
 import json
-import os
-import shutil
 import statistics
 import subprocess
-import sys
 
-from common import ROOT, env, save, solve
+from common import env, petsc_program, save, solve
 
 p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
 p.add_argument("--n", type=int, nargs="+", default=[2000, 4500])
@@ -32,16 +29,7 @@ p.add_argument("--ranks", type=int, default=2)
 p.add_argument("--repeat", type=int, default=0, help="0: 3 for n <= 2000, else 1")
 a = p.parse_args()
 
-exe = os.path.join(ROOT, "build", "petsc_poisson")
-if subprocess.run(["pkg-config", "--exists", "petsc"]).returncode != 0:
-    print("installing petsc-dev (Debian) ...", file=sys.stderr)
-    subprocess.run(["apt-get", "install", "-y", "--no-install-recommends", "petsc-dev"],
-                   check=True, env=dict(os.environ, DEBIAN_FRONTEND="noninteractive"))
-src = os.path.join(ROOT, "bench", "petsc_poisson.c")
-if not os.path.exists(exe) or os.path.getmtime(exe) < os.path.getmtime(src):
-    flags = subprocess.run(["pkg-config", "--cflags", "--libs", "petsc"], check=True,
-                           capture_output=True, text=True).stdout.split()
-    subprocess.run([shutil.which("mpicc") or "mpicc", "-O3", "-o", exe, src, *flags], check=True)
+exe = petsc_program("petsc_poisson")
 
 
 def petsc(n):

@@ -26,7 +26,7 @@
 // the preconditioned free gradient d = D_F Z phi instead, with the length d'phi / d'Ad that
 // minimizes the cost along d before the projection (one more product with A). The projected
 // step can raise the cost; it is kept all the same, since what it buys is a better active set
-// (accepting it only when the cost falls gave back most of the gain: 213 instead of 132
+// (accepting it only when the cost falls gave back most of the gain: 222 instead of 132
 // products on the METIS-split 80^3 cube-obstacle, A = 20). After 10 such cost increases in one
 // run the remaining expansion steps of the run are the fixed-length gradient steps, so every
 // run ends as MPRGP does and keeps its convergence. Counted in expansion_cost_increases.

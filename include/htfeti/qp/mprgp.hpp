@@ -26,10 +26,10 @@
 // the preconditioned free gradient d = D_F Z phi instead, with the length d'phi / d'Ad that
 // minimizes the cost along d before the projection (one more product with A). The projected
 // step can raise the cost; it is kept all the same, since what it buys is a better active set
-// (accepting it only when the cost falls gave back most of the gain: 222 instead of 132
-// products on the METIS-split 80^3 cube-obstacle, A = 20). After 10 such cost increases in one
-// run the remaining expansion steps of the run are the fixed-length gradient steps, so every
-// run ends as MPRGP does and keeps its convergence. Counted in expansion_cost_increases.
+// (accepting it only when the cost falls gave back most of the gain on the METIS-split 80^3
+// cube-obstacle, A = 20). After 10 such cost increases in one run the remaining expansion steps
+// of the run are the fixed-length gradient steps, so every run ends as MPRGP does and keeps its
+// convergence. Counted in expansion_cost_increases.
 // Without a preconditioner d = phi. Measured in docs/performance.md.
 // Cost of one iteration: one application of A (two for an expansion step, three for a
 // preconditioned one) and a few vector ops (and one of Z when preconditioned).
@@ -79,7 +79,7 @@ struct MprgpResult {
   int iterations = 0;
   int cg_steps = 0, expansion_steps = 0, proportioning_steps = 0;
   int expansion_cost_increases = 0;  ///< preconditioned expansion steps that raised the cost
-  double projected_gradient = 0;  ///< ||g^P|| at exit
+  double projected_gradient = 0;     ///< ||g^P|| at exit
 };
 
 /// Work vectors of one MPRGP run; pass the same one to repeated runs (SMALBE-M's inner solves)

@@ -20,6 +20,7 @@
 #include "htfeti/io/vtu.hpp"
 #include "htfeti/memory_estimate.hpp"
 #include "htfeti/options.hpp"
+#include "htfeti/parallel/memory.hpp"
 #include "htfeti/parallel/threads.hpp"
 #include "htfeti/problem_file.hpp"
 #include "htfeti/solver.hpp"
@@ -262,7 +263,7 @@ std::shared_ptr<const Model> file_model(const ProblemArgs& p, const TableArgs& a
   if (p.o_glue->count()) spec.glue = parse_glue(p.glue);
   if (p.o_objective->count()) {
     spec.partition_objective = parse_partition_objective(p.objective);
-    if (spec.subdomains.size() != 1)
+    if (spec.subdomains.size() != 1 || !spec.mesh_parts.empty())
       throw std::invalid_argument(
           "--partition-objective is for meshes split by METIS (decomposition.subdomains = N)");
   }
@@ -271,7 +272,7 @@ std::shared_ptr<const Model> file_model(const ProblemArgs& p, const TableArgs& a
     if (e.size() != 1) throw std::invalid_argument("--elements takes one number for a built-in");
     spec.builtin_options.elements = e[0];
   } else if (p.o_elements->count()) {
-    if (!spec.mesh_file.empty())
+    if (!spec.mesh_file.empty() || !spec.mesh_parts.empty())
       throw std::invalid_argument("--elements is for generated boxes, not mesh files");
     const auto e = parse_int_list(p.elements, "--elements");
     if (static_cast<int>(e.size()) != spec.box.dim)
@@ -286,7 +287,7 @@ std::shared_ptr<const Model> file_model(const ProblemArgs& p, const TableArgs& a
   if (p.o_element->count()) spec.builtin_options.element = parse_element(p.element);
   validate_solver(run.solve);
   if (run.solve.check_memory) check_memory_before_model(spec, run.solve.feti, comm);
-  return make_model(spec);
+  return make_model(spec, &comm);
 }
 
 // The model of a built-in problem (--problem).
@@ -346,8 +347,27 @@ int dry_run(const Model& model, RunOptions run, const Comm& comm) {
   const std::string why = resolve_preconditioner(model, feti);
   MemoryEstimate estimate;
   if (run.solve.check_memory) estimate = check_memory(model, feti, comm);
+  // What each rank holds after reading and partitioning: the mesh and its peak memory so far.
+  const Model::MeshCounts held = model.held();
+  const double mine[3] = {static_cast<double>(held.cells), static_cast<double>(held.points),
+                          peak_rss_mb()};
+  std::vector<double> all(3 * static_cast<size_t>(comm.size()));
+  MPI_Gather(mine, 3, MPI_DOUBLE, all.data(), 3, MPI_DOUBLE, 0, comm.raw());
   if (comm.rank() != 0) return 0;
   std::printf("htfeti solve --dry-run: nothing is set up, solved or written\n");
+  {
+    int fullest = 0;
+    double lo[3] = {all[0], all[1], all[2]}, hi[3] = {all[0], all[1], all[2]};
+    for (int r = 0; r < comm.size(); ++r)
+      for (int i = 0; i < 3; ++i) {
+        lo[i] = std::min(lo[i], all[3 * r + i]), hi[i] = std::max(hi[i], all[3 * r + i]);
+        if (i == 2 && all[3 * r + 2] >= all[3 * fullest + 2]) fullest = r;
+      }
+    std::printf(
+        "per rank (%d): mesh held %.0f-%.0f cells, %.0f-%.0f nodes; peak memory so far "
+        "%.0f-%.0f MB (the most on rank %d)\n",
+        comm.size(), lo[0], hi[0], lo[1], hi[1], lo[2], hi[2], fullest);
+  }
   std::printf("problem:\n%s\n", model.describe().dump(2).c_str());
   std::printf("choices:\n");
   std::printf("  algorithm: %s\n", model.has_contact() ? "SMALBE-M with MPRGP (contact)"

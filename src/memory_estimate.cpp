@@ -222,7 +222,8 @@ MemoryEstimate check_memory(const Model& model, FetiOptions& options, const Comm
 
 void check_memory_before_model(const ProblemSpec& spec, const FetiOptions& options,
                                const Comm& comm) {
-  if (!spec.builtin.empty() || !spec.mesh_file.empty()) return;  // sizes known from the box only
+  if (!spec.builtin.empty() || !spec.mesh_file.empty() || !spec.mesh_parts.empty())
+    return;  // sizes known from the box only
   const BoxGridOptions& b = spec.box;
   double nodes = 1, cells = 1;
   for (int d = 0; d < b.dim; ++d) nodes *= b.elements[d] + 1.0, cells *= b.elements[d];

@@ -171,9 +171,10 @@ std::string number_or_expression(const toml::node& n, const std::string& where) 
 // [mesh]: a built-in problem (returns true), a mesh file or a generated box.
 bool read_mesh(const toml::table& root, const std::string& path, ProblemSpec& spec) {
   const toml::table& mesh = *table_of(root, "mesh", true);
-  check_keys(mesh, "mesh", {"file", "generator", "size", "elements", "element", "builtin"});
+  check_keys(mesh, "mesh",
+             {"file", "parts", "generator", "size", "elements", "element", "builtin"});
   if (mesh.contains("builtin")) {
-    for (const char* k : {"file", "generator", "size"})
+    for (const char* k : {"file", "parts", "generator", "size"})
       if (mesh.contains(k)) bad(std::string("mesh.") + k, "cannot be combined with mesh.builtin");
     for (const char* k : {"physics", "dirichlet", "load", "contact"})
       if (root.contains(k)) bad(k, "a built-in problem defines its own physics and conditions");
@@ -190,15 +191,24 @@ bool read_mesh(const toml::table& root, const std::string& path, ProblemSpec& sp
     o.elements = static_cast<int>(n);
     spec.subdomains = {8};
   } else {
-    const bool has_file = mesh.contains("file"), has_gen = mesh.contains("generator");
-    if (has_file == has_gen) bad("[mesh]", "give exactly one of 'file' and 'generator'");
-    if (has_file) {
+    const bool has_file = mesh.contains("file"), has_gen = mesh.contains("generator"),
+               has_parts = mesh.contains("parts");
+    if (has_file + has_gen + has_parts != 1)
+      bad("[mesh]", "give exactly one of 'file', 'parts' and 'generator'");
+    if (has_file || has_parts) {
+      const char* key = has_file ? "file" : "parts";
       for (const char* k : {"size", "elements", "element"})
         if (mesh.contains(k)) bad(std::string("mesh.") + k, "is for generator = \"box\" only");
-      const std::filesystem::path f = get_string(mesh, "mesh", "file", "");
-      if (f.empty()) bad("mesh.file", "is empty (give the path of a Gmsh mesh)");
-      spec.mesh_file =
+      const std::filesystem::path f = get_string(mesh, "mesh", key, "");
+      if (f.empty())
+        bad(std::string("mesh.") + key,
+            has_file ? "is empty (give the path of a Gmsh mesh)"
+                     : "is empty (give the name Gmsh was given with -o when it wrote one file "
+                       "per part: NAME.msh for NAME_1.msh ... NAME_N.msh)");
+      const std::string resolved =
           f.is_absolute() ? f.string() : (std::filesystem::path(path).parent_path() / f).string();
+      (has_file ? spec.mesh_file : spec.mesh_parts) = resolved;
+      if (has_parts) spec.subdomains.clear();  // the number of parts, unless given
     } else {
       if (get_string(mesh, "mesh", "generator", "") != "box")
         bad("mesh.generator", "must be \"box\"");
@@ -238,7 +248,7 @@ bool read_mesh(const toml::table& root, const std::string& path, ProblemSpec& sp
 
 // [physics]: Laplace (source, coefficient) or elasticity (material, density, gravity).
 void read_physics(const toml::table& root, ProblemSpec& spec) {
-  const bool has_gen = spec.mesh_file.empty();
+  const bool has_gen = spec.mesh_file.empty() && spec.mesh_parts.empty();
   // [physics]
   const toml::table& ph = *table_of(root, "physics", true);
   const std::string type = get_string(ph, "physics", "type", "", true);
@@ -447,6 +457,10 @@ void read_decomposition(const toml::table& root, ProblemSpec& spec) {
     } catch (const std::invalid_argument& e) {
       bad("decomposition.glue", e.what());
     }
+    if (!spec.mesh_parts.empty() && dec->contains("objective"))
+      bad("decomposition.objective",
+          "is for meshes split by METIS; a mesh partitioned in advance (mesh.parts) keeps its "
+          "parts");
     try {
       spec.partition_objective =
           parse_partition_objective(get_string(*dec, "decomposition", "objective", "volume"));

@@ -9,6 +9,8 @@
 #include <cstring>
 #include <stdexcept>
 
+#include "htfeti/parallel/blas_buffers.hpp"
+
 extern "C" void dpotri_(const char* uplo, const int* n, double* a, const int* lda, int* info);
 
 namespace htfeti {
@@ -481,7 +483,10 @@ void SparseCholesky::factorize_impl(const Eigen::SparseMatrix<double>& A,
     }
   }
   const auto t1 = clock::now();
-  cholmod_factorize(&view, impl_->factor, &c);
+  {
+    const BlasOnOneThread one;  // the same bits on any number of threads (blas_buffers.hpp)
+    cholmod_factorize(&view, impl_->factor, &c);
+  }
   if (c.status == CHOLMOD_NOT_POSDEF || impl_->factor->minor < impl_->factor->n)
     throw std::runtime_error("CHOLMOD: matrix is not positive definite");
   if (c.status < 0) cholmod_failed(c, "CHOLMOD factorization failed");
@@ -523,6 +528,7 @@ void SparseCholesky::solve(const double* b, double* out) {
   rhs.x = const_cast<double*>(b);
   rhs.xtype = CHOLMOD_REAL;
   rhs.dtype = CHOLMOD_DOUBLE;
+  const BlasOnOneThread one;
   if (!cholmod_solve2(CHOLMOD_A, impl_->factor, &rhs, nullptr, &impl_->x, nullptr, &impl_->y,
                       &impl_->e, &c))
     cholmod_failed(c, "CHOLMOD solve failed");
@@ -566,7 +572,11 @@ void SparseCholesky::solve_many(double* X, int ncols) {
   rhs.dtype = CHOLMOD_DOUBLE;
   // Work arrays of this call: solve()'s are sized for one column and stay so.
   cholmod_dense *x = nullptr, *y = nullptr, *e = nullptr;
-  const bool ok = cholmod_solve2(CHOLMOD_A, impl_->factor, &rhs, nullptr, &x, nullptr, &y, &e, &c);
+  bool ok = false;
+  {
+    const BlasOnOneThread one;
+    ok = cholmod_solve2(CHOLMOD_A, impl_->factor, &rhs, nullptr, &x, nullptr, &y, &e, &c);
+  }
   if (ok) std::memcpy(X, x->x, sizeof(double) * rhs.nzmax);
   cholmod_free_dense(&x, &c);
   cholmod_free_dense(&y, &c);
@@ -672,6 +682,7 @@ void SparseCholesky::schur_factor(Eigen::MatrixXd& Ls, std::vector<int>& order) 
 
 std::shared_ptr<const SparseCholesky::SchurInverse> SparseCholesky::schur_inverse() const {
   auto compute = [this]() {
+    const BlasOnOneThread one;
     auto r = std::make_shared<SchurInverse>();
     schur_factor(r->S, r->order);  // L_s, then S^{-1} in place
     const int nb = static_cast<int>(r->S.rows());

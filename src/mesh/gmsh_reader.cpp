@@ -2,6 +2,7 @@
 #include <omp.h>
 
 #include <algorithm>
+#include <cstdint>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
@@ -104,6 +105,38 @@ std::size_t repeated_node_tag(const std::string& path) {
   return twice == tags.end() ? 0 : *twice;
 }
 
+// The number of partitions a file of MSH 4 declares in its $PartitionedEntities section (one part
+// of a partitioned mesh), or 0. The Gmsh SDK keeps it to itself (4.8 has no call for it). Reads
+// the sections before $Nodes only; in a binary file the count is a size_t, in ASCII a number.
+int partition_count(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  std::string header;
+  std::getline(in, header);  // $MeshFormat
+  double version = 0;
+  int file_type = 0, data_size = 0;
+  if (!(in >> version >> file_type >> data_size) || version < 4) return 0;
+  const std::string tag = "$PartitionedEntities", stop = "$Nodes";
+  std::string window;
+  char ch;
+  while (in.get(ch)) {
+    window.push_back(ch);
+    if (window.size() > tag.size() + 1) window.erase(0, window.size() - tag.size() - 1);
+    const bool line_start = window.size() > tag.size() && window[0] == '\n';
+    if (line_start && window.compare(1, stop.size(), stop) == 0) return 0;
+    if (line_start && window.compare(1, tag.size(), tag) == 0) {
+      in.get(ch);  // the newline after the section name
+      if (file_type == 0) {
+        long long n = 0;
+        return (in >> n) && n > 0 && n < (1LL << 31) ? static_cast<int>(n) : 0;
+      }
+      std::uint64_t n = 0;
+      if (data_size != 8 || !in.read(reinterpret_cast<char*>(&n), 8)) return 0;
+      return n > 0 && n < (1ULL << 31) ? static_cast<int>(n) : 0;
+    }
+  }
+  return 0;
+}
+
 // The steps of read_gmsh on the model the Gmsh SDK has open. Node and cell numbers of the mesh
 // are positions: nodes in increasing tag order, cells in Gmsh's order.
 using TagIndex = std::unordered_map<std::size_t, int>;
@@ -159,6 +192,7 @@ TagIndex read_nodes(const std::string& path, const std::vector<std::size_t>& cel
   TagIndex index;
   index.reserve(used.size() * 2);
   for (size_t i = 0; i < used.size(); ++i) index[used[i]] = static_cast<int>(i);
+  mesh.node_tags = used;
   mesh.coords.assign(3 * used.size(), 0.0);
   std::vector<char> seen(used.size(), 0);
   for (size_t i = 0; i < node_tags.size(); ++i) {
@@ -209,7 +243,7 @@ void read_group_entity(const std::string& path, const std::string& name, int gd,
 
 // The physical groups: nodes of every group (mesh.node_groups, unnamed groups by their
 // number), and cells or facets by read_group_entity.
-void read_groups(const std::string& path, const TagIndex& index, Mesh& mesh) {
+void read_groups(const std::string& path, const TagIndex& index, bool named_only, Mesh& mesh) {
   TagIndex cell_index;
   for (size_t i = 0; i < mesh.cell_tags.size(); ++i)
     cell_index[mesh.cell_tags[i]] = static_cast<int>(i);
@@ -218,6 +252,7 @@ void read_groups(const std::string& path, const TagIndex& index, Mesh& mesh) {
   for (const auto& [gd, gt] : groups) {
     std::string name;
     gmsh::model::getPhysicalName(gd, gt, name);
+    if (name.empty() && named_only) continue;
     if (name.empty()) name = std::to_string(gt);
     std::vector<std::size_t> gnodes;
     std::vector<double> gcoord;
@@ -237,7 +272,7 @@ void read_groups(const std::string& path, const TagIndex& index, Mesh& mesh) {
 
 }  // namespace
 
-Mesh read_gmsh(const std::string& path) {
+Mesh read_gmsh(const std::string& path, const GmshReadOptions& options) {
   std::error_code ec;
   if (!std::filesystem::is_regular_file(path, ec))
     throw std::invalid_argument("mesh file '" + path + "' does not exist or is not a file");
@@ -255,6 +290,7 @@ Mesh read_gmsh(const std::string& path) {
                                 " is given twice in $Nodes (which coordinates are meant?)");
   std::lock_guard<std::mutex> lock(gmsh_mutex);
   Mesh mesh;
+  mesh.partitions = partition_count(path);
   // gmsh::initialize() sets OpenMP's thread count to its own default (1): restore ours after.
   const int threads = omp_get_max_threads();
   gmsh::initialize();
@@ -271,7 +307,8 @@ Mesh read_gmsh(const std::string& path) {
     gmsh::open(path);
     const std::vector<std::size_t> cell_node_tags = read_cells(path, mesh);
     const TagIndex index = read_nodes(path, cell_node_tags, mesh);
-    read_groups(path, index, mesh);
+    read_groups(path, index, options.named_groups_only, mesh);
+
   } catch (const std::invalid_argument&) {
     throw;
   } catch (const std::exception& e) {

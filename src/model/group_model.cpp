@@ -10,8 +10,26 @@
 #include "htfeti/model/contact_pairs.hpp"
 #include "htfeti/model/problem_spec.hpp"
 #include "htfeti/partition/partition.hpp"
+#include "mesh_source.hpp"
 
 namespace htfeti {
+
+void check_cells(const Mesh& mesh, const std::string& file) {
+  const int nc = cell_nodes(mesh.type);
+  double x[24];
+  for (int e = 0; e < mesh.num_cells(); ++e) {
+    const int* cn = mesh.cells.data() + static_cast<size_t>(e) * nc;
+    for (int a = 0; a < nc; ++a)
+      for (int d = 0; d < 3; ++d) x[3 * a + d] = mesh.coords[3 * static_cast<size_t>(cn[a]) + d];
+    if (!cell_is_valid(mesh.type, x))
+      throw std::invalid_argument(
+          "mesh file '" + file + "': element " +
+          std::to_string(e < static_cast<int>(mesh.cell_tags.size()) ? mesh.cell_tags[e] : e) +
+          " (" + to_string(mesh.type) +
+          ") is inverted, self-intersecting or degenerate (its Jacobian changes sign or "
+          "vanishes)");
+  }
+}
 
 namespace {
 
@@ -27,34 +45,6 @@ std::string point_text(const std::array<double, 3>& p) {
   o << p[0] << ", " << p[1] << ", " << p[2];
   return o.str();
 }
-
-// Where a GroupModel's subdomain meshes come from. GroupModel asks its source alone and never
-// branches on the kind: a generated box split into boxes of subdomains (every rank generates its
-// own, and equal subdomains are equal bit for bit), or a whole mesh (read from a file, or a
-// generated box made whole) split by METIS.
-class MeshSource {
- public:
-  virtual ~MeshSource() = default;
-  virtual int dim() const = 0;
-  virtual int num_subdomains() const = 0;
-  virtual int num_clusters() const = 0;
-  virtual int cluster_first(int c) const = 0;
-  virtual long long num_nodes() const = 0;
-  /// Nodes summed over the subdomains (a node once per subdomain holding a copy).
-  virtual long long subdomain_nodes() const = 0;
-  virtual SubdomainMesh mesh(int s) const = 0;
-  /// The sizes of mesh(s) without building it, where the source knows them (false: build it).
-  virtual bool mesh_counts(int s, Model::MeshCounts& counts) const = 0;
-  /// The names of the groups of nodes, of boundary facets and of cells.
-  virtual void groups(std::set<std::string>& nodes, std::set<std::string>& facets,
-                      std::set<std::string>& cells) const = 0;
-  /// The report's description of the mesh and of its split.
-  virtual void describe(const ProblemSpec& spec, nlohmann::json& j) const = 0;
-  /// The whole mesh and its partition, where the source holds them (contact between bodies
-  /// needs them); null for a box split into boxes of subdomains (one body).
-  virtual const Mesh* whole_mesh() const { return nullptr; }
-  virtual const MeshPartition* partition() const { return nullptr; }
-};
 
 // A generated box split into boxes of subdomains: decomposition.subdomains = [sx, sy(, sz)].
 class BoxSplit final : public MeshSource {
@@ -99,6 +89,7 @@ class BoxSplit final : public MeshSource {
     j["subdomains_per_axis"] = std::vector<int>(spec.subdomains.begin(), spec.subdomains.end());
     j["H_over_h"] = grid_->H(0);
   }
+  Model::MeshCounts held() const override { return {}; }
   static nlohmann::json box_description(const ProblemSpec& spec) {
     const auto& b = spec.box;
     return {{"generator", "box"},
@@ -118,7 +109,7 @@ class MetisSplit final : public MeshSource {
   explicit MetisSplit(const ProblemSpec& spec) {
     if (!spec.mesh_file.empty()) {
       mesh_ = std::make_unique<Mesh>(read_gmsh(spec.mesh_file));
-      check_cells(spec.mesh_file);
+      check_cells(*mesh_, spec.mesh_file);
     } else {  // a generated box split by METIS: generate it whole
       BoxGridOptions o = spec.box;
       o.subdomains = {1, 1, 1};
@@ -139,26 +130,6 @@ class MetisSplit final : public MeshSource {
     part_ = std::make_unique<MeshPartition>(
         partition_mesh(*mesh_, spec.subdomains.at(0), spec.cluster_size, spec.partition_objective));
   }
-  // Every cell valid (fem/element.hpp: cell_is_valid): an inverted, self-intersecting or
-  // degenerate element is refused with its tag, not solved with a wrong stiffness.
-  void check_cells(const std::string& file) const {
-    const int nc = cell_nodes(mesh_->type);
-    double x[24];
-    for (int e = 0; e < mesh_->num_cells(); ++e) {
-      const int* cn = mesh_->cells.data() + static_cast<size_t>(e) * nc;
-      for (int a = 0; a < nc; ++a)
-        for (int d = 0; d < 3; ++d)
-          x[3 * a + d] = mesh_->coords[3 * static_cast<size_t>(cn[a]) + d];
-      if (!cell_is_valid(mesh_->type, x))
-        throw std::invalid_argument(
-            "mesh file '" + file + "': element " +
-            std::to_string(e < static_cast<int>(mesh_->cell_tags.size()) ? mesh_->cell_tags[e]
-                                                                         : e) +
-            " (" + to_string(mesh_->type) +
-            ") is inverted, self-intersecting or degenerate (its Jacobian changes sign or "
-            "vanishes)");
-    }
-  }
   int dim() const override { return mesh_->dim; }
   int num_subdomains() const override { return part_->num_subdomains; }
   int num_clusters() const override { return part_->num_clusters; }
@@ -177,6 +148,9 @@ class MetisSplit final : public MeshSource {
   }
   const Mesh* whole_mesh() const override { return mesh_.get(); }
   const MeshPartition* partition() const override { return part_.get(); }
+  Model::MeshCounts held() const override {
+    return {mesh_->num_nodes(), mesh_->num_cells(), static_cast<long long>(mesh_->cells.size())};
+  }
   void describe(const ProblemSpec& spec, nlohmann::json& j) const override {
     j["bodies"] = part_->num_bodies;
     j["mesh"] = spec.mesh_file.empty() ? BoxSplit::box_description(spec)
@@ -202,11 +176,15 @@ class GroupModel final : public Model {
     for (const auto& c : spec_.contact) out.push_back({c.group, c.master});
     return out;
   }
-  explicit GroupModel(const ProblemSpec& spec) : spec_(spec), source_(spec.source) {
+  GroupModel(const ProblemSpec& spec, const Comm* comm) : spec_(spec), source_(spec.source) {
     physics_ = spec.physics;
     glue_ = spec.glue;
     const bool box_split = spec.mesh_file.empty() && spec.subdomains.size() > 1;
-    if (box_split) {
+    if (!spec.mesh_parts.empty()) {
+      mesh_source_ = make_partitioned_source(spec, comm ? *comm : Comm(MPI_COMM_WORLD));
+      physics_.dim = mesh_source_->dim();
+      physics_.validate();
+    } else if (box_split) {
       physics_.dim = spec.box.dim;
       physics_.validate();
       mesh_source_ = std::make_unique<BoxSplit>(spec);
@@ -243,6 +221,7 @@ class GroupModel final : public Model {
     return mesh_source_->subdomain_nodes() * physics_.dofs_per_node();
   }
   SubdomainMesh mesh(int s) const override { return mesh_source_->mesh(s); }
+  MeshCounts held() const override { return mesh_source_->held(); }
   MeshCounts mesh_counts(int s) const override {
     MeshCounts counts;
     return mesh_source_->mesh_counts(s, counts) ? counts : Model::mesh_counts(s);
@@ -449,7 +428,9 @@ class GroupModel final : public Model {
   void check_groups() const {
     std::set<std::string> nodes, facets, cells;
     mesh_source_->groups(nodes, facets, cells);
-    const std::string where = spec_.mesh_file.empty() ? "the generated box" : spec_.mesh_file;
+    const std::string where = !spec_.mesh_parts.empty() ? "the parts of " + spec_.mesh_parts
+                              : spec_.mesh_file.empty() ? "the generated box"
+                                                        : spec_.mesh_file;
     auto require = [&](const std::string& g, const std::set<std::string>& in,
                        const std::string& what) {
       if (!in.count(g))
@@ -574,7 +555,7 @@ ProblemSpec cube_obstacle_spec(const std::vector<int>& elements, const std::vect
   return s;
 }
 
-std::unique_ptr<Model> make_model(const ProblemSpec& spec) {
+std::unique_ptr<Model> make_model(const ProblemSpec& spec, const Comm* comm) {
   if (!spec.builtin.empty()) {
     DecompositionOptions o = spec.builtin_options;
     if (spec.subdomains.size() != 1)
@@ -585,7 +566,7 @@ std::unique_ptr<Model> make_model(const ProblemSpec& spec) {
     Decomposition check(o);
     return make_builtin_model(o);
   }
-  return std::make_unique<GroupModel>(spec);
+  return std::make_unique<GroupModel>(spec, comm);
 }
 
 }  // namespace htfeti

@@ -49,4 +49,14 @@ std::string reserve_blas_buffers() {
   return "";
 }
 
+BlasOnOneThread::BlasOnOneThread() {
+  if (omp_in_parallel()) return;
+  saved_ = omp_get_max_threads();
+  if (saved_ > 1) omp_set_num_threads(1);
+}
+
+BlasOnOneThread::~BlasOnOneThread() {
+  if (saved_ > 1) omp_set_num_threads(saved_);
+}
+
 }  // namespace htfeti

@@ -198,6 +198,64 @@ std::string to_string(PartitionObjective objective) {
   return name_of(kPartitionObjectiveNames, objective);
 }
 
+std::vector<int> cluster_subdomains(const std::vector<std::map<int, int>>& adjacency,
+                                    const std::vector<int>& body_first, int cluster_size) {
+  const int subdomains = body_first.back(), nb = static_cast<int>(body_first.size()) - 1;
+  const int nclusters_target = (subdomains + cluster_size - 1) / cluster_size;
+  std::vector<int> cpart(subdomains, 0);
+  if (cluster_size == 1) {
+    std::iota(cpart.begin(), cpart.end(), 0);
+    return cpart;
+  }
+  int cluster_offset = 0;
+  for (int b = 0; b < nb; ++b) {
+    const int first = body_first[b], ns = body_first[b + 1] - first;
+    const int target = nb == 1 ? nclusters_target : (ns + cluster_size - 1) / cluster_size;
+    if (target > 1) {
+      std::vector<idx_t> xadj(ns + 1, 0), adjncy, adjwgt;
+      for (int s = 0; s < ns; ++s) {
+        for (const auto& [t, w] : adjacency[first + s])
+          adjncy.push_back(t - first), adjwgt.push_back(w);
+        xadj[s + 1] = static_cast<idx_t>(adjncy.size());
+      }
+      idx_t nv = ns, ncon = 1, nparts = target, objval = 0;
+      std::vector<idx_t> out(ns);
+      idx_t options[METIS_NOPTIONS];
+      METIS_SetDefaultOptions(options);
+      options[METIS_OPTION_SEED] = 1;
+      metis_check(METIS_PartGraphKway(&nv, &ncon, xadj.data(), adjncy.data(), nullptr, nullptr,
+                                      adjwgt.data(), &nparts, nullptr, nullptr, options, &objval,
+                                      out.data()),
+                  "subdomain graph into clusters");
+      for (int s = 0; s < ns; ++s) cpart[first + s] = cluster_offset + static_cast<int>(out[s]);
+    } else {
+      for (int s = 0; s < ns; ++s) cpart[first + s] = cluster_offset;
+    }
+    cluster_offset += std::max(target, 1);
+  }
+  return cpart;
+}
+
+ClusterOrder order_by_cluster(const std::vector<int>& cluster) {
+  const int subdomains = static_cast<int>(cluster.size());
+  std::vector<int> cl_count(subdomains, 0), cl_new(cl_count.size(), -1);
+  for (int s = 0; s < subdomains; ++s) ++cl_count[cluster[s]];
+  int nclusters = 0;
+  for (size_t c = 0; c < cl_count.size(); ++c)
+    if (cl_count[c] > 0) cl_new[c] = nclusters++;
+  std::vector<int> order(subdomains);
+  std::iota(order.begin(), order.end(), 0);
+  std::stable_sort(order.begin(), order.end(),
+                   [&](int a, int b) { return cl_new[cluster[a]] < cl_new[cluster[b]]; });
+  ClusterOrder out;
+  out.new_id.resize(subdomains);
+  for (int i = 0; i < subdomains; ++i) out.new_id[order[i]] = i;
+  out.cluster_first.assign(nclusters + 1, 0);
+  for (int s = 0; s < subdomains; ++s) ++out.cluster_first[cl_new[cluster[s]] + 1];
+  for (int c = 0; c < nclusters; ++c) out.cluster_first[c + 1] += out.cluster_first[c];
+  return out;
+}
+
 MeshPartition partition_mesh(const Mesh& mesh, int subdomains, int cluster_size,
                              PartitionObjective objective) {
   if (subdomains < 1) throw std::invalid_argument("decomposition.subdomains must be positive");
@@ -264,62 +322,20 @@ MeshPartition partition_mesh(const Mesh& mesh, int subdomains, int cluster_size,
       if (std::find(v.begin(), v.end(), static_cast<int>(part[e])) == v.end()) v.push_back(part[e]);
     }
 
-  // 2. Clusters: METIS on the subdomain graph, of each body apart (a cluster never spans two
-  // bodies), ceil(subdomains of the body / cluster_size) clusters per body.
-  const int nclusters_target = (subdomains + cluster_size - 1) / cluster_size;
-  std::vector<idx_t> cpart(subdomains, 0);
-  if (cluster_size == 1) {
-    std::iota(cpart.begin(), cpart.end(), 0);
-  } else {
-    std::vector<std::map<int, int>> adj(subdomains);
+  // 2. Clusters: METIS on the subdomain graph, of each body apart.
+  std::vector<std::map<int, int>> adj;
+  if (cluster_size > 1) {
+    adj.resize(subdomains);
     for (const auto& v : node_subs)
       for (size_t i = 0; i < v.size(); ++i)
         for (size_t j = 0; j < v.size(); ++j)
           if (i != j) ++adj[v[i]][v[j]];
-    int cluster_offset = 0;
-    for (int b = 0; b < nb; ++b) {
-      const int first = body_first[b], ns = body_first[b + 1] - first;
-      const int target = nb == 1 ? nclusters_target : (ns + cluster_size - 1) / cluster_size;
-      if (target > 1) {
-        std::vector<idx_t> xadj(ns + 1, 0), adjncy, adjwgt;
-        for (int s = 0; s < ns; ++s) {
-          for (const auto& [t, w] : adj[first + s])
-            adjncy.push_back(t - first), adjwgt.push_back(w);
-          xadj[s + 1] = static_cast<idx_t>(adjncy.size());
-        }
-        idx_t nv = ns, ncon = 1, nparts = target, objval = 0;
-        std::vector<idx_t> out(ns);
-        idx_t options[METIS_NOPTIONS];
-        METIS_SetDefaultOptions(options);
-        options[METIS_OPTION_SEED] = 1;
-        metis_check(METIS_PartGraphKway(&nv, &ncon, xadj.data(), adjncy.data(), nullptr, nullptr,
-                                        adjwgt.data(), &nparts, nullptr, nullptr, options, &objval,
-                                        out.data()),
-                    "subdomain graph into clusters");
-        for (int s = 0; s < ns; ++s) cpart[first + s] = cluster_offset + out[s];
-      } else {
-        for (int s = 0; s < ns; ++s) cpart[first + s] = cluster_offset;
-      }
-      cluster_offset += std::max(target, 1);
-    }
   }
-  // Drop empty clusters; number subdomains cluster-major.
-  std::vector<int> cl_count(subdomains, 0), cl_new(cl_count.size(), -1);
-  for (int s = 0; s < subdomains; ++s) ++cl_count[cpart[s]];
-  int nclusters = 0;
-  for (size_t c = 0; c < cl_count.size(); ++c)
-    if (cl_count[c] > 0) cl_new[c] = nclusters++;
-  std::vector<int> order(subdomains);
-  std::iota(order.begin(), order.end(), 0);
-  std::stable_sort(order.begin(), order.end(),
-                   [&](int a, int b) { return cl_new[cpart[a]] < cl_new[cpart[b]]; });
-  std::vector<int> new_id(subdomains);
-  for (int i = 0; i < subdomains; ++i) new_id[order[i]] = i;
+  const ClusterOrder order = order_by_cluster(cluster_subdomains(adj, body_first, cluster_size));
+  const std::vector<int>& new_id = order.new_id;
   p.num_subdomains = subdomains;
-  p.num_clusters = nclusters;
-  p.cluster_first.assign(nclusters + 1, 0);
-  for (int s = 0; s < subdomains; ++s) ++p.cluster_first[cl_new[cpart[s]] + 1];
-  for (int c = 0; c < nclusters; ++c) p.cluster_first[c + 1] += p.cluster_first[c];
+  p.num_clusters = static_cast<int>(order.cluster_first.size()) - 1;
+  p.cluster_first = order.cluster_first;
   p.cell_subdomain.resize(ne);
   p.subdomain_cells.assign(subdomains, {});
   for (int e = 0; e < ne; ++e) {

@@ -26,12 +26,22 @@ struct Mesh {
   std::map<std::string, FacetGroup> facet_groups;
   std::map<std::string, std::vector<int>> cell_groups;  ///< cell indices
   std::vector<std::size_t> cell_tags;                   ///< the file's element tag of each cell
+  std::vector<std::size_t> node_tags;                   ///< the file's node tag of each node
+  /// Partitions of the mesh the file belongs to (Gmsh's $PartitionedEntities; 0: not partitioned).
+  int partitions = 0;
   int num_nodes() const { return static_cast<int>(coords.size() / 3); }
   int num_cells() const { return static_cast<int>(cells.size()) / cell_nodes(type); }
 };
 
+struct GmshReadOptions {
+  /// Skip physical groups without a name (in one part of a partitioned mesh Gmsh adds unnamed
+  /// groups of its own, for the partition boundaries, whose numbers may repeat the user's).
+  bool named_groups_only = false;
+};
+
 /// Reads a Gmsh mesh. Throws std::invalid_argument naming the file and the problem (missing,
-/// unreadable, malformed, no supported cells, mixed cell types, unnamed groups are skipped).
-Mesh read_gmsh(const std::string& path);
+/// unreadable, malformed, no supported cells, mixed cell types). Unnamed groups are named by
+/// their number unless options.named_groups_only.
+Mesh read_gmsh(const std::string& path, const GmshReadOptions& options = {});
 
 }  // namespace htfeti

@@ -41,6 +41,11 @@ class Model {
     long long points = 0, cells = 0, corners = 0;
   };
   virtual MeshCounts mesh_counts(int s) const;
+  /// The mesh this rank holds in memory for the whole solve: the whole mesh where it was read or
+  /// generated whole (split by METIS), the parts of its own clusters where the mesh was
+  /// partitioned in advance (mesh.parts), nothing for generated boxes (made subdomain by
+  /// subdomain when needed).
+  virtual MeshCounts held() const { return {}; }
   /// The load of a Laplace problem at a point (unused for elasticity).
   virtual SourceFunction source() const { return {}; }
   /// Adds the subdomain's boundary loads to f and its Dirichlet dofs and contact rows.

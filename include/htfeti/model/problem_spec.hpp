@@ -15,6 +15,7 @@
 #include "htfeti/mesh/box.hpp"
 #include "htfeti/model/decomposition.hpp"
 #include "htfeti/model/model.hpp"
+#include "htfeti/parallel/comm.hpp"
 #include "htfeti/partition/partition.hpp"
 
 namespace htfeti {
@@ -26,6 +27,9 @@ struct ProblemSpec {
   std::string builtin;
   DecompositionOptions builtin_options;
   std::string mesh_file;  ///< resolved; empty for a generated box
+  /// mesh.parts: a mesh that Gmsh partitioned in advance, one file per part (NAME_1.msh ...
+  /// NAME_N.msh for mesh.parts = "NAME.msh", resolved); every rank reads only its own parts.
+  std::string mesh_parts;
   BoxGridOptions box;     ///< generator = "box" (subdomains/cluster_size filled from below)
   Physics physics;
   std::string source = "0";  ///< Laplace source: a number or an expression in x, y, z
@@ -58,7 +62,9 @@ struct ProblemSpec {
   std::vector<Dirichlet> dirichlet;
   std::vector<Load> loads;
   std::vector<Contact> contact;
-  std::vector<int> subdomains{1};  ///< one number (METIS) or one per axis (generated box)
+  /// One number (METIS) or one per axis (generated box); empty for mesh.parts when not given (the
+  /// number of parts).
+  std::vector<int> subdomains{1};
   int cluster_size = 1;
   Glue glue = Glue::averages;
   /// METIS's objective when a mesh is split (not a box split into boxes).
@@ -75,7 +81,9 @@ ProblemSpec cube_obstacle_spec(const std::vector<int>& elements, const std::vect
                                CellType cell = CellType::hex8);
 
 /// Builds the model (reads and partitions the mesh). Throws std::invalid_argument for input
-/// that does not fit (missing groups, sizes).
-std::unique_ptr<Model> make_model(const ProblemSpec& spec);
+/// that does not fit (missing groups, sizes). comm: the ranks that will solve it, which a
+/// partitioned mesh (mesh.parts) is read by, each its own parts (null: MPI_COMM_WORLD); collective
+/// over comm for such a mesh.
+std::unique_ptr<Model> make_model(const ProblemSpec& spec, const Comm* comm = nullptr);
 
 }  // namespace htfeti

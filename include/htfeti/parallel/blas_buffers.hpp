@@ -32,4 +32,25 @@ constexpr double kBlasBufferMarginMiB = 128;
 /// Not thread-safe: call from the main thread outside parallel regions. Local (no MPI).
 std::string reserve_blas_buffers();
 
+/// BLAS on one thread for the scope of one call into CHOLMOD or LAPACK, for results that do not
+/// depend on the number of threads. Called outside a parallel region, OpenBLAS's OpenMP flavour
+/// uses every thread, and its threaded blocks (dpotrf, dgemm, dsyrk in CHOLMOD's supernodes)
+/// round differently per thread count: a rank holding fewer clusters than threads, which
+/// factors them one at a time, got other bits than a rank factoring the same subdomains in
+/// parallel, one per thread (measured: the 4 floating subdomains of a tet4 cube read from Gmsh's
+/// parts, B K^+ f different in the last bits between 1 and 3 ranks of 2 threads, the energy by
+/// 3e-13 relative). Inside a parallel region it does nothing (OpenBLAS runs on one thread there
+/// anyway). OpenBLAS's own setting (openblas_set_num_threads) cannot do this: in the OpenMP
+/// flavour it sets OpenMP's thread count, and OpenBLAS follows OpenMP's at every call.
+class BlasOnOneThread {
+ public:
+  BlasOnOneThread();
+  ~BlasOnOneThread();
+  BlasOnOneThread(const BlasOnOneThread&) = delete;
+  BlasOnOneThread& operator=(const BlasOnOneThread&) = delete;
+
+ private:
+  int saved_ = 0;  // the thread count to restore, 0 inside a parallel region
+};
+
 }  // namespace htfeti

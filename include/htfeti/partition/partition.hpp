@@ -11,6 +11,7 @@
 #pragma once
 
 #include <array>
+#include <map>
 #include <string>
 #include <vector>
 
@@ -48,6 +49,22 @@ struct MeshPartition {
 /// cluster_size: subdomains per cluster (1: TFETI).
 MeshPartition partition_mesh(const Mesh& mesh, int subdomains, int cluster_size,
                              PartitionObjective objective = PartitionObjective::volume);
+
+/// Clusters of subdomains (H-TFETI-DP): METIS k-way on the subdomain graph of each body apart
+/// (subdomains [body_first[b], body_first[b + 1]) form body b; adjacency[s] maps each neighbour
+/// of s to the weight of their edge, the nodes they share), ceil(subdomains of the body /
+/// cluster_size) clusters per body, METIS's seed fixed. Returns the cluster of each subdomain
+/// (some clusters may be empty); adjacency is not read when cluster_size is 1.
+std::vector<int> cluster_subdomains(const std::vector<std::map<int, int>>& adjacency,
+                                    const std::vector<int>& body_first, int cluster_size);
+
+/// Subdomains renumbered cluster-major: empty clusters dropped, new_id[s] the new id of
+/// subdomain s (the subdomains of a cluster keep their order), cluster_first the first new id of
+/// each cluster (num_clusters + 1 entries).
+struct ClusterOrder {
+  std::vector<int> new_id, cluster_first;
+};
+ClusterOrder order_by_cluster(const std::vector<int>& cluster);
 
 /// The SubdomainMesh of subdomain s (local nodes in global order, groups restricted to it).
 SubdomainMesh extract_subdomain(const Mesh& mesh, const MeshPartition& part, int s);

@@ -1,0 +1,594 @@
+// A mesh that Gmsh partitioned in advance, one file per part (mesh.parts = "name.msh": the files
+// name_1.msh ... name_N.msh that `gmsh mesh.msh -part N -setnumber Mesh.PartitionSplitMeshFiles 1
+// -o name.msh` writes). Part k is subdomain k - 1 (TFETI), or the subdomains are renumbered
+// cluster-major after the clusters are formed (H-TFETI-DP). Every rank reads only the part files
+// of its own clusters; what a subdomain needs from the others comes by rendezvous, without any
+// rank holding the whole mesh or the whole node list:
+//
+//   1. global node ids: the Gmsh node tags numbered densely in tag order (number_keys), so the
+//      ids are those read_gmsh gives the whole mesh;
+//   2. the domain boundary: the facets of each part that no other of its cells shares go to a
+//      "home" rank by their smallest node id; a facet that arrives from one part only lies on the
+//      boundary of the whole domain;
+//   3. the copies of each node: every part sends each of its nodes (id, part, coordinates,
+//      boundary flag, named groups) to the node's home rank (id * P / nodes), which lists the
+//      parts that hold it, checks that they agree on the coordinates, merges the flags and the
+//      groups (a node belongs to a group in every subdomain that holds it, as when the whole mesh
+//      is split) and answers each part.
+//   4. H-TFETI-DP only: the home ranks count the nodes each pair of parts shares; the counts
+//      (about 14 neighbours per part) are gathered on every rank, which forms the clusters with
+//      METIS (cluster_subdomains, as for a whole mesh); the parts are then read again by the
+//      ranks that own their clusters and steps 1-3 repeated.
+//
+// Per rank: the part files of its clusters, their nodes' and boundary facets' records (a few
+// dozen bytes each) in the rendezvous, the group names, and 3 counts per subdomain (the writers
+// place every piece by them). Errors (a missing part file, a part count that does not match,
+// nodes on which the parts disagree, a part hinged at a node) are agreed on by every rank.
+#include <algorithm>
+#include <climits>
+#include <cstring>
+#include <filesystem>
+#include <map>
+#include <numeric>
+#include <stdexcept>
+
+#include "htfeti/feti/input.hpp"
+#include "htfeti/parallel/exchange.hpp"
+#include "htfeti/parallel/key_numbering.hpp"
+#include "mesh_source.hpp"
+
+namespace htfeti {
+
+namespace {
+
+// Runs a step of this rank's own work and agrees on its failure with every rank: bad input
+// (std::invalid_argument) is thrown as bad input everywhere, anything else as a runtime error.
+template <class F>
+void agreed(const Comm& comm, F&& step) {
+  std::string error;
+  bool input = false;
+  try {
+    step();
+  } catch (const std::invalid_argument& e) {
+    error = e.what(), input = true;
+  } catch (const std::exception& e) {
+    error = e.what();
+  }
+  comm.agree(error, input);
+}
+
+std::string part_path(const std::string& base, int k) {
+  const std::filesystem::path b(base);
+  return (b.parent_path() / (b.stem().string() + "_" + std::to_string(k) + b.extension().string()))
+      .string();
+}
+
+long long bits_of(double x) {
+  long long b;
+  std::memcpy(&b, &x, sizeof b);
+  return b;
+}
+
+// Strings as one list of integers (length, then the characters) for the collectives.
+void pack(const std::string& s, std::vector<long long>& out) {
+  out.push_back(static_cast<long long>(s.size()));
+  for (unsigned char ch : s) out.push_back(ch);
+}
+std::vector<std::string> unpack_all(const std::vector<std::vector<long long>>& lists) {
+  std::vector<std::string> out;
+  for (const auto& l : lists)
+    for (size_t i = 0; i < l.size();) {
+      const auto n = static_cast<size_t>(l[i++]);
+      std::string s;
+      for (size_t j = 0; j < n; ++j) s.push_back(static_cast<char>(l[i + j]));
+      i += n;
+      out.push_back(std::move(s));
+    }
+  return out;
+}
+
+// The sorted node numbers of facet j of cell e (unused entries -1).
+std::array<int, 4> facet_key(const Mesh& m, int e, int j) {
+  int local[4];
+  const int n = std::min(cell_facet(m.type, j, local), 4), nc = cell_nodes(m.type);
+  std::array<int, 4> k{-1, -1, -1, -1};
+  for (int i = 0; i < n; ++i) {  // insertion sort of at most 4 entries
+    int v = m.cells[static_cast<size_t>(e) * nc + local[i]], at = i;
+    for (; at > 0 && k[at - 1] > v; --at) k[at] = k[at - 1];
+    k[at] = v;
+  }
+  return k;
+}
+
+// A part whose cells form pieces joined only through a node (2D) or an edge (3D) is a mechanism
+// that the rigid body motions of its pieces do not describe (partition.cpp, split_defects).
+// Returns the number of facet-connected pieces and of node-connected ones.
+std::pair<int, int> piece_counts(const Mesh& m) {
+  const int ne = m.num_cells(), nc = cell_nodes(m.type), nf = cell_facet_count(m.type);
+  std::vector<int> parent(ne);
+  std::iota(parent.begin(), parent.end(), 0);
+  auto root = [&](int a) {
+    while (parent[a] != a) a = parent[a] = parent[parent[a]];
+    return a;
+  };
+  auto join = [&](int a, int b) {
+    const int ra = root(a), rb = root(b);
+    if (ra != rb) parent[std::max(ra, rb)] = std::min(ra, rb);
+  };
+  auto count = [&]() {
+    int n = 0;
+    for (int e = 0; e < ne; ++e) n += root(e) == e;
+    return n;
+  };
+  std::vector<std::pair<std::array<int, 4>, int>> facets;
+  for (int e = 0; e < ne; ++e)
+    for (int j = 0; j < nf; ++j) facets.push_back({facet_key(m, e, j), e});
+  std::sort(facets.begin(), facets.end());
+  for (size_t i = 1; i < facets.size(); ++i)
+    if (facets[i].first == facets[i - 1].first) join(facets[i].second, facets[i - 1].second);
+  const int by_facet = count();
+  const std::vector<int> comp = node_components(m.cells, nc, m.num_nodes());
+  std::vector<int> first_cell(m.num_nodes(), -1);
+  for (int e = 0; e < ne; ++e) {
+    const int r = comp[m.cells[static_cast<size_t>(e) * nc]];
+    if (first_cell[r] < 0) first_cell[r] = e;
+  }
+  int by_node = 0;
+  for (int k = 0; k < m.num_nodes(); ++k) by_node += first_cell[k] >= 0;
+  return {by_facet, by_node};
+}
+
+class PartitionedSource final : public MeshSource {
+ public:
+  PartitionedSource(const ProblemSpec& spec, const Comm& comm)
+      : comm_(comm), base_(spec.mesh_parts), cluster_size_(spec.cluster_size) {
+    count_parts(spec);
+    const int P = comm_.size();
+    if (cluster_size_ == 1) {
+      subdomain_of_part_.resize(parts_);
+      std::iota(subdomain_of_part_.begin(), subdomain_of_part_.end(), 0);
+      cluster_first_.resize(parts_ + 1);
+      std::iota(cluster_first_.begin(), cluster_first_.end(), 0);
+      build(owned_parts());
+    } else {
+      // Provisional: parts in blocks by rank, for the adjacency that forms the clusters.
+      std::vector<int> block;
+      for (long long k = parts_ * static_cast<long long>(comm_.rank()) / P;
+           k < parts_ * static_cast<long long>(comm_.rank() + 1) / P; ++k)
+        block.push_back(static_cast<int>(k));
+      subdomain_of_part_.resize(parts_);
+      std::iota(subdomain_of_part_.begin(), subdomain_of_part_.end(), 0);
+      build(block);
+      form_clusters();
+      build(owned_parts());
+    }
+    finish();
+  }
+
+  int dim() const override { return dim_; }
+  int num_subdomains() const override { return parts_; }
+  int num_clusters() const override { return static_cast<int>(cluster_first_.size()) - 1; }
+  int cluster_first(int c) const override { return cluster_first_[c]; }
+  long long num_nodes() const override { return nodes_; }
+  long long subdomain_nodes() const override { return subdomain_nodes_; }
+  SubdomainMesh mesh(int s) const override {
+    auto it = meshes_.find(s);
+    if (it == meshes_.end())
+      throw std::logic_error("subdomain " + std::to_string(s) + " of the partitioned mesh '" +
+                             base_ + "' is not held by rank " + std::to_string(comm_.rank()));
+    return it->second;
+  }
+  bool mesh_counts(int s, Model::MeshCounts& counts) const override {
+    counts = counts_.at(s);
+    return true;
+  }
+  void groups(std::set<std::string>& nodes, std::set<std::string>& facets,
+              std::set<std::string>& cells) const override {
+    nodes.insert(node_group_names_.begin(), node_group_names_.end());
+    facets.insert(facet_group_names_.begin(), facet_group_names_.end());
+    cells.insert(cell_group_names_.begin(), cell_group_names_.end());
+  }
+  void describe(const ProblemSpec&, nlohmann::json& j) const override {
+    j["mesh"] = {{"parts", base_},
+                 {"files", part_path(base_, 1) + " ... " + part_path(base_, parts_)},
+                 {"element", to_string(type_)},
+                 {"nodes", nodes_},
+                 {"cells", cells_}};
+    j["partitioner"] = "gmsh parts";
+  }
+  Model::MeshCounts held() const override {
+    Model::MeshCounts h;
+    for (const auto& [s, m] : meshes_)
+      h.points += m.num_nodes(), h.cells += m.num_cells(), h.corners += m.cells.size();
+    return h;
+  }
+
+ private:
+  // The number of parts: from part 1 (read by rank 0, which owns it in every layout), checked
+  // against decomposition.subdomains.
+  void count_parts(const ProblemSpec& spec) {
+    long long n = 0;
+    agreed(comm_, [&] {
+      if (comm_.rank() != 0) return;
+      Mesh m = read_part(1);
+      n = m.partitions;
+      if (n < 1)
+        throw std::invalid_argument("mesh.parts: '" + part_path(base_, 1) +
+                                    "' is not one part of a partitioned mesh (no "
+                                    "$PartitionedEntities): partition it with gmsh -part N and "
+                                    "Mesh.PartitionSplitMeshFiles = 1, or give it as mesh.file");
+      read_[0] = std::move(m);
+    });
+    MPI_Bcast(&n, 1, MPI_LONG_LONG, 0, comm_.raw());
+    parts_ = static_cast<int>(n);
+    agreed(comm_, [&] {
+      if (!spec.subdomains.empty() && (spec.subdomains.size() != 1 || spec.subdomains[0] != n))
+        throw std::invalid_argument("decomposition.subdomains does not match the " +
+                                    std::to_string(n) + " parts of the partitioned mesh '" + base_ +
+                                    "' (each part is a subdomain: leave it out, or give " +
+                                    std::to_string(n) + ")");
+      if (cluster_size_ > parts_)
+        throw std::invalid_argument(
+            "decomposition.cluster_size = " + std::to_string(cluster_size_) + " exceeds the " +
+            std::to_string(n) + " parts of '" + base_ + "'");
+    });
+  }
+
+  Mesh read_part(int k) const {
+    const std::string path = part_path(base_, k);
+    std::error_code ec;
+    if (!std::filesystem::is_regular_file(path, ec))
+      throw std::invalid_argument("mesh.parts: part " + std::to_string(k) + " of '" + base_ +
+                                  "' is missing: no file '" + path + "'");
+    GmshReadOptions o;
+    o.named_groups_only = true;
+    return read_gmsh(path, o);
+  }
+
+  // The parts of this rank's clusters (FetiLayout::cluster_range, as DualProblem assigns them).
+  std::vector<int> owned_parts() const {
+    FetiLayout L;
+    L.num_clusters = num_clusters();
+    const auto [c0, c1] = L.cluster_range(comm_.rank(), comm_.size());
+    std::vector<int> part_of(parts_);
+    for (int k = 0; k < parts_; ++k) part_of[subdomain_of_part_[k]] = k;
+    std::vector<int> out;
+    for (int s = cluster_first_[c0]; s < cluster_first_[c1]; ++s) out.push_back(part_of[s]);
+    std::sort(out.begin(), out.end());
+    return out;
+  }
+
+  // Reads `parts` (0-based) where not read yet, checks them, numbers the nodes and computes each
+  // node's copies, boundary flag and groups (steps 1-3 above).
+  void build(const std::vector<int>& parts) {
+    const int P = comm_.size();
+    agreed(comm_, [&] {
+      std::map<int, Mesh> keep;
+      for (int k : parts) {
+        auto it = read_.find(k);
+        Mesh m = it != read_.end() ? std::move(it->second) : read_part(k + 1);
+        const std::string path = part_path(base_, k + 1);
+        if (m.partitions != parts_)
+          throw std::invalid_argument(
+              "mesh.parts: '" + path + "' belongs to a mesh of " + std::to_string(m.partitions) +
+              " parts, '" + part_path(base_, 1) + "' to one of " + std::to_string(parts_));
+        check_cells(m, path);
+        const auto [by_facet, by_node] = piece_counts(m);
+        if (by_node < by_facet)
+          throw std::invalid_argument(
+              "mesh.parts: part " + std::to_string(k + 1) + " ('" + path +
+              "') has pieces joined only through a node or an edge (a mechanism): partition the "
+              "mesh again, e.g. with another number of parts");
+        keep[k] = std::move(m);
+      }
+      read_ = std::move(keep);
+    });
+    // One element type and dimension everywhere (ranks that read nothing do not vote).
+    {
+      long long lo[2] = {LLONG_MAX, LLONG_MAX}, hi[2] = {-1, -1};
+      for (const auto& [k, m] : read_) {
+        const long long v[2] = {m.dim, static_cast<long long>(m.type)};
+        for (int i = 0; i < 2; ++i) lo[i] = std::min(lo[i], v[i]), hi[i] = std::max(hi[i], v[i]);
+      }
+      MPI_Allreduce(MPI_IN_PLACE, lo, 2, MPI_LONG_LONG, MPI_MIN, comm_.raw());
+      MPI_Allreduce(MPI_IN_PLACE, hi, 2, MPI_LONG_LONG, MPI_MAX, comm_.raw());
+      agreed(comm_, [&] {
+        if (lo[0] != hi[0] || lo[1] != hi[1])
+          throw std::invalid_argument("mesh.parts: the parts of '" + base_ +
+                                      "' do not all have the same cell type");
+      });
+      dim_ = static_cast<int>(hi[0]);
+      type_ = static_cast<CellType>(hi[1]);
+    }
+    gather_group_names();
+    // 1. Dense global node ids in tag order.
+    std::vector<NumberingKey> keys;
+    long long max_tag = 0;
+    for (const auto& [k, m] : read_)
+      for (std::size_t t : m.node_tags) {
+        keys.push_back({static_cast<long long>(t), 0, 0, 0, 0, 0});
+        max_tag = std::max(max_tag, static_cast<long long>(t));
+      }
+    MPI_Allreduce(MPI_IN_PLACE, &max_tag, 1, MPI_LONG_LONG, MPI_MAX, comm_.raw());
+    const std::vector<long long> ids = number_keys(
+        comm_, keys, max_tag + 1, [](const NumberingKey& k) { return k[0]; }, nodes_);
+    std::map<int, std::vector<long long>> gid;
+    {
+      size_t i = 0;
+      for (const auto& [k, m] : read_) {
+        auto& g = gid[k];
+        g.assign(ids.begin() + i, ids.begin() + i + m.node_tags.size());
+        i += m.node_tags.size();
+      }
+    }
+    auto home = [&](long long id) {
+      return static_cast<int>(static_cast<__int128>(id) * P / std::max(nodes_, 1LL));
+    };
+    // 2. The boundary of the whole domain.
+    std::map<int, std::vector<char>> boundary;
+    {
+      std::vector<std::vector<long long>> send(P);
+      std::vector<std::vector<std::pair<int, std::array<int, 4>>>> sent(P);  // (part, local facet)
+      for (const auto& [k, m] : read_) {
+        boundary[k].assign(m.num_nodes(), 0);
+        const int nf = cell_facet_count(m.type);
+        std::vector<std::array<int, 4>> f;
+        for (int e = 0; e < m.num_cells(); ++e)
+          for (int j = 0; j < nf; ++j) f.push_back(facet_key(m, e, j));
+        std::sort(f.begin(), f.end());
+        const auto& g = gid[k];
+        for (size_t i = 0; i < f.size();) {
+          size_t j = i;
+          while (j < f.size() && f[j] == f[i]) ++j;
+          if (j - i == 1) {
+            const int r = home(g[f[i][0]]);
+            for (int v : f[i]) send[r].push_back(v < 0 ? -1 : g[v]);
+            sent[r].push_back({k, f[i]});
+          }
+          i = j;
+        }
+      }
+      const auto recv = exchange_lists(comm_, send);
+      std::map<std::array<long long, 4>, int> count;
+      for (const auto& l : recv)
+        for (size_t i = 0; i < l.size(); i += 4)
+          ++count[std::array<long long, 4>{l[i], l[i + 1], l[i + 2], l[i + 3]}];
+      std::vector<std::vector<long long>> answer(P);
+      for (int r = 0; r < P; ++r)
+        for (size_t i = 0; i < recv[r].size(); i += 4)
+          answer[r].push_back(count[std::array<long long, 4>{recv[r][i], recv[r][i + 1],
+                                                             recv[r][i + 2], recv[r][i + 3]}] == 1);
+      const auto flags = exchange_lists(comm_, answer);
+      for (int r = 0; r < P; ++r)
+        for (size_t i = 0; i < sent[r].size(); ++i)
+          if (flags[r][i])
+            for (int v : sent[r][i].second)
+              if (v >= 0) boundary[sent[r][i].first][v] = 1;
+    }
+    // 3. Copies, coordinates, flags and groups of every node at its home rank.
+    const int G = static_cast<int>(node_group_names_.size() + 63) / 64;
+    const int W = 7 + G;  // id, tag, part, x, y, z, boundary, group words
+    std::vector<std::vector<long long>> send(P);
+    std::vector<std::vector<std::pair<int, int>>> sent(P);  // (part, local node)
+    for (const auto& [k, m] : read_) {
+      std::vector<std::vector<long long>> words(m.num_nodes(), std::vector<long long>(G, 0));
+      for (const auto& [name, nodes] : m.node_groups) {
+        const auto at = std::lower_bound(node_group_names_.begin(), node_group_names_.end(), name);
+        const int bit = static_cast<int>(at - node_group_names_.begin());
+        for (int v : nodes) words[v][bit / 64] |= 1LL << (bit % 64);
+      }
+      const auto& g = gid[k];
+      for (int v = 0; v < m.num_nodes(); ++v) {
+        const int r = home(g[v]);
+        auto& out = send[r];
+        out.insert(out.end(),
+                   {g[v], static_cast<long long>(m.node_tags[v]), k, bits_of(m.coords[3 * v]),
+                    bits_of(m.coords[3 * v + 1]), bits_of(m.coords[3 * v + 2]), boundary[k][v]});
+        out.insert(out.end(), words[v].begin(), words[v].end());
+        sent[r].push_back({k, v});
+      }
+    }
+    const auto recv = exchange_lists(comm_, send);
+    std::vector<std::vector<long long>> answer(P);
+    agreed(comm_, [&] {
+      std::vector<const long long*> all;
+      for (const auto& l : recv)
+        for (size_t i = 0; i < l.size(); i += W) all.push_back(&l[i]);
+      std::sort(all.begin(), all.end(), [](const long long* a, const long long* b) {
+        return a[0] != b[0] ? a[0] < b[0] : a[2] < b[2];
+      });
+      std::map<long long, std::vector<long long>> merged;  // id -> [n, parts..., boundary, words]
+      for (size_t i = 0; i < all.size();) {
+        size_t j = i;
+        std::vector<long long> parts;
+        long long flag = 0;
+        std::vector<long long> words(G, 0);
+        for (; j < all.size() && all[j][0] == all[i][0]; ++j) {
+          const long long* a = all[j];
+          if (a[3] != all[i][3] || a[4] != all[i][4] || a[5] != all[i][5]) {
+            double x[3], y[3];
+            std::memcpy(x, all[i] + 3, sizeof x), std::memcpy(y, a + 3, sizeof y);
+            throw std::invalid_argument(
+                "mesh.parts: node " + std::to_string(a[1]) + " lies at (" + std::to_string(x[0]) +
+                ", " + std::to_string(x[1]) + ", " + std::to_string(x[2]) + ") in part " +
+                std::to_string(all[i][2] + 1) + " and at (" + std::to_string(y[0]) + ", " +
+                std::to_string(y[1]) + ", " + std::to_string(y[2]) + ") in part " +
+                std::to_string(a[2] + 1) + ": the part files are not of one mesh");
+          }
+          if (!parts.empty() && parts.back() == a[2])
+            throw std::invalid_argument("mesh.parts: part " + std::to_string(a[2] + 1) +
+                                        " is read twice (node " + std::to_string(a[1]) + ")");
+          parts.push_back(a[2]);
+          flag |= a[6];
+          for (int w = 0; w < G; ++w) words[w] |= a[7 + w];
+        }
+        auto& out = merged[all[i][0]];
+        out.push_back(static_cast<long long>(parts.size()));
+        out.insert(out.end(), parts.begin(), parts.end());
+        out.push_back(flag);
+        out.insert(out.end(), words.begin(), words.end());
+        if (cluster_size_ > 1 && !formed_)
+          for (size_t a = 0; a < parts.size(); ++a)
+            for (size_t b = 0; b < parts.size(); ++b)
+              if (a != b) ++shared_[{static_cast<int>(parts[a]), static_cast<int>(parts[b])}];
+        i = j;
+      }
+      for (int r = 0; r < P; ++r)
+        for (size_t i = 0; i < recv[r].size(); i += W) {
+          const auto& m = merged[recv[r][i]];
+          answer[r].insert(answer[r].end(), m.begin(), m.end());
+        }
+    });
+    const auto back = exchange_lists(comm_, answer);
+    meshes_.clear();
+    for (const auto& [k, m] : read_) meshes_[subdomain_of_part_[k]] = subdomain_mesh(k, m, gid[k]);
+    for (int r = 0; r < P; ++r) {
+      size_t i = 0;
+      for (const auto& [k, v] : sent[r]) {
+        SubdomainMesh& sm = meshes_[subdomain_of_part_[k]];
+        const auto n = static_cast<size_t>(back[r][i]);
+        auto& copies = pending_copies_[subdomain_of_part_[k]][v];
+        for (size_t c = 0; c < n; ++c)
+          copies.push_back(subdomain_of_part_[static_cast<int>(back[r][i + 1 + c])]);
+        sm.on_boundary[v] = static_cast<char>(back[r][i + 1 + n]);
+        for (int b = 0; b < static_cast<int>(node_group_names_.size()); ++b)
+          if (back[r][i + 2 + n + b / 64] >> (b % 64) & 1)
+            sm.node_groups[node_group_names_[b]].push_back(v);
+        i += 2 + n + G;
+      }
+    }
+    for (auto& [s, sm] : meshes_) {
+      auto& pc = pending_copies_[s];
+      sm.copy_offset.assign(sm.num_nodes() + 1, 0);
+      sm.copy_list.clear();
+      for (int v = 0; v < sm.num_nodes(); ++v) {
+        auto& c = pc[v];
+        std::sort(c.begin(), c.end());
+        sm.copy_list.insert(sm.copy_list.end(), c.begin(), c.end());
+        sm.copy_offset[v + 1] = static_cast<int>(sm.copy_list.size());
+      }
+      for (auto& [name, nodes] : sm.node_groups) std::sort(nodes.begin(), nodes.end());
+    }
+    pending_copies_.clear();
+  }
+
+  // The SubdomainMesh of part k before its copies, boundary flags and node groups are known.
+  SubdomainMesh subdomain_mesh(int k, const Mesh& m, const std::vector<long long>& gid) {
+    SubdomainMesh sm;
+    sm.id = subdomain_of_part_[k];
+    sm.cluster =
+        static_cast<int>(std::upper_bound(cluster_first_.begin(), cluster_first_.end(), sm.id) -
+                         cluster_first_.begin() - 1);
+    sm.dim = m.dim;
+    sm.type = m.type;
+    sm.coords = m.coords;
+    sm.global_node = gid;
+    sm.cells = m.cells;
+    sm.on_boundary.assign(m.num_nodes(), 0);
+    for (const auto& [name, fg] : m.facet_groups)
+      if (!fg.nodes.empty()) sm.facet_groups[name] = {fg.facet_nodes, fg.nodes};
+    for (const auto& [name, cg] : m.cell_groups)
+      if (!cg.empty()) sm.cell_groups[name] = cg;
+    pending_copies_[sm.id].assign(m.num_nodes(), {});
+    return sm;
+  }
+
+  // The union of the group names over all parts (every rank the same sorted lists).
+  void gather_group_names() {
+    for (auto* names : {&node_group_names_, &facet_group_names_, &cell_group_names_}) {
+      std::vector<long long> mine;
+      for (const auto& [k, m] : read_) {
+        if (names == &node_group_names_)
+          for (const auto& [n, v] : m.node_groups) pack(n, mine);
+        if (names == &facet_group_names_)
+          for (const auto& [n, v] : m.facet_groups) pack(n, mine);
+        if (names == &cell_group_names_)
+          for (const auto& [n, v] : m.cell_groups) pack(n, mine);
+      }
+      std::vector<std::string> all = unpack_all(all_gather(comm_, mine));
+      std::sort(all.begin(), all.end());
+      all.erase(std::unique(all.begin(), all.end()), all.end());
+      *names = std::move(all);
+    }
+  }
+
+  // Step 4: clusters from the gathered counts of shared nodes; parts renumbered cluster-major.
+  void form_clusters() {
+    std::vector<long long> mine;
+    for (const auto& [ab, w] : shared_) mine.insert(mine.end(), {ab.first, ab.second, w});
+    shared_.clear();
+    std::vector<std::map<int, int>> adj(parts_);
+    for (const auto& l : all_gather(comm_, mine))
+      for (size_t i = 0; i < l.size(); i += 3)
+        adj[l[i]][static_cast<int>(l[i + 1])] += static_cast<int>(l[i + 2]);
+    // Bodies: connected components of the part graph; parts ordered body-major.
+    std::vector<int> body(parts_, -1), order;
+    int nb = 0;
+    std::vector<int> body_first{0};
+    for (int k = 0; k < parts_; ++k) {
+      if (body[k] >= 0) continue;
+      std::vector<int> stack{k};
+      body[k] = nb;
+      std::vector<int> members;
+      while (!stack.empty()) {
+        const int a = stack.back();
+        stack.pop_back();
+        members.push_back(a);
+        for (const auto& [b, w] : adj[a])
+          if (body[b] < 0) body[b] = nb, stack.push_back(b);
+      }
+      std::sort(members.begin(), members.end());
+      order.insert(order.end(), members.begin(), members.end());
+      body_first.push_back(static_cast<int>(order.size()));
+      ++nb;
+    }
+    std::vector<int> pos(parts_);
+    for (int i = 0; i < parts_; ++i) pos[order[i]] = i;
+    std::vector<std::map<int, int>> adj_ordered(parts_);
+    for (int k = 0; k < parts_; ++k)
+      for (const auto& [b, w] : adj[k]) adj_ordered[pos[k]][pos[b]] = w;
+    const std::vector<int> cluster = cluster_subdomains(adj_ordered, body_first, cluster_size_);
+    const ClusterOrder co = order_by_cluster(cluster);
+    for (int k = 0; k < parts_; ++k) subdomain_of_part_[k] = co.new_id[pos[k]];
+    cluster_first_ = co.cluster_first;
+    formed_ = true;
+  }
+
+  // Counts per subdomain for the writers, and the totals.
+  void finish() {
+    std::vector<long long> mine;
+    for (const auto& [s, m] : meshes_)
+      mine.insert(mine.end(),
+                  {s, m.num_nodes(), m.num_cells(), static_cast<long long>(m.cells.size())});
+    counts_.assign(parts_, {});
+    subdomain_nodes_ = 0, cells_ = 0;
+    for (const auto& l : all_gather(comm_, mine))
+      for (size_t i = 0; i < l.size(); i += 4) {
+        counts_[l[i]] = {l[i + 1], l[i + 2], l[i + 3]};
+        subdomain_nodes_ += l[i + 1], cells_ += l[i + 2];
+      }
+    read_.clear();
+  }
+
+  Comm comm_;
+  std::string base_;
+  int cluster_size_ = 1, parts_ = 0, dim_ = 3;
+  CellType type_ = CellType::tet4;
+  bool formed_ = false;
+  std::vector<int> subdomain_of_part_, cluster_first_;
+  std::map<int, Mesh> read_;  // part (0-based) -> its mesh, while building
+  std::map<int, SubdomainMesh> meshes_;
+  std::map<int, std::vector<std::vector<int>>> pending_copies_;
+  std::map<std::pair<int, int>, long long> shared_;
+  std::vector<std::string> node_group_names_, facet_group_names_, cell_group_names_;
+  std::vector<Model::MeshCounts> counts_;
+  long long nodes_ = 0, subdomain_nodes_ = 0, cells_ = 0;
+};
+
+}  // namespace
+
+std::unique_ptr<MeshSource> make_partitioned_source(const ProblemSpec& spec, const Comm& comm) {
+  return std::make_unique<PartitionedSource>(spec, comm);
+}
+
+}  // namespace htfeti

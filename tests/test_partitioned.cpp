@@ -1,0 +1,275 @@
+// Meshes partitioned in advance by Gmsh, one file per part (mesh.parts): every rank reads only
+// the parts of its own clusters. Checked against the undecomposed problem on the whole mesh
+// (Eigen's sparse LU, independent of FETI and CHOLMOD), against the same solve on one rank (bit
+// for bit), for what each rank holds, and for the refusals of bad part files. The parts are
+// written at build time by the gmsh program (tests/CMakeLists.txt): the plate with a hole (tri3)
+// in 6 parts, the bracket (tet4) in 8. Runs under mpiexec -n 1, 2, 3, 4.
+#include <gtest/gtest.h>
+
+#include <Eigen/SparseLU>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+#include "helpers.hpp"
+#include "htfeti/mesh/mesh.hpp"
+#include "htfeti/model/problem_spec.hpp"
+#include "htfeti/solver.hpp"
+
+using namespace htfeti;
+
+namespace {
+
+const std::string kMeshes = HTFETI_SOURCE_DIR "/examples/meshes/";
+const std::string kParts = HTFETI_BINARY_DIR "/";
+
+ProblemSpec plate_strain(bool parts) {
+  ProblemSpec s;
+  (parts ? s.mesh_parts : s.mesh_file) =
+      parts ? kParts + "plate-with-hole-parts.msh" : kMeshes + "plate-with-hole.msh";
+  s.physics.kind = PhysicsKind::elasticity;
+  s.physics.material = {2.1e5, 0.3};
+  s.dirichlet.push_back({"left", {0, 0, 0}, {}});
+  s.loads.push_back({"right", ProblemSpec::Load::traction, {100.0, 20.0, 0}});
+  s.subdomains.clear();
+  return s;
+}
+
+ProblemSpec bracket_laplace(bool parts) {
+  ProblemSpec s;
+  (parts ? s.mesh_parts : s.mesh_file) =
+      parts ? kParts + "bracket-parts.msh" : kMeshes + "bracket.msh";
+  s.physics.kind = PhysicsKind::laplace;
+  s.source = "1 + x*y";
+  s.dirichlet.push_back({"x0", {0, 0, 0}, {}});
+  s.dirichlet.push_back({"hole", {0.5, 0.5, 0.5}, {}});
+  s.subdomains.clear();
+  return s;
+}
+
+// The undecomposed problem on the whole mesh, solved by Eigen's sparse LU: u per global dof
+// (the whole mesh numbers its nodes by Gmsh tag, as the parts do) and the energy.
+std::pair<Eigen::VectorXd, double> solve_whole(ProblemSpec spec) {
+  spec.subdomains = {1};
+  spec.cluster_size = 1;
+  const auto model = make_model(spec);
+  const SubdomainInput in = model->input(0);
+  const SubdomainMesh mesh = model->mesh(0);
+  const int dpn = model->physics().dofs_per_node();
+  const test::EliminatedSystem sys = test::eliminate_dirichlet(in, dpn);
+  Eigen::SparseMatrix<double> A(sys.nf, sys.nf);
+  A.setFromTriplets(sys.trip.begin(), sys.trip.end());
+  Eigen::SparseLU<Eigen::SparseMatrix<double>> lu(A);
+  EXPECT_EQ(lu.info(), Eigen::Success);
+  const Eigen::VectorXd u = sys.expand(lu.solve(sys.b));
+  Eigen::VectorXd ref(static_cast<Eigen::Index>(model->num_nodes()) * dpn);
+  for (int k = 0; k < mesh.num_nodes(); ++k)
+    for (int d = 0; d < dpn; ++d) ref[mesh.global_node[k] * dpn + d] = u[k * dpn + d];
+  return {ref, 0.5 * u.dot(in.system.K * u) - in.system.f.dot(u)};
+}
+
+struct Case {
+  const char* name;
+  ProblemSpec (*spec)(bool parts);
+  int cluster_size;
+};
+
+class PartitionedInput : public ::testing::TestWithParam<Case> {};
+
+TEST_P(PartitionedInput, SameSolutionAsTheWholeMeshUndecomposed) {
+  const Case c = GetParam();
+  Comm comm;
+  ProblemSpec spec = c.spec(true);
+  spec.cluster_size = c.cluster_size;
+  std::shared_ptr<const Model> model = make_model(spec, &comm);
+  SolveOptions opt;
+  opt.rtol = 1e-12;
+  opt.max_iterations = 5000;
+  const auto out = solve(model, opt, comm);
+  ASSERT_TRUE(out.converged) << out.report["stop_reason"];
+  const auto [ref, energy] = solve_whole(c.spec(false));
+  EXPECT_EQ(model->num_nodes() * model->physics().dofs_per_node(), ref.size());
+  EXPECT_LT(test::relative_error(*model, *out.dual, out.u, ref), 1e-8);
+  EXPECT_NEAR(out.report["objective"].get<double>(), energy, 1e-9 * std::abs(energy));
+  EXPECT_EQ(out.report["partitioner"], "gmsh parts");
+  if (c.cluster_size > 1) EXPECT_LT(model->num_clusters(), model->num_subdomains());
+}
+
+// The same solve on this rank alone (MPI_COMM_SELF, reading every part) gives the same bits.
+TEST_P(PartitionedInput, SameBitsOnEveryRankCount) {
+  const Case c = GetParam();
+  Comm comm, self(MPI_COMM_SELF);
+  ProblemSpec spec = c.spec(true);
+  spec.cluster_size = c.cluster_size;
+  SolveOptions opt;
+  opt.rtol = 1e-10;
+  const auto all = solve(make_model(spec, &comm), opt, comm);
+  const auto one = solve(make_model(spec, &self), opt, self);
+  const double a = all.report["objective"], b = one.report["objective"];
+  EXPECT_EQ(a, b);
+  EXPECT_EQ(all.report["F_applications"], one.report["F_applications"]);
+  EXPECT_EQ(all.report["displacement"], one.report["displacement"]);
+}
+
+// Every rank holds the parts of its own clusters and nothing else; together they hold every
+// cell once.
+TEST_P(PartitionedInput, EachRankHoldsOnlyItsOwnParts) {
+  const Case c = GetParam();
+  Comm comm;
+  ProblemSpec spec = c.spec(true);
+  spec.cluster_size = c.cluster_size;
+  const auto model = make_model(spec, &comm);
+  const Mesh whole = read_gmsh(c.spec(false).mesh_file);
+  const Model::MeshCounts held = model->held();
+  long long cells = held.cells, points = held.points;
+  MPI_Allreduce(MPI_IN_PLACE, &cells, 1, MPI_LONG_LONG, MPI_SUM, MPI_COMM_WORLD);
+  MPI_Allreduce(MPI_IN_PLACE, &points, 1, MPI_LONG_LONG, MPI_SUM, MPI_COMM_WORLD);
+  EXPECT_EQ(cells, whole.num_cells());
+  EXPECT_EQ(points, model->primal_dimension() / model->physics().dofs_per_node());
+  EXPECT_EQ(model->num_nodes(), whole.num_nodes());
+  const FetiLayout L = model->layout();
+  const auto [c0, c1] = L.cluster_range(comm.rank(), comm.size());
+  long long mine = 0;
+  for (int s = 0; s < model->num_subdomains(); ++s) {
+    const bool own = s >= L.cluster_first[c0] && s < L.cluster_first[c1];
+    if (own) {
+      mine += model->mesh(s).num_cells();
+      EXPECT_EQ(model->mesh_counts(s).cells, model->mesh(s).num_cells());
+    } else {
+      EXPECT_THROW(model->mesh(s), std::logic_error) << "subdomain " << s;
+    }
+  }
+  EXPECT_EQ(mine, held.cells);
+  if (comm.size() > 1) EXPECT_LT(held.cells, whole.num_cells());
+}
+
+INSTANTIATE_TEST_SUITE_P(Meshes, PartitionedInput,
+                         ::testing::Values(Case{"plane_strain_tri3_tfeti", plate_strain, 1},
+                                           Case{"plane_strain_tri3_clusters", plate_strain, 3},
+                                           Case{"laplace_tet4_tfeti", bracket_laplace, 1},
+                                           Case{"laplace_tet4_clusters", bracket_laplace, 4}),
+                         [](const auto& info) { return std::string(info.param.name); });
+
+// A copy of the bracket's parts in a directory of this test's own, to be damaged.
+std::string copy_parts(const std::string& dir) {
+  Comm comm;  // one directory per rank count: ctest runs them side by side
+  const std::string out = kParts + dir + "-np" + std::to_string(comm.size()) + "/";
+  if (comm.rank() == 0) {
+    std::filesystem::remove_all(out);
+    std::filesystem::create_directories(out);
+    for (int k = 1; k <= 8; ++k)
+      std::filesystem::copy_file(kParts + "bracket-parts_" + std::to_string(k) + ".msh",
+                                 out + "b_" + std::to_string(k) + ".msh");
+  }
+  MPI_Barrier(MPI_COMM_WORLD);
+  return out;
+}
+
+// Refused with std::invalid_argument on every rank, with a message containing `what`.
+void expect_refused(ProblemSpec spec, const std::string& what) {
+  Comm comm;
+  try {
+    make_model(spec, &comm);
+    ADD_FAILURE() << "accepted; expected: " << what;
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find(what), std::string::npos) << e.what();
+  }
+}
+
+TEST(PartitionedInputErrors, MissingPartFile) {
+  const std::string dir = copy_parts("parts-missing");
+  Comm comm;
+  if (comm.rank() == 0) std::filesystem::remove(dir + "b_7.msh");
+  MPI_Barrier(MPI_COMM_WORLD);
+  ProblemSpec s = bracket_laplace(true);
+  s.mesh_parts = dir + "b.msh";
+  expect_refused(s, "part 7 of");
+}
+
+TEST(PartitionedInputErrors, SubdomainsThatDoNotMatchTheParts) {
+  ProblemSpec s = bracket_laplace(true);
+  s.subdomains = {6};
+  expect_refused(s, "does not match the 8 parts");
+}
+
+TEST(PartitionedInputErrors, PartsOfTwoPartitions) {
+  const std::string dir = copy_parts("parts-mixed");
+  Comm comm;
+  if (comm.rank() == 0)  // part 3 of the plate's 6-part partition in place of the bracket's
+    std::filesystem::copy_file(kParts + "plate-with-hole-parts_3.msh", dir + "b_3.msh",
+                               std::filesystem::copy_options::overwrite_existing);
+  MPI_Barrier(MPI_COMM_WORLD);
+  ProblemSpec s = bracket_laplace(true);
+  s.mesh_parts = dir + "b.msh";
+  expect_refused(s, "parts");
+}
+
+// An interface node moved in one part file: the parts no longer describe one mesh.
+TEST(PartitionedInputErrors, InterfaceNodesThatDisagree) {
+  const std::string dir = copy_parts("parts-moved");
+  Comm comm;
+  if (comm.rank() == 0) {
+    // Part 2's nodes that part 1 holds too: move the first of them in part 2's file.
+    const Mesh p1 = read_gmsh(dir + "b_1.msh"), p2 = read_gmsh(dir + "b_2.msh");
+    std::size_t shared = 0;
+    for (std::size_t t : p2.node_tags)
+      if (std::binary_search(p1.node_tags.begin(), p1.node_tags.end(), t)) {
+        shared = t;
+        break;
+      }
+    ASSERT_NE(shared, 0u) << "parts 1 and 2 share no node";
+    std::ifstream in(dir + "b_2.msh");
+    std::stringstream text;
+    text << in.rdbuf();
+    in.close();
+    // MSH 4.1 ASCII: the node block lists the tags, then one "x y z" line per tag.
+    std::string s = text.str();
+    const size_t nodes = s.find("$Nodes");
+    std::istringstream lines(s.substr(nodes));
+    std::string line;
+    std::vector<std::string> all;
+    while (std::getline(lines, line)) all.push_back(line);
+    bool moved = false;
+    const int blocks = std::stoi(all[1]);
+    size_t i = 2;
+    for (int b = 0; b < blocks && !moved; ++b) {
+      std::istringstream h(all[i]);
+      long long dim, entity, param, n;
+      h >> dim >> entity >> param >> n;
+      for (long long j = 0; j < n; ++j)
+        if (std::stoull(all[i + 1 + j]) == shared) {  // x moved by 1e-9 of the bracket's size
+          std::istringstream xyz(all[i + 1 + n + j]);
+          double x, y, z;
+          xyz >> x >> y >> z;
+          std::ostringstream o;
+          o.precision(17);
+          o << x + 1e-9 << " " << y << " " << z;
+          all[i + 1 + n + j] = o.str();
+          moved = true;
+        }
+      i += 1 + 2 * n;
+    }
+    ASSERT_TRUE(moved);
+    std::ofstream out(dir + "b_2.msh");
+    out << s.substr(0, nodes);
+    for (const auto& l : all) out << l << "\n";
+  }
+  MPI_Barrier(MPI_COMM_WORLD);
+  ProblemSpec s = bracket_laplace(true);
+  s.mesh_parts = dir + "b.msh";
+  expect_refused(s, "the part files are not of one mesh");
+}
+
+TEST(PartitionedInputErrors, AWholeMeshIsNotAPart) {
+  ProblemSpec s = bracket_laplace(true);
+  const std::string dir = copy_parts("parts-whole");
+  Comm comm;
+  if (comm.rank() == 0)
+    std::filesystem::copy_file(kMeshes + "bracket.msh", dir + "w_1.msh",
+                               std::filesystem::copy_options::overwrite_existing);
+  MPI_Barrier(MPI_COMM_WORLD);
+  s.mesh_parts = dir + "w.msh";
+  expect_refused(s, "is not one part of a partitioned mesh");
+}
+
+}  // namespace

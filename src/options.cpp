@@ -83,8 +83,8 @@ OptionSpec gigabytes(const char* key, const char* flag, const char* help, Number
 using IntRef = int& (*)(RunOptions&);
 
 OptionSpec integer(const char* key, const char* flag, const char* help, IntRef ref, long long lo,
-                   long long hi) {
-  return {"solver",
+                   long long hi, const char* section = "solver") {
+  return {section,
           key,
           flag,
           "",
@@ -402,6 +402,13 @@ void add_output_options(std::vector<OptionSpec>& t) {
       "buffered where the file system refuses it) or auto (direct for a piece of 256 MiB and "
       "more)",
       kVtuIoNames, +[](RunOptions& r) -> VtuIo& { return r.output.vtu_io; }));
+  t.push_back(integer(
+      "report_contact_rows", "--report-contact-rows",
+      "the report's per-row contact arrays (`contact`: coordinates, displacements, gaps, forces) "
+      "are written up to this many contact rows; above it the report has their count and the "
+      "summary per condition only (the arrays are gathered on rank 0 and shared with every rank, "
+      "memory proportional to the rows on each; the VTU has the values per node); 0: never",
+      [](RunOptions& r) -> int& { return r.solve.report_contact_rows; }, 0, 1000000000, "output"));
 }
 
 // The table, one row per option, in the order of --help (grouped as the four parts above).

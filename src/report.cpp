@@ -204,34 +204,46 @@ void report_timings_and_memory(nlohmann::json& rep, DualProblem& dual, const Com
       {"peak_rss_mb_total", comm.sum(rss_mb)}};
 }
 
+// The per-row contact arrays, gathered on rank 0 and shared with every rank (collective).
+void report_contact_arrays(nlohmann::json& rep, DualProblem& dual, const Comm& comm,
+                           const std::vector<Vec>& u, const Vec& lambda) {
+  const auto c = dual.contact_data(u, lambda);
+  // Per contact row (DualProblem::ContactData): node a's (or the slave node's) coordinates,
+  // n.u_a ("u_left"), n.u_b ("u_right", 0 for a rigid obstacle), the remaining gap, the row's
+  // force ("multiplier"), its pressure and, with friction, the tangential values.
+  nlohmann::json cj = {{"x", c.x},
+                       {"y", c.y},
+                       {"z", c.z},
+                       {"u_left", c.u_a},
+                       {"u_right", c.u_b},
+                       {"gap", c.gap},
+                       {"multiplier", c.force},
+                       {"pressure", c.pressure}};
+  if (dual.has_friction()) {
+    cj["tangential_traction"] = c.tangential;
+    cj["slip"] = c.slip;
+    cj["state"] = c.state;
+  }
+  // Rank 0 holds the gathered arrays; share them so the report is the same everywhere.
+  std::string s = comm.rank() == 0 ? cj.dump() : std::string();
+  long long len = static_cast<long long>(s.size());
+  MPI_Bcast(&len, 1, MPI_LONG_LONG, 0, comm.raw());
+  s.resize(static_cast<size_t>(len));
+  MPI_Bcast(s.data(), static_cast<int>(len), MPI_CHAR, 0, comm.raw());
+  rep["contact"] = nlohmann::json::parse(s);
+}
+
 // The contact rows and the displacement summary (collective).
 void report_solution(nlohmann::json& rep, const Model& model, DualProblem& dual, const Comm& comm,
-                     const std::vector<Vec>& u, const Vec& lambda) {
+                     const std::vector<Vec>& u, const Vec& lambda, long long max_contact_rows) {
+  if (dual.has_inequalities() && dual.inequalities() > max_contact_rows) {
+    rep["contact"] = {{"rows", dual.inequalities()},
+                      {"arrays", "omitted: more than report_contact_rows = " +
+                                     std::to_string(max_contact_rows) + " rows"}};
+  } else if (dual.has_inequalities()) {
+    report_contact_arrays(rep, dual, comm, u, lambda);
+  }
   if (dual.has_inequalities()) {
-    const auto c = dual.contact_data(u, lambda);
-    // Per contact row (DualProblem::ContactData): node a's (or the slave node's) coordinates,
-    // n.u_a ("u_left"), n.u_b ("u_right", 0 for a rigid obstacle), the remaining gap, the row's
-    // force ("multiplier"), its pressure and, with friction, the tangential values.
-    nlohmann::json cj = {{"x", c.x},
-                         {"y", c.y},
-                         {"z", c.z},
-                         {"u_left", c.u_a},
-                         {"u_right", c.u_b},
-                         {"gap", c.gap},
-                         {"multiplier", c.force},
-                         {"pressure", c.pressure}};
-    if (dual.has_friction()) {
-      cj["tangential_traction"] = c.tangential;
-      cj["slip"] = c.slip;
-      cj["state"] = c.state;
-    }
-    // Rank 0 holds the gathered arrays; share them so the report is the same everywhere.
-    std::string s = comm.rank() == 0 ? cj.dump() : std::string();
-    long long len = static_cast<long long>(s.size());
-    MPI_Bcast(&len, 1, MPI_LONG_LONG, 0, comm.raw());
-    s.resize(static_cast<size_t>(len));
-    MPI_Bcast(s.data(), static_cast<int>(len), MPI_CHAR, 0, comm.raw());
-    rep["contact"] = nlohmann::json::parse(s);
     // One entry per contact condition, in the problem file's order.
     const auto conditions = model.contact_conditions();
     const auto summary =

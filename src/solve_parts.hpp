@@ -61,8 +61,9 @@ void report_problem_and_solve(nlohmann::json& rep, const Model& model, DualProbl
 // Timings by phase and memory by phase (maxima or sums over the ranks).
 void report_timings_and_memory(nlohmann::json& rep, DualProblem& dual, const Comm& comm,
                                const SolveRecord& r);
-// The contact rows and the displacement summary (collective).
+// The contact rows (their arrays up to max_contact_rows rows) and the displacement summary
+// (collective).
 void report_solution(nlohmann::json& rep, const Model& model, DualProblem& dual, const Comm& comm,
-                     const std::vector<Vec>& u, const Vec& lambda);
+                     const std::vector<Vec>& u, const Vec& lambda, long long max_contact_rows);
 
 }  // namespace htfeti::solve_parts

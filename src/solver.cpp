@@ -427,7 +427,7 @@ SolveOutput solve(std::shared_ptr<const Model> model_ptr, const SolveOptions& op
   rep = model.describe();
   report_problem_and_solve(rep, model, dual, comm, record);
   report_timings_and_memory(rep, dual, comm, record);
-  report_solution(rep, model, dual, comm, out.u, lambda);
+  report_solution(rep, model, dual, comm, out.u, lambda, options.report_contact_rows);
   out.lambda = std::move(lambda);
   out.converged = qs.converged;
   return out;

@@ -1271,6 +1271,20 @@ TEST_F(Cli, PartitionedMeshSameBitsOnOneAndThreeRanksOfTwoThreads) {
   }
   EXPECT_EQ(reports[0]["partitioner"], "gmsh parts");
   EXPECT_EQ(reports[0]["subdomains"], 4);
+  // The per-row contact arrays up to --report-contact-rows rows, then their count only.
+  const long long rows = reports[0]["inequalities"];
+  ASSERT_EQ(reports[0]["contact"]["x"].size(), static_cast<size_t>(rows));
+  ASSERT_EQ(run(mpiexec + " -n 2 " + bin + " solve parts.toml --no-vtu --report few.json " +
+                "--report-contact-rows " + std::to_string(rows - 1)),
+            0);
+  {
+    std::ifstream f("few.json");
+    const auto few = nlohmann::json::parse(f);
+    EXPECT_EQ(few["contact"]["rows"], rows);
+    EXPECT_FALSE(few["contact"].contains("x"));
+    EXPECT_EQ(few["contact_summary"], reports[0]["contact_summary"]);
+    EXPECT_EQ(few["objective"], reports[0]["objective"]);
+  }
   for (const char* key : {"objective", "matvecs", "outer_iterations", "kkt", "contact"})
     EXPECT_EQ(reports[0][key], reports[1][key]) << key;
   {

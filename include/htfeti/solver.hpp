@@ -40,6 +40,9 @@ struct SolveOptions {
   /// product over many ranks. Projected CG (no contact) always takes 2.
   int coarse_steps_per_product = 2;
   bool progress = false;  ///< print one line per (outer) iteration on rank 0 (stderr)
+  /// The report's per-row contact arrays up to this many contact rows (output.report_contact_rows;
+  /// above: the count and the summary per condition only). 0: never.
+  int report_contact_rows = 100000;
   /// Coulomb friction, the fixed point on the slip bound (docs/method.md): Tresca solves, each
   /// with the bound mu lambda_n of the previous one, until the bounds change by at most
   /// max(coulomb_rtol, 10 rtol) relative (||g_k - g_{k-1}|| <= that ||g_k||; the bounds come

@@ -3,7 +3,7 @@
 every rank (mesh.file, split by METIS), and the same answer on every rank count.
 
 The mesh: the block [0,4] x [0,1] x [0,1] of tet4 elements of size h (bench/distributed_input.geo;
-h = 0.0215 gives about 1.5 M tetrahedra), clamped on x = 0, under its own weight and a traction on
+h = 0.0215 gives 1.8 M tetrahedra), clamped on x = 0, under its own weight and a traction on
 x = 1; Gmsh partitions it into --parts files (Mesh.PartitionSplitMeshFiles). Both are generated
 here by the gmsh program, in a temporary directory.
 

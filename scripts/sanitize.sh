@@ -10,14 +10,14 @@ flags="-O1 -g1 -fno-omit-frame-pointer -fsanitize=address,undefined -fno-sanitiz
       -DCMAKE_EXE_LINKER_FLAGS="-fsanitize=address,undefined" >/dev/null
 # The unit and MPI suites that fit CI's time (the whole suite under ASan takes far longer: the
 # general-mesh suite alone runs 3 minutes per rank count); scripts/sanitize.sh --all for every one.
-targets=(test_fem test_qp test_tfeti test_dual test_contact test_friction test_multibody test_preconditioner test_options)
+targets=(test_fem test_qp test_tfeti test_dual test_contact test_friction test_multibody test_preconditioner test_options test_partitioned)
 if [ "${1:-}" = "--all" ]; then
   shift
   cmake --build "$build" -j "$(nproc)"
   select=(-E "test_cli|test_fuzz|test_hot_path")  # (allocation counting replaces operator new)
 else
   cmake --build "$build" -j "$(nproc)" --target "${targets[@]}"
-  select=(-R "^(test_fem|test_qp|test_options|test_tfeti_np2|test_dual_np2|test_contact_np2|test_friction_np2|test_multibody_np2|test_preconditioner_np2)$")
+  select=(-R "^(test_fem|test_qp|test_options|test_tfeti_np2|test_dual_np2|test_contact_np2|test_friction_np2|test_multibody_np2|test_preconditioner_np2|test_partitioned_np3)$")
 fi
 export OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1
 # Open MPI unloads its components at exit; keep them loaded so that leak stacks through them can

@@ -152,7 +152,6 @@ void append_stiffness_triplets(const SubdomainMesh& mesh, const Physics& ph,
 // for every subdomain cost more kernel time than the assembly itself on a VM where page faults
 // are expensive (docs/performance.md, "Fresh pages").
 struct StiffnessWork {
-  std::vector<Eigen::Triplet<double>> trip;
   std::vector<int> start;  // per column: where its contributions begin in row/value
   std::vector<int> count;  // per column: its distinct rows, once summed
   std::vector<int> row;
@@ -161,9 +160,9 @@ struct StiffnessWork {
   // Kept only up to this many bytes (large 3D subdomains: freed after each assembly).
   static constexpr size_t kKeepBytes = size_t{32} << 20;
   void trim() {
-    const size_t bytes = trip.capacity() * sizeof(trip[0]) + start.capacity() * sizeof(int) +
-                         row.capacity() * sizeof(int) + value.capacity() * sizeof(double) +
-                         count.capacity() * sizeof(int) + pairs.capacity() * sizeof(pairs[0]);
+    const size_t bytes = start.capacity() * sizeof(int) + row.capacity() * sizeof(int) +
+                         value.capacity() * sizeof(double) + count.capacity() * sizeof(int) +
+                         pairs.capacity() * sizeof(pairs[0]);
     if (bytes > kKeepBytes) *this = StiffnessWork();
   }
 };
@@ -181,30 +180,40 @@ std::vector<Eigen::Triplet<double>> stiffness_triplets(const SubdomainMesh& mesh
 Eigen::SparseMatrix<double> assemble_stiffness(const SubdomainMesh& mesh, const Physics& ph) {
   const int n = mesh.num_nodes() * ph.dofs_per_node();
   StiffnessWork& w = stiffness_work;
-  w.trip.clear();
-  append_stiffness_triplets(mesh, ph, w.trip);
-  // The contributions grouped by column, in cell order within each (a counting sort).
-  const size_t nt = w.trip.size();
+  // The contributions grouped by column, in cell order within each, written straight into place
+  // (no list of triplets: a third of the memory): every cell holding a column's node reserves
+  // nc x dpn places in it; the element matrices' nonzero entries fill them in cell order.
+  const int nc = cell_nodes(mesh.type), dpn = ph.dofs_per_node(), ed = nc * dpn;
   w.start.assign(static_cast<size_t>(n) + 1, 0);
-  for (const auto& t : w.trip) ++w.start[t.col() + 1];
+  for (int e = 0; e < mesh.num_cells(); ++e)
+    for (int b = 0; b < nc; ++b)
+      for (int j = 0; j < dpn; ++j)
+        w.start[mesh.cells[static_cast<size_t>(e) * nc + b] * dpn + j + 1] += ed;
   for (int c = 0; c < n; ++c) w.start[c + 1] += w.start[c];
+  const size_t nt = static_cast<size_t>(w.start[n]);
   w.row.resize(nt);
   w.value.resize(nt);
-  for (const auto& t : w.trip) {
-    const int at = w.start[t.col()]++;
-    w.row[at] = t.row(), w.value[at] = t.value();
-  }
-  for (int c = n; c > 0; --c) w.start[c] = w.start[c - 1];
-  w.start[0] = 0;
+  std::vector<int>& fill = w.count;  // per column: its contributions so far
+  fill.assign(static_cast<size_t>(n), 0);
+  for_each_element_matrix(mesh, ph, [&](const int* cn, const Eigen::MatrixXd& ke, double scale) {
+    for (int a = 0; a < nc; ++a)
+      for (int i = 0; i < dpn; ++i)
+        for (int b = 0; b < nc; ++b)
+          for (int j = 0; j < dpn; ++j) {
+            const double v = scale * ke(a * dpn + i, b * dpn + j);
+            if (v == 0.0) continue;
+            const int col = cn[b] * dpn + j, at = w.start[col] + fill[col]++;
+            w.row[at] = cn[a] * dpn + i, w.value[at] = v;
+          }
+  });
   // Each column: its contributions sorted by row, stably (equal rows stay in cell order), then
   // the equal rows summed left to right: ((v1 + v2) + v3) ..., the order of setFromTriplets.
   long nnz = 0;
-  std::vector<int>& count = w.count;
-  count.assign(static_cast<size_t>(n), 0);
+  std::vector<int>& count = w.count;  // (fill[c] read before count[c] is set)
   for (int c = 0; c < n; ++c) {
     int* r = w.row.data() + w.start[c];
     double* v = w.value.data() + w.start[c];
-    const int len = w.start[c + 1] - w.start[c];
+    const int len = fill[c];
     if (len <= 64) {
       for (int k = 1; k < len; ++k) {  // insertion sort: stable
         const int rk = r[k];

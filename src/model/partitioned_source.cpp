@@ -261,7 +261,15 @@ class PartitionedSource final : public MeshSource {
   // Reads `parts` (0-based) where not read yet, checks them, numbers the nodes and computes each
   // node's copies, boundary flag and groups (steps 1-3 above).
   void build(const std::vector<int>& parts) {
-    const int P = comm_.size();
+    read_parts(parts);
+    gather_group_names();
+    const auto gid = number_nodes();
+    auto boundary = domain_boundary(gid);
+    node_copies(gid, boundary);
+  }
+
+  // The part files, checked, and one cell type everywhere (agreed on by every rank).
+  void read_parts(const std::vector<int>& parts) {
     agreed(comm_, [&] {
       std::map<int, Mesh> keep;
       for (int k : parts) {
@@ -300,8 +308,10 @@ class PartitionedSource final : public MeshSource {
       dim_ = static_cast<int>(hi[0]);
       type_ = static_cast<CellType>(hi[1]);
     }
-    gather_group_names();
-    // 1. Dense global node ids in tag order.
+  }
+
+  // Step 1: every held node's global id (the node tags numbered densely in tag order), per part.
+  std::map<int, std::vector<long long>> number_nodes() {
     std::vector<NumberingKey> keys;
     long long max_tag = 0;
     for (const auto& [k, m] : read_)
@@ -321,10 +331,20 @@ class PartitionedSource final : public MeshSource {
         i += m.node_tags.size();
       }
     }
-    auto home = [&](long long id) {
-      return static_cast<int>(static_cast<__int128>(id) * P / std::max(nodes_, 1LL));
-    };
-    // 2. The boundary of the whole domain.
+    return gid;
+  }
+
+  // The rank a node's records go to, by its global id (ids in increasing order over the ranks).
+  int home(long long id) const {
+    return static_cast<int>(static_cast<__int128>(id) * comm_.size() / std::max(nodes_, 1LL));
+  }
+
+  // Step 2: per part, its nodes on the boundary of the whole domain. A part's local nodes are in
+  // tag order, the order of the global ids, so a facet's smallest local node is its smallest
+  // global one: both parts of an interface facet send it to the same home rank.
+  std::map<int, std::vector<char>> domain_boundary(
+      const std::map<int, std::vector<long long>>& gid) {
+    const int P = comm_.size();
     std::map<int, std::vector<char>> boundary;
     {
       std::vector<std::vector<long long>> send(P);
@@ -336,7 +356,7 @@ class PartitionedSource final : public MeshSource {
         for (int e = 0; e < m.num_cells(); ++e)
           for (int j = 0; j < nf; ++j) f.push_back(facet_key(m, e, j));
         std::sort(f.begin(), f.end());
-        const auto& g = gid[k];
+        const auto& g = gid.at(k);
         for (size_t i = 0; i < f.size();) {
           size_t j = i;
           while (j < f.size() && f[j] == f[i]) ++j;
@@ -365,7 +385,14 @@ class PartitionedSource final : public MeshSource {
             for (int v : sent[r][i].second)
               if (v >= 0) boundary[sent[r][i].first][v] = 1;
     }
-    // 3. Copies, coordinates, flags and groups of every node at its home rank.
+    return boundary;
+  }
+
+  // Step 3: the copies, coordinates (checked), boundary flags and groups of every node, merged at
+  // its home rank; then each held part's SubdomainMesh.
+  void node_copies(const std::map<int, std::vector<long long>>& gid,
+                   std::map<int, std::vector<char>>& boundary) {
+    const int P = comm_.size();
     const int G = static_cast<int>(node_group_names_.size() + 63) / 64;
     const int W = 7 + G;  // id, tag, part, x, y, z, boundary, group words
     std::vector<std::vector<long long>> send(P);
@@ -377,7 +404,7 @@ class PartitionedSource final : public MeshSource {
         const int bit = static_cast<int>(at - node_group_names_.begin());
         for (int v : nodes) words[v][bit / 64] |= 1LL << (bit % 64);
       }
-      const auto& g = gid[k];
+      const auto& g = gid.at(k);
       for (int v = 0; v < m.num_nodes(); ++v) {
         const int r = home(g[v]);
         auto& out = send[r];
@@ -441,7 +468,8 @@ class PartitionedSource final : public MeshSource {
     });
     const auto back = exchange_lists(comm_, answer);
     meshes_.clear();
-    for (const auto& [k, m] : read_) meshes_[subdomain_of_part_[k]] = subdomain_mesh(k, m, gid[k]);
+    for (const auto& [k, m] : read_)
+      meshes_[subdomain_of_part_[k]] = subdomain_mesh(k, m, gid.at(k));
     for (int r = 0; r < P; ++r) {
       size_t i = 0;
       for (const auto& [k, v] : sent[r]) {

@@ -204,7 +204,7 @@ class PartitionedSource final : public MeshSource {
   }
 
  private:
-  // The number of parts: from part 1 (read by rank 0, which owns it in every layout), checked
+  // The number of parts: from part 1 (read by rank 0, which holds it first in every layout), checked
   // against decomposition.subdomains.
   void count_parts(const ProblemSpec& spec) {
     long long n = 0;

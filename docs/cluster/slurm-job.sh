@@ -16,6 +16,8 @@ export OMP_NUM_THREADS=${SLURM_CPUS_PER_TASK}
 export OMP_PROC_BIND=close OMP_PLACES=cores
 # --memory-limit (GB per machine) when the job may not use the whole machine; the memory check
 # sums its estimate over the ranks of each machine and stops every rank with exit 2 before the
-# setup when it does not fit.
+# setup when it does not fit. For a mesh too large for one machine give it as Gmsh's parts
+# (`[mesh] parts = "NAME.msh"`, one file per part): every rank then reads only its own, and
+# `srun ... htfeti solve "$problem" --dry-run` prints what each rank holds before anything runs.
 srun --cpu-bind=cores htfeti solve "$problem" \
   --report "htfeti-${SLURM_JOB_ID}.json" --vtu "htfeti-${SLURM_JOB_ID}.pvtu" --progress

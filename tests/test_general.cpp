@@ -6,7 +6,6 @@
 #include <gtest/gtest.h>
 #include <omp.h>
 
-#include <Eigen/SparseLU>
 #include <cstring>
 #include <map>
 #include <set>
@@ -32,22 +31,9 @@ Reference solve_directly(ProblemSpec spec) {
   spec.subdomains =
       std::vector<int>(spec.subdomains.size() > 1 && spec.mesh_file.empty() ? spec.box.dim : 1, 1);
   spec.cluster_size = 1;
-  const auto model = make_model(spec);
-  const SubdomainInput in = model->input(0);
-  const SubdomainMesh mesh = model->mesh(0);
-  const int dpn = model->physics().dofs_per_node();
-  const test::EliminatedSystem sys = test::eliminate_dirichlet(in, dpn);
-  Eigen::SparseMatrix<double> A(sys.nf, sys.nf);
-  A.setFromTriplets(sys.trip.begin(), sys.trip.end());
-  Eigen::SparseLU<Eigen::SparseMatrix<double>> lu(A);
-  EXPECT_EQ(lu.info(), Eigen::Success);
-  const Eigen::VectorXd u = sys.expand(lu.solve(sys.b));
-  Reference ref;
-  ref.u.resize(static_cast<Eigen::Index>(model->num_nodes()) * dpn);
-  for (int k = 0; k < mesh.num_nodes(); ++k)
-    for (int d = 0; d < dpn; ++d) ref.u[mesh.global_node[k] * dpn + d] = u[k * dpn + d];
-  ref.energy = 0.5 * u.dot(in.system.K * u) - in.system.f.dot(u);
-  return ref;
+  const test::DirectSolution d = test::solve_one_subdomain(*make_model(spec));
+  EXPECT_TRUE(d.factored);
+  return {d.u, d.energy};
 }
 
 ProblemSpec laplace_on(const std::string& mesh, const std::string& zero_group,

@@ -6,7 +6,6 @@
 // in 6 parts, the bracket (tet4) in 8. Runs under mpiexec -n 1, 2, 3, 4.
 #include <gtest/gtest.h>
 
-#include <Eigen/SparseLU>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
@@ -52,20 +51,9 @@ ProblemSpec bracket_laplace(bool parts) {
 std::pair<Eigen::VectorXd, double> solve_whole(ProblemSpec spec) {
   spec.subdomains = {1};
   spec.cluster_size = 1;
-  const auto model = make_model(spec);
-  const SubdomainInput in = model->input(0);
-  const SubdomainMesh mesh = model->mesh(0);
-  const int dpn = model->physics().dofs_per_node();
-  const test::EliminatedSystem sys = test::eliminate_dirichlet(in, dpn);
-  Eigen::SparseMatrix<double> A(sys.nf, sys.nf);
-  A.setFromTriplets(sys.trip.begin(), sys.trip.end());
-  Eigen::SparseLU<Eigen::SparseMatrix<double>> lu(A);
-  EXPECT_EQ(lu.info(), Eigen::Success);
-  const Eigen::VectorXd u = sys.expand(lu.solve(sys.b));
-  Eigen::VectorXd ref(static_cast<Eigen::Index>(model->num_nodes()) * dpn);
-  for (int k = 0; k < mesh.num_nodes(); ++k)
-    for (int d = 0; d < dpn; ++d) ref[mesh.global_node[k] * dpn + d] = u[k * dpn + d];
-  return {ref, 0.5 * u.dot(in.system.K * u) - in.system.f.dot(u)};
+  const test::DirectSolution d = test::solve_one_subdomain(*make_model(spec));
+  EXPECT_TRUE(d.factored);
+  return {d.u, d.energy};
 }
 
 struct Case {

@@ -133,9 +133,10 @@ void for_each_element_matrix(const SubdomainMesh& mesh, const Physics& ph, Visit
 
 namespace {
 
-// Appends the element matrices' nonzero entries to `trip`, cell by cell.
-void append_stiffness_triplets(const SubdomainMesh& mesh, const Physics& ph,
-                               std::vector<Eigen::Triplet<double>>& trip) {
+// Calls entry(row, col, value) for every nonzero entry of every element matrix: cell by cell,
+// and within a cell row-major over the element's dofs.
+template <class Entry>
+void for_each_stiffness_entry(const SubdomainMesh& mesh, const Physics& ph, Entry&& entry) {
   const int nc = cell_nodes(mesh.type), dpn = ph.dofs_per_node();
   for_each_element_matrix(mesh, ph, [&](const int* cn, const Eigen::MatrixXd& ke, double scale) {
     for (int a = 0; a < nc; ++a)
@@ -143,9 +144,16 @@ void append_stiffness_triplets(const SubdomainMesh& mesh, const Physics& ph,
         for (int b = 0; b < nc; ++b)
           for (int j = 0; j < dpn; ++j) {
             const double v = scale * ke(a * dpn + i, b * dpn + j);
-            if (v != 0.0) trip.emplace_back(cn[a] * dpn + i, cn[b] * dpn + j, v);
+            if (v != 0.0) entry(cn[a] * dpn + i, cn[b] * dpn + j, v);
           }
   });
+}
+
+// Appends the element matrices' nonzero entries to `trip`, cell by cell.
+void append_stiffness_triplets(const SubdomainMesh& mesh, const Physics& ph,
+                               std::vector<Eigen::Triplet<double>>& trip) {
+  for_each_stiffness_entry(mesh, ph,
+                           [&](int row, int col, double v) { trip.emplace_back(row, col, v); });
 }
 
 // assemble_stiffness's work arrays, kept per thread from one subdomain to the next: fresh pages
@@ -195,16 +203,9 @@ Eigen::SparseMatrix<double> assemble_stiffness(const SubdomainMesh& mesh, const 
   w.value.resize(nt);
   std::vector<int>& fill = w.count;  // per column: its contributions so far
   fill.assign(static_cast<size_t>(n), 0);
-  for_each_element_matrix(mesh, ph, [&](const int* cn, const Eigen::MatrixXd& ke, double scale) {
-    for (int a = 0; a < nc; ++a)
-      for (int i = 0; i < dpn; ++i)
-        for (int b = 0; b < nc; ++b)
-          for (int j = 0; j < dpn; ++j) {
-            const double v = scale * ke(a * dpn + i, b * dpn + j);
-            if (v == 0.0) continue;
-            const int col = cn[b] * dpn + j, at = w.start[col] + fill[col]++;
-            w.row[at] = cn[a] * dpn + i, w.value[at] = v;
-          }
+  for_each_stiffness_entry(mesh, ph, [&](int row, int col, double v) {
+    const int at = w.start[col] + fill[col]++;
+    w.row[at] = row, w.value[at] = v;
   });
   // Each column: its contributions sorted by row, stably (equal rows stay in cell order), then
   // the equal rows summed left to right: ((v1 + v2) + v3) ..., the order of setFromTriplets.

@@ -308,7 +308,6 @@ Mesh read_gmsh(const std::string& path, const GmshReadOptions& options) {
     const std::vector<std::size_t> cell_node_tags = read_cells(path, mesh);
     const TagIndex index = read_nodes(path, cell_node_tags, mesh);
     read_groups(path, index, options.named_groups_only, mesh);
-
   } catch (const std::invalid_argument&) {
     throw;
   } catch (const std::exception& e) {

@@ -236,6 +236,12 @@ void report_contact_arrays(nlohmann::json& rep, DualProblem& dual, const Comm& c
 // The contact rows and the displacement summary (collective).
 void report_solution(nlohmann::json& rep, const Model& model, DualProblem& dual, const Comm& comm,
                      const std::vector<Vec>& u, const Vec& lambda, long long max_contact_rows) {
+  // The mesh the fullest rank holds (Model::held): the whole mesh with mesh.file, its own parts
+  // with mesh.parts, nothing for a generated box.
+  const Model::MeshCounts held = model.held();
+  rep["mesh_held_max_rank"] = {
+      {"cells", static_cast<long long>(comm.max(static_cast<double>(held.cells)))},
+      {"nodes", static_cast<long long>(comm.max(static_cast<double>(held.points)))}};
   if (dual.has_inequalities() && dual.inequalities() > max_contact_rows) {
     rep["contact"] = {{"rows", dual.inequalities()},
                       {"arrays", "omitted: more than report_contact_rows = " +

@@ -1271,6 +1271,10 @@ TEST_F(Cli, PartitionedMeshSameBitsOnOneAndThreeRanksOfTwoThreads) {
   }
   EXPECT_EQ(reports[0]["partitioner"], "gmsh parts");
   EXPECT_EQ(reports[0]["subdomains"], 4);
+  // One rank holds every cell; of three ranks none does.
+  EXPECT_EQ(reports[0]["mesh_held_max_rank"]["cells"], reports[0]["mesh"]["cells"]);
+  EXPECT_LT(reports[1]["mesh_held_max_rank"]["cells"].get<long long>(),
+            reports[1]["mesh"]["cells"].get<long long>());
   // The per-row contact arrays up to --report-contact-rows rows, then their count only.
   const long long rows = reports[0]["inequalities"];
   ASSERT_EQ(reports[0]["contact"]["x"].size(), static_cast<size_t>(rows));

@@ -164,14 +164,20 @@ void expect_refused(ProblemSpec spec, const std::string& what) {
   }
 }
 
+// The bracket's problem on the parts NAME_k.msh in `dir` (once rank 0 has changed them): refused.
+void expect_parts_refused(const std::string& dir, const std::string& name,
+                          const std::string& what) {
+  MPI_Barrier(MPI_COMM_WORLD);
+  ProblemSpec s = bracket_laplace(true);
+  s.mesh_parts = dir + name;
+  expect_refused(s, what);
+}
+
 TEST(PartitionedInputErrors, MissingPartFile) {
   const std::string dir = copy_parts("parts-missing");
   Comm comm;
   if (comm.rank() == 0) std::filesystem::remove(dir + "b_7.msh");
-  MPI_Barrier(MPI_COMM_WORLD);
-  ProblemSpec s = bracket_laplace(true);
-  s.mesh_parts = dir + "b.msh";
-  expect_refused(s, "part 7 of");
+  expect_parts_refused(dir, "b.msh", "part 7 of");
 }
 
 TEST(PartitionedInputErrors, SubdomainsThatDoNotMatchTheParts) {
@@ -186,10 +192,7 @@ TEST(PartitionedInputErrors, PartsOfTwoPartitions) {
   if (comm.rank() == 0)  // part 3 of the plate's 6-part partition in place of the bracket's
     std::filesystem::copy_file(kParts + "plate-with-hole-parts_3.msh", dir + "b_3.msh",
                                std::filesystem::copy_options::overwrite_existing);
-  MPI_Barrier(MPI_COMM_WORLD);
-  ProblemSpec s = bracket_laplace(true);
-  s.mesh_parts = dir + "b.msh";
-  expect_refused(s, "parts");
+  expect_parts_refused(dir, "b.msh", "parts");
 }
 
 // An interface node moved in one part file: the parts no longer describe one mesh.
@@ -242,22 +245,16 @@ TEST(PartitionedInputErrors, InterfaceNodesThatDisagree) {
     out << s.substr(0, nodes);
     for (const auto& l : all) out << l << "\n";
   }
-  MPI_Barrier(MPI_COMM_WORLD);
-  ProblemSpec s = bracket_laplace(true);
-  s.mesh_parts = dir + "b.msh";
-  expect_refused(s, "the part files are not of one mesh");
+  expect_parts_refused(dir, "b.msh", "the part files are not of one mesh");
 }
 
 TEST(PartitionedInputErrors, AWholeMeshIsNotAPart) {
-  ProblemSpec s = bracket_laplace(true);
   const std::string dir = copy_parts("parts-whole");
   Comm comm;
   if (comm.rank() == 0)
     std::filesystem::copy_file(kMeshes + "bracket.msh", dir + "w_1.msh",
                                std::filesystem::copy_options::overwrite_existing);
-  MPI_Barrier(MPI_COMM_WORLD);
-  s.mesh_parts = dir + "w.msh";
-  expect_refused(s, "is not one part of a partitioned mesh");
+  expect_parts_refused(dir, "w.msh", "is not one part of a partitioned mesh");
 }
 
 }  // namespace

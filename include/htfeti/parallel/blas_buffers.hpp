@@ -38,8 +38,8 @@ std::string reserve_blas_buffers();
 /// round differently per thread count: a rank holding fewer clusters than threads, which
 /// factors them one at a time, got other bits than a rank factoring the same subdomains in
 /// parallel, one per thread (measured: the 4 floating subdomains of a tet4 cube read from Gmsh's
-/// parts, B K^+ f different in the last bits between 1 and 3 ranks of 2 threads, the energy by
-/// 3e-13 relative). Inside a parallel region it does nothing (OpenBLAS runs on one thread there
+/// parts, B K^+ f different in the last bits between 1 and 3 ranks of 2 threads, and the
+/// energy with it). Inside a parallel region it does nothing (OpenBLAS runs on one thread there
 /// anyway). OpenBLAS's own setting (openblas_set_num_threads) cannot do this: in the OpenMP
 /// flavour it sets OpenMP's thread count, and OpenBLAS follows OpenMP's at every call.
 class BlasOnOneThread {

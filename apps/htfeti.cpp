@@ -147,7 +147,7 @@ const CLI::Validator kPositive(
 // What selects the problem (not options of the solve): a problem file or a built-in, and the
 // built-ins' sizes. Each has a problem-file key of its own in [mesh] or [decomposition].
 struct ProblemArgs {
-  std::string file, problem = "membranes", element = "q1", glue = "averages", objective = "volume";
+  std::string file, problem = "membranes", element = "q1", glue = "averages", objective = "auto";
   std::string elements = "128", subdomains = "8";
   int cluster_size = 1;
   double amplitude = 1.0;
@@ -186,8 +186,11 @@ void add_problem_args(CLI::App* cmd, ProblemArgs& p) {
                  ->capture_default_str();
   p.o_objective = cmd->add_option("--partition-objective", p.objective,
                                   "problem files split by METIS: what METIS minimizes, volume "
-                                  "(communication volume: interface nodes) | cut (cut facets) "
-                                  "[decomposition.objective]")
+                                  "(communication volume: interface nodes) | cut (cut facets) | "
+                                  "area (area of the cut facets: interfaces across the small "
+                                  "faces of stretched cells) | auto (area when at least 10% of "
+                                  "the cells are stretched, largest facet >= 2.5 x smallest; else "
+                                  "volume) [decomposition.objective]")
                       ->capture_default_str();
   p.o_element =
       cmd->add_option("--element", p.element, "built-ins: q1 (bilinear) | p1 (linear triangles)")

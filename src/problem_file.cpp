@@ -463,7 +463,7 @@ void read_decomposition(const toml::table& root, ProblemSpec& spec) {
           "parts");
     try {
       spec.partition_objective =
-          parse_partition_objective(get_string(*dec, "decomposition", "objective", "volume"));
+          parse_partition_objective(get_string(*dec, "decomposition", "objective", "auto"));
     } catch (const std::invalid_argument& e) {
       bad("decomposition.objective", e.what());
     }

@@ -421,6 +421,23 @@ TEST_F(Cli, PartitionObjective) {
     std::ifstream f("r.json");
     EXPECT_EQ(nlohmann::json::parse(f)["partition_objective"], "cut");
   }
+  // The default (auto) on the plate's regular triangles: the volume, with the share of
+  // stretched cells that decided it; area when asked for.
+  ASSERT_EQ(run(bin + " solve " + ex + " --no-vtu --report r.json"), 0) << stderr_text();
+  {
+    std::ifstream f("r.json");
+    const auto j = nlohmann::json::parse(f);
+    EXPECT_EQ(j["partition_objective"], "volume");
+    EXPECT_LT(j["stretched_cells"].get<double>(), 0.1);
+  }
+  ASSERT_EQ(run(bin + " solve " + ex + " --partition-objective area --no-vtu --report r.json"), 0)
+      << stderr_text();
+  {
+    std::ifstream f("r.json");
+    const auto j = nlohmann::json::parse(f);
+    EXPECT_EQ(j["partition_objective"], "area");
+    EXPECT_FALSE(j.contains("stretched_cells"));
+  }
   EXPECT_EQ(run(bin + " solve " + ex + " --partition-objective edges --no-vtu --report q.json"), 2);
   EXPECT_NE(stderr_text().find("unknown partition objective 'edges'"), std::string::npos)
       << stderr_text();

@@ -12,6 +12,7 @@
 
 #include "helpers.hpp"
 #include "htfeti/mesh/mesh.hpp"
+#include "htfeti/partition/partition.hpp"
 #include "htfeti/problem_file.hpp"
 #include "htfeti/solver.hpp"
 
@@ -100,6 +101,14 @@ struct Case {
   Glue glue;
   PartitionObjective objective = PartitionObjective::volume;
 };
+
+// The box of hex8_box meshed with stretched cells (0.5 x 0.125 x 0.125: faces 4 : 1), which the
+// automatic objective splits by facet area.
+ProblemSpec hex8_stretched_box() {
+  ProblemSpec s = hex8_box();
+  s.box.elements = {8, 8, 8};
+  return s;
+}
 
 ProblemSpec laplace_plate() { return laplace_on("plate-with-hole.msh", "left", "hole"); }
 ProblemSpec laplace_bracket() { return laplace_on("bracket.msh", "x0", "hole"); }
@@ -282,10 +291,58 @@ INSTANTIATE_TEST_SUITE_P(
                            PartitionObjective::cut},
                       Case{"hex8_box_metis_cut", hex8_box, {6}, 3, Glue::averages,
                            PartitionObjective::cut},
+                      Case{"hex8_stretched_metis_auto", hex8_stretched_box, {6}, 1,
+                           Glue::averages, PartitionObjective::automatic},
+                      Case{"hex8_stretched_metis_area", hex8_stretched_box, {6}, 3,
+                           Glue::averages, PartitionObjective::area},
+                      Case{"plane_strain_metis_area", plane_strain_plate, {8}, 1, Glue::averages,
+                           PartitionObjective::area},
                       Case{"hinged_square_3", hinged_square, {3}, 1, Glue::averages},
                       Case{"hinged_square_4", hinged_square, {4}, 1, Glue::averages},
                       Case{"hinged_square_6", hinged_square, {6}, 1, Glue::averages}),
     [](const auto& info) { return std::string(info.param.name); });
+
+// nx x ny quad4 cells on [0, lx] x [0, ly], numbered row by row.
+Mesh quad_strip(int nx, int ny, double lx, double ly) {
+  Mesh m;
+  m.dim = 2;
+  m.type = CellType::quad4;
+  for (int j = 0; j <= ny; ++j)
+    for (int i = 0; i <= nx; ++i) m.coords.insert(m.coords.end(), {lx * i / nx, ly * j / ny, 0.0});
+  for (int j = 0; j < ny; ++j)
+    for (int i = 0; i < nx; ++i) {
+      const int a = j * (nx + 1) + i;
+      m.cells.insert(m.cells.end(), {a, a + 1, a + nx + 2, a + nx + 1});
+    }
+  return m;
+}
+
+// Cells of 1 x 1/8 in a strip 8 x 1: every cell is stretched, so the automatic objective takes
+// the facet area, and two parts are cut along x = 4 (8 short edges: length 1) and not along
+// y = 1/2 (8 long edges: length 8), where the plain edge cut sees a tie.
+TEST(Partition, AreaObjectiveCutsAcrossTheShortFacetsOfStretchedCells) {
+  const Mesh mesh = quad_strip(8, 8, 8.0, 1.0);
+  EXPECT_DOUBLE_EQ(stretched_cell_share(mesh), 1.0);
+  const MeshPartition p = partition_mesh(mesh, 2, 1, PartitionObjective::automatic);
+  EXPECT_EQ(p.objective, PartitionObjective::area);
+  EXPECT_DOUBLE_EQ(p.stretched_share, 1.0);
+  for (int j = 0; j < 8; ++j)
+    for (int i = 0; i < 8; ++i)
+      EXPECT_EQ(p.cell_subdomain[j * 8 + i], p.cell_subdomain[i < 4 ? 0 : 7]) << i << " " << j;
+  EXPECT_NE(p.cell_subdomain[0], p.cell_subdomain[7]);
+}
+
+// Square cells: none stretched, the automatic objective is the communication volume; cells of
+// 2.4 : 1 are not stretched either, 2.5 : 1 are (kStretchRatio).
+TEST(Partition, AutomaticObjectiveKeepsTheVolumeOnRegularCells) {
+  const Mesh square = quad_strip(8, 8, 8.0, 8.0);
+  EXPECT_EQ(stretched_cell_share(square), 0.0);
+  EXPECT_EQ(partition_mesh(square, 4, 1).objective, PartitionObjective::volume);
+  EXPECT_EQ(stretched_cell_share(quad_strip(4, 4, 4 * 2.4, 4.0)), 0.0);
+  EXPECT_EQ(stretched_cell_share(quad_strip(4, 4, 4 * 2.5, 4.0)), 1.0);
+  EXPECT_EQ(partition_mesh(square, 4, 1, PartitionObjective::area).objective,
+            PartitionObjective::area);
+}
 
 TEST(Kernels, RigidBodyMotionsAreTheKernelAndKPlusIsAGeneralizedInverse) {
   for (auto make : {plane_strain_plate, hex8_box}) {

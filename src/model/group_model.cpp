@@ -159,7 +159,9 @@ class MetisSplit final : public MeshSource {
                                                         {"nodes", mesh_->num_nodes()},
                                                         {"cells", mesh_->num_cells()}};
     j["partitioner"] = "metis";
-    j["partition_objective"] = to_string(spec.partition_objective);
+    j["partition_objective"] = to_string(part_->objective);
+    if (spec.partition_objective == PartitionObjective::automatic)
+      j["stretched_cells"] = part_->stretched_share;
   }
 
  private:

@@ -51,6 +51,84 @@ std::vector<std::pair<FacetKey, int>> all_facets(const Mesh& mesh) {
   return f;
 }
 
+// The measure of a facet given by its nodes in cyclic order: a length (2 nodes), a triangle's
+// area (3) or a planar quadrilateral's, half the norm of its diagonals' cross product (4).
+double facet_measure(const Mesh& mesh, const int* nodes, int n) {
+  auto x = [&](int a, int c) { return mesh.coords[3 * static_cast<size_t>(nodes[a]) + c]; };
+  if (n == 2)
+    return std::hypot(x(1, 0) - x(0, 0), x(1, 1) - x(0, 1), x(1, 2) - x(0, 2));
+  const int p = n == 3 ? 0 : 1, q = n == 3 ? 0 : 3;  // diagonals (2-0, 3-1), or sides (1-0, 2-0)
+  double u[3], v[3];
+  for (int c = 0; c < 3; ++c)
+    u[c] = x(n == 3 ? 1 : 2, c) - x(0, c), v[c] = x(n == 3 ? 2 : q, c) - x(p, c);
+  return 0.5 * std::hypot(u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2],
+                          u[0] * v[1] - u[1] * v[0]);
+}
+
+// The facet measures of cell e (its cell_facet_count(type) facets).
+int cell_facet_measures(const Mesh& mesh, int e, double* out) {
+  const int nc = cell_nodes(mesh.type), nf = cell_facet_count(mesh.type);
+  int local[4], glob[4];
+  for (int j = 0; j < nf; ++j) {
+    const int n = cell_facet(mesh.type, j, local);
+    for (int i = 0; i < n; ++i) glob[i] = mesh.cells[static_cast<size_t>(e) * nc + local[i]];
+    out[j] = facet_measure(mesh, glob, n);
+  }
+  return nf;
+}
+
+// METIS k-way with the edge-cut objective on the dual graph of the given cells (all cells when
+// null), each edge weighted by the measure of the facet the two cells share: METIS then minimizes
+// the area (3D) or length (2D) of the interfaces. Weights are integers, the largest facet
+// 2^30 / (graph edges) but at most 10^6, the smallest at least 1 (METIS sums them in 32 bits).
+void split_cells_by_area(const Mesh& mesh, const std::vector<int>* cells, idx_t nparts,
+                         idx_t* options, idx_t* out) {
+  const int ne = cells ? static_cast<int>(cells->size()) : mesh.num_cells();
+  std::vector<int> local(mesh.num_cells(), -1);
+  for (int i = 0; i < ne; ++i) local[cells ? (*cells)[i] : i] = i;
+  const int nc = cell_nodes(mesh.type), nf = cell_facet_count(mesh.type);
+  std::vector<std::pair<FacetKey, int>> f;  // (key, local cell * nf + facet) of the subset
+  f.reserve(static_cast<size_t>(ne) * nf);
+  int lf[4], glob[4];
+  for (int i = 0; i < ne; ++i)
+    for (int j = 0; j < nf; ++j) {
+      const int n = cell_facet(mesh.type, j, lf), e = cells ? (*cells)[i] : i;
+      for (int a = 0; a < n; ++a) glob[a] = mesh.cells[static_cast<size_t>(e) * nc + lf[a]];
+      f.push_back({facet_key(glob, n), i * nf + j});
+    }
+  std::sort(f.begin(), f.end());
+  std::vector<std::array<int, 2>> pairs;  // (first facet, second facet) of each shared facet
+  for (size_t k = 0; k + 1 < f.size(); ++k)
+    if (f[k].first == f[k + 1].first) pairs.push_back({f[k].second, f[k + 1].second}), ++k;
+  std::vector<double> measure(pairs.size());
+  double largest = 0;
+  for (size_t k = 0; k < pairs.size(); ++k) {
+    const int i = pairs[k][0] / nf, e = cells ? (*cells)[i] : i;
+    const int n = cell_facet(mesh.type, pairs[k][0] % nf, lf);
+    for (int a = 0; a < n; ++a) glob[a] = mesh.cells[static_cast<size_t>(e) * nc + lf[a]];
+    measure[k] = facet_measure(mesh, glob, n);
+    largest = std::max(largest, measure[k]);
+  }
+  const double scale =
+      std::min(1e6, std::max(1.0, std::floor(1073741824.0 / std::max<size_t>(1, 2 * pairs.size()))));
+  std::vector<idx_t> xadj(ne + 1, 0), adjncy(2 * pairs.size()), adjwgt(2 * pairs.size());
+  for (const auto& pr : pairs) ++xadj[pr[0] / nf + 1], ++xadj[pr[1] / nf + 1];
+  for (int i = 0; i < ne; ++i) xadj[i + 1] += xadj[i];
+  std::vector<idx_t> fill(xadj.begin(), xadj.end() - 1);
+  for (size_t k = 0; k < pairs.size(); ++k) {
+    const idx_t w = std::max<idx_t>(
+        1, static_cast<idx_t>(std::lround(largest > 0 ? scale * measure[k] / largest : 1)));
+    const int a = pairs[k][0] / nf, b = pairs[k][1] / nf;
+    adjncy[fill[a]] = b, adjwgt[fill[a]++] = w;
+    adjncy[fill[b]] = a, adjwgt[fill[b]++] = w;
+  }
+  idx_t nv = ne, ncon = 1, objval = 0;
+  options[METIS_OPTION_OBJTYPE] = METIS_OBJTYPE_CUT;
+  metis_check(METIS_PartGraphKway(&nv, &ncon, xadj.data(), adjncy.data(), nullptr, nullptr,
+                                  adjwgt.data(), &nparts, nullptr, nullptr, options, &objval, out),
+              "mesh");
+}
+
 // Bodies: the connected components of the cells (cells sharing a node), numbered in the order
 // of their first cell. Union-find over the nodes.
 int find_bodies(const Mesh& mesh, std::vector<int>& cell_body) {
@@ -102,11 +180,15 @@ void split_cells(const Mesh& mesh, const std::vector<int>* cells, int nparts_in,
   options[METIS_OPTION_SEED] = 1;
   options[METIS_OPTION_NUMBERING] = 0;
   if (contiguous) options[METIS_OPTION_CONTIG] = 1;
-  options[METIS_OPTION_OBJTYPE] =
-      objective == PartitionObjective::volume ? METIS_OBJTYPE_VOL : METIS_OBJTYPE_CUT;
-  metis_check(METIS_PartMeshDual(&e, &nn, eptr.data(), eind.data(), nullptr, nullptr, &ncommon,
-                                 &nparts, nullptr, options, &objval, out.data(), npart.data()),
-              "mesh");
+  if (objective == PartitionObjective::area) {
+    split_cells_by_area(mesh, cells, nparts, options, out.data());
+  } else {
+    options[METIS_OPTION_OBJTYPE] =
+        objective == PartitionObjective::volume ? METIS_OBJTYPE_VOL : METIS_OBJTYPE_CUT;
+    metis_check(METIS_PartMeshDual(&e, &nn, eptr.data(), eind.data(), nullptr, nullptr, &ncommon,
+                                   &nparts, nullptr, options, &objval, out.data(), npart.data()),
+                "mesh");
+  }
   for (int i = 0; i < ne; ++i) part[cells ? (*cells)[i] : i] = out[i];
 }
 
@@ -190,6 +272,19 @@ std::vector<int> parts_per_body(const std::vector<long long>& cells_of_body, int
 
 }  // namespace
 
+double stretched_cell_share(const Mesh& mesh) {
+  const int ne = mesh.num_cells();
+  if (ne == 0) return 0;
+  long long stretched = 0;
+  double m[6];
+  for (int e = 0; e < ne; ++e) {
+    const int nf = cell_facet_measures(mesh, e, m);
+    const auto [lo, hi] = std::minmax_element(m, m + nf);
+    if (*hi >= kStretchRatio * *lo) ++stretched;
+  }
+  return static_cast<double>(stretched) / ne;
+}
+
 PartitionObjective parse_partition_objective(const std::string& name) {
   return parse_name(kPartitionObjectiveNames, name, "partition objective");
 }
@@ -265,6 +360,12 @@ MeshPartition partition_mesh(const Mesh& mesh, int subdomains, int cluster_size,
     throw std::invalid_argument("decomposition.subdomains = " + std::to_string(subdomains) +
                                 " exceeds the " + std::to_string(ne) + " cells of the mesh");
   MeshPartition p;
+  if (objective == PartitionObjective::automatic) {
+    p.stretched_share = stretched_cell_share(mesh);
+    objective = p.stretched_share >= kStretchedShare ? PartitionObjective::area
+                                                     : PartitionObjective::volume;
+  }
+  p.objective = objective;
   p.num_bodies = find_bodies(mesh, p.cell_body);
   const int nb = p.num_bodies;
   if (subdomains < nb)

@@ -68,7 +68,7 @@ struct ProblemSpec {
   int cluster_size = 1;
   Glue glue = Glue::averages;
   /// METIS's objective when a mesh is split (not a box split into boxes).
-  PartitionObjective partition_objective = PartitionObjective::volume;
+  PartitionObjective partition_objective = PartitionObjective::automatic;
 };
 
 /// The cube-obstacle benchmark (DESIGN.md; the paper's Table 4, ESPRESO's former obstacle

@@ -55,8 +55,7 @@ std::vector<std::pair<FacetKey, int>> all_facets(const Mesh& mesh) {
 // area (3) or a planar quadrilateral's, half the norm of its diagonals' cross product (4).
 double facet_measure(const Mesh& mesh, const int* nodes, int n) {
   auto x = [&](int a, int c) { return mesh.coords[3 * static_cast<size_t>(nodes[a]) + c]; };
-  if (n == 2)
-    return std::hypot(x(1, 0) - x(0, 0), x(1, 1) - x(0, 1), x(1, 2) - x(0, 2));
+  if (n == 2) return std::hypot(x(1, 0) - x(0, 0), x(1, 1) - x(0, 1), x(1, 2) - x(0, 2));
   const int p = n == 3 ? 0 : 1, q = n == 3 ? 0 : 3;  // diagonals (2-0, 3-1), or sides (1-0, 2-0)
   double u[3], v[3];
   for (int c = 0; c < 3; ++c)
@@ -109,8 +108,8 @@ void split_cells_by_area(const Mesh& mesh, const std::vector<int>* cells, idx_t 
     measure[k] = facet_measure(mesh, glob, n);
     largest = std::max(largest, measure[k]);
   }
-  const double scale =
-      std::min(1e6, std::max(1.0, std::floor(1073741824.0 / std::max<size_t>(1, 2 * pairs.size()))));
+  const double scale = std::min(
+      1e6, std::max(1.0, std::floor(1073741824.0 / std::max<size_t>(1, 2 * pairs.size()))));
   std::vector<idx_t> xadj(ne + 1, 0), adjncy(2 * pairs.size()), adjwgt(2 * pairs.size());
   for (const auto& pr : pairs) ++xadj[pr[0] / nf + 1], ++xadj[pr[1] / nf + 1];
   for (int i = 0; i < ne; ++i) xadj[i + 1] += xadj[i];

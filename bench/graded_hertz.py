@@ -13,6 +13,7 @@ share of stretched cells). Per run: PCG iterations or Hessian products (+ the no
 outer iterations, the seconds (medians of --repeat runs), and the contact force against Hertz.
 
 Usage: bench/graded_hertz.py [--repeat 3] [--threads 2] [--extra "--preconditioner none"]
+                             [--mesh strong] [--objectives volume,area,auto]
                              [--out graded_hertz.json]   (needs the gmsh program)
 Writes bench/results/OUT and prints the table."""
 import argparse
@@ -28,6 +29,8 @@ p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
 p.add_argument("--repeat", type=int, default=3)
 p.add_argument("--threads", type=int, default=2)
 p.add_argument("--extra", default="", help="more htfeti options for every run")
+p.add_argument("--mesh", default="", help="only the meshes whose label contains this")
+p.add_argument("--objectives", default="volume,area,auto")
 p.add_argument("--out", default="graded_hertz.json")
 a = p.parse_args()
 
@@ -71,7 +74,7 @@ traction = [0.0, 0.0, -1.0]
 
 rows = []
 with tempfile.TemporaryDirectory() as tmp:
-    for label, geo, args in MESHES:
+    for label, geo, args in [m for m in MESHES if a.mesh in m[0]]:
         msh = os.path.join(tmp, f"m{len(rows)}.msh")
         subprocess.run(["gmsh", os.path.join(ROOT, "bench", geo), "-3", *args, "-format", "msh41",
                         "-o", msh], check=True, stdout=subprocess.DEVNULL)
@@ -79,7 +82,7 @@ with tempfile.TemporaryDirectory() as tmp:
             toml = os.path.join(tmp, f"{problem}.toml")
             with open(toml, "w") as f:
                 f.write(COMMON.format(msh=msh) + extra)
-            for objective in ("volume", "area", "auto"):
+            for objective in a.objectives.split(","):
                 runs = [solve([toml, "--partition-objective", objective, *a.extra.split()],
                               threads=a.threads) for _ in range(a.repeat)]
                 r = runs[0]

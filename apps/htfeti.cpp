@@ -330,6 +330,16 @@ std::shared_ptr<const Model> builtin_model(const ProblemArgs& p, const TableArgs
 // Output paths are checked before any work: usable, and not the same file twice.
 void check_outputs(const OutputOptions& out, const Comm& comm) {
   if (out.write_report) check_output_path(out.report, "--report");
+  if (out.write_xdmf) {
+    const auto ext = std::filesystem::path(out.xdmf).extension();
+    if (ext != ".xdmf" && ext != ".xmf")
+      throw std::invalid_argument("--xdmf '" + out.xdmf + "' must end in .xdmf or .xmf");
+    for (const auto& f : xdmf_files(out.xdmf)) {
+      check_output_path(f, "--xdmf");
+      if (out.write_report && same_file(f, out.report))
+        throw std::invalid_argument("--report and --xdmf name the same file '" + f + "'");
+    }  // (the VTU's names end in .vtu or .pvtu: never these)
+  }
   if (!out.write_vtu) return;
   check_output_path(out.vtu, "--vtu");
   const auto ext = std::filesystem::path(out.vtu).extension();
@@ -422,6 +432,15 @@ void write_outputs(SolveOutput& out, const OutputOptions& o, const RunOptions& r
     out.report["output_io"] = written.io;  // (rank 0's piece)
     if (comm.rank() == 0)
       std::printf("  solution: %s (%.0f MB in %.2f s)\n", written.path.c_str(), bytes / 1048576.0,
+                  seconds);
+  }
+  if (o.write_xdmf) {
+    const double t0 = seconds_now();
+    write_xdmf(o.xdmf, *out.model, *out.dual, out.u, out.lambda);
+    const double seconds = comm.max(seconds_now() - t0);
+    out.report["timings"]["output_xdmf"] = seconds;
+    if (comm.rank() == 0)
+      std::printf("  solution: %s and %s (%.2f s)\n", o.xdmf.c_str(), xdmf_files(o.xdmf)[1].c_str(),
                   seconds);
   }
   if (o.write_report) {

@@ -8,7 +8,7 @@ build=${1:-$here/build}
 pkgs=(cmake g++ ninja-build pkg-config libeigen3-dev libsuitesparse-dev libmetis-dev
       libopenblas0-openmp libopenmpi-dev openmpi-bin libcli11-dev nlohmann-json3-dev
       libgtest-dev libfmt-dev libgmsh-dev gmsh libtomlplusplus-dev libmuparser-dev
-      python3-vtk9 python3-numpy)
+      libhdf5-openmpi-dev python3-vtk9 python3-numpy python3-h5py)
 missing=()
 for p in "${pkgs[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")

@@ -393,6 +393,12 @@ void add_output_options(std::vector<OptionSpec>& t) {
       "none)",
       [](RunOptions& r) -> std::string& { return r.output.vtu; },
       [](RunOptions& r) -> bool& { return r.output.write_vtu; }));
+  t.push_back(path(
+      "xdmf", "--xdmf", "--no-xdmf",
+      "the solution as XDMF + HDF5 for ParaView (FILE.xdmf and FILE.h5 beside it: one HDF5 file "
+      "written by all ranks through MPI-IO, for large runs; false: none, the default)",
+      [](RunOptions& r) -> std::string& { return r.output.xdmf; },
+      [](RunOptions& r) -> bool& { return r.output.write_xdmf; }));
   t.push_back(boolean("output", "vtu_ascii", "--vtu-ascii", "", "write the VTU as ASCII",
                       [](RunOptions& r) -> bool& { return r.output.vtu_ascii; }));
   t.push_back(choice(

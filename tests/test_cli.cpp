@@ -74,6 +74,26 @@ TEST_F(Cli, BadArgumentsExitWithCode2AndWriteNothing) {
   EXPECT_EQ(run(bin + " solve --help"), 0);
 }
 
+// XDMF output: the two files on success; a name without .xdmf, a missing directory or a file
+// named twice are refused with exit 2 before any work, and nothing is written.
+TEST_F(Cli, XdmfOutput) {
+  const std::string base = bin + " solve --problem poisson2d -n 16 --subdomains 2 --no-vtu ";
+  ASSERT_EQ(run(base + "--report r.json --xdmf u.xdmf"), 0) << stderr_text();
+  EXPECT_TRUE(fs::exists("u.xdmf") && fs::exists("u.h5"));
+  EXPECT_GT(fs::file_size("u.h5"), 1000u);
+  fs::remove("u.xdmf"), fs::remove("u.h5"), fs::remove("r.json");
+  const std::pair<std::string, std::string> bad[] = {
+      {"--report r.json --xdmf u.txt", "must end in .xdmf"},
+      {"--report r.json --xdmf missing/u.xdmf", "does not exist"},
+      {"--report u.h5 --xdmf u.xdmf", "same file"}};
+  for (const auto& [args, message] : bad) {
+    EXPECT_EQ(run(base + args), 2) << args;
+    EXPECT_NE(stderr_text().find(message), std::string::npos) << args << ": " << stderr_text();
+    for (const char* f : {"r.json", "u.xdmf", "u.xmf", "u.h5", "u.vtu"})
+      EXPECT_FALSE(fs::exists(f)) << args << ": " << f;
+  }
+}
+
 TEST_F(Cli, ReportsDoNotDependOnTheNumberOfRanks) {
   nlohmann::json reports[3];
   const int ranks[3] = {1, 2, 4};

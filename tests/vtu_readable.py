@@ -14,6 +14,9 @@ the same run, which the solver computes from its own arrays, not from the file:
   - the cell arrays subdomain, cluster and rank take every value of their range;
   - contact problems: the gap is defined on at least one node per inequality and never below
     minus the report's largest violation; elasticity: the von Mises stress is finite and >= 0.
+Every run also writes the XDMF output (--xdmf); its HDF5 file, read by h5py (Debian package
+python3-h5py) through the datasets the XDMF text names, must hold the VTU's points, cells and
+arrays bit for bit, with the dimensions the XDMF text declares (ranks in order in both).
 Usage: tests/vtu_readable.py HTFETI MPIEXEC [MPIEXEC_FLAGS...]"""
 import json
 import math
@@ -22,6 +25,9 @@ import subprocess
 import sys
 import tempfile
 
+import xml.etree.ElementTree as ET
+
+import h5py
 import numpy as np
 from vtkmodules.util.numpy_support import vtk_to_numpy
 from vtkmodules.vtkCommonCore import vtkCommand
@@ -62,12 +68,59 @@ def array(grid, where, name):
     return None if a is None else vtk_to_numpy(a)
 
 
+XDMF_TOPOLOGY = {5: "Triangle", 9: "Quadrilateral", 10: "Tetrahedron", 12: "Hexahedron"}
+
+
+def check_xdmf(name, xdmf, grid):
+    """The XDMF text's datasets against the VTU grid read by VTK."""
+    if not check(os.path.exists(xdmf) and os.path.exists(xdmf[:-5] + ".h5"),
+                 f"{name}: no XDMF output"):
+        return
+    root = ET.parse(xdmf).getroot()
+    g = root.find("Domain/Grid")
+    folder = os.path.dirname(xdmf)
+
+    def data(item):
+        file, path = item.text.strip().split(":")
+        dims = [int(v) for v in item.get("Dimensions").split()]
+        with h5py.File(os.path.join(folder, file), "r") as f:
+            values = f[path][()]
+        check(list(values.shape) == dims, f"{name}: {path} is {values.shape}, XDMF says {dims}")
+        return values
+    n_points, n_cells = grid.GetNumberOfPoints(), grid.GetNumberOfCells()
+    topo = g.find("Topology")
+    types = vtk_to_numpy(grid.GetCellTypesArray())
+    check(topo.get("TopologyType") == XDMF_TOPOLOGY.get(int(types[0])) and
+          int(topo.get("NumberOfElements")) == n_cells, f"{name}: XDMF topology {topo.attrib}")
+    cells = data(topo.find("DataItem"))
+    conn = vtk_to_numpy(grid.GetCells().GetConnectivityArray())
+    check(np.array_equal(cells.reshape(-1), conn), f"{name}: XDMF cells differ from the VTU's")
+    points = data(g.find("Geometry/DataItem"))
+    check(np.array_equal(points, vtk_to_numpy(grid.GetPoints().GetData())),
+          f"{name}: XDMF points differ from the VTU's")
+    names = []
+    for att in g.findall("Attribute"):
+        where = "point" if att.get("Center") == "Node" else "cell"
+        values = data(att.find("DataItem"))
+        ref = array(grid, where, att.get("Name"))
+        names.append(att.get("Name"))
+        check(ref is not None and values.shape[0] == (n_points if where == "point" else n_cells)
+              and np.array_equal(values.reshape(ref.shape), ref, equal_nan=True),
+              f"{name}: XDMF {att.get('Name')} differs from the VTU's")
+    data_vtu = [grid.GetPointData().GetArrayName(i)
+                for i in range(grid.GetPointData().GetNumberOfArrays())]
+    data_vtu += [grid.GetCellData().GetArrayName(i)
+                 for i in range(grid.GetCellData().GetNumberOfArrays())]
+    check(sorted(names) == sorted(data_vtu), f"{name}: XDMF arrays {names}, VTU {data_vtu}")
+
+
 def run_case(name, args, ranks):
     print(f"{name}: htfeti solve {' '.join(args)} ({ranks} rank{'s' if ranks > 1 else ''})")
     with tempfile.TemporaryDirectory() as d:
         vtu = os.path.join(d, "u.pvtu" if ranks > 1 else "u.vtu")
         report_file = os.path.join(d, "r.json")
-        cmd = [HTFETI, "solve", *args, "--report", report_file, "--vtu", vtu]
+        xdmf = os.path.join(d, "u.xdmf")
+        cmd = [HTFETI, "solve", *args, "--report", report_file, "--vtu", vtu, "--xdmf", xdmf]
         if ranks > 1:
             cmd = [MPIEXEC, "-n", str(ranks), *FLAGS, *cmd]
         env = dict(os.environ, OMP_NUM_THREADS="1")
@@ -84,6 +137,7 @@ def run_case(name, args, ranks):
         u = array(grid, "point", "u")
         if not check(u is not None, f"{name}: no point array u"):
             return
+        check_xdmf(name, xdmf, grid)
         u = u.reshape(n_points, -1)
         dpn = r["primal_dimension"] // n_points if n_points else 0
         check(n_points * dpn == r["primal_dimension"] and (dpn == 1) != elastic,

@@ -24,8 +24,10 @@ namespace htfeti {
 struct OutputOptions {
   std::string report = "htfeti-report.json";
   std::string vtu = "htfeti-solution.vtu";
+  std::string xdmf;  ///< XDMF + HDF5 output (none by default)
   bool write_report = true;
   bool write_vtu = true;
+  bool write_xdmf = false;
   bool vtu_ascii = false;
   VtuIo vtu_io = VtuIo::automatic;
 };

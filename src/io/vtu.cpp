@@ -1,6 +1,7 @@
 #include "htfeti/io/vtu.hpp"
 
 #include <fcntl.h>
+#include <hdf5.h>
 #include <omp.h>
 #include <unistd.h>
 
@@ -194,6 +195,13 @@ class PieceWriter {
   /// Binary, streamed (see the definition); returns the I/O used ("buffered" or "direct").
   std::string write_binary(const std::vector<int>& subdomains, const std::string& piece,
                            const std::string& tmp, const VtuOptions& options);
+  /// XDMF: every array (offsets and types aside) as one dataset of the whole mesh in the open
+  /// HDF5 file (collective); this rank's values start at its first point and cell.
+  void write_hdf5(const std::vector<int>& subdomains, hid_t file, const Comm& comm,
+                  std::int64_t& points, std::int64_t& cells, std::string& error);
+  /// The XDMF text for datasets in `h5` (a file name beside the XDMF file).
+  std::string xdmf_text(const std::string& h5, std::int64_t points, std::int64_t cells,
+                        CellType type) const;
 
  private:
   // Where each subdomain's values start in each array, from the mesh sizes.
@@ -488,6 +496,139 @@ std::string PieceWriter::write_binary(const std::vector<int>& subdomains, const 
   return dfd >= 0 ? "direct" : "buffered";
 }
 
+// HDF5 calls return a negative value or id on failure (their error stack printing is off).
+hid_t h5_check(hid_t id, const char* what) {
+  if (id < 0) throw std::runtime_error(std::string("HDF5: ") + what + " failed");
+  return id;
+}
+
+hid_t h5_type(const std::string& vtk_type) {
+  return vtk_type == "Float64" ? H5T_NATIVE_DOUBLE
+         : vtk_type == "Int32" ? H5T_NATIVE_INT32
+                               : H5T_NATIVE_INT64;
+}
+
+// Dataset names: the VTU array names, "points" and "cells" for the mesh.
+std::string h5_name(const std::string& vtu_name) {
+  return vtu_name == "Points" ? "points" : vtu_name == "connectivity" ? "cells" : vtu_name;
+}
+
+// Each array becomes a dataset [points or cells] x [components] (cells: [cells] x [corners per
+// cell], global point ids). Dataset creation and the file's closing are collective; the values
+// are written subdomain by subdomain with independent transfers, one hyperslab each.
+void PieceWriter::write_hdf5(const std::vector<int>& subdomains, hid_t file, const Comm& comm,
+                             std::int64_t& points, std::int64_t& cells, std::string& error) {
+  const int ns = static_cast<int>(subdomains.size());
+  std::vector<std::int64_t> nodes(ns + 1, 0), cellc(ns + 1, 0);
+  int corners = 0;
+  try {
+    for (int i = 0; i < ns; ++i) {
+      const Model::MeshCounts m = model_.mesh_counts(subdomains[i]);
+      nodes[i + 1] = nodes[i] + m.points, cellc[i + 1] = cellc[i] + m.cells;
+      if (m.cells > 0) corners = static_cast<int>(m.corners / m.cells);
+    }
+  } catch (const std::exception& e) {
+    error = e.what();
+  }
+  corners = static_cast<int>(comm.max(static_cast<double>(corners)));
+  long long first[2] = {nodes[ns], cellc[ns]}, total[2] = {0, 0};
+  MPI_Exscan(MPI_IN_PLACE, first, 2, MPI_LONG_LONG, MPI_SUM, comm.raw());
+  if (comm.rank() == 0) first[0] = first[1] = 0;
+  total[0] = comm.sum(static_cast<long long>(nodes[ns]));
+  total[1] = comm.sum(static_cast<long long>(cellc[ns]));
+  points = total[0], cells = total[1];
+  std::vector<const Array*> arrays;  // (offsets and types are VTK's cell layout, not needed)
+  for (const Array* a : arrays_)
+    if (a->name != "offsets" && a->name != "types") arrays.push_back(a);
+  std::vector<hid_t> sets, types;
+  std::vector<char> by_point;
+  for (const Array* a : arrays) {
+    const bool point = a == &coords_ ||
+                       std::any_of(pa_.begin(), pa_.end(), [&](const Array& p) { return &p == a; });
+    const int width = a->name == "connectivity" ? corners : a->components;
+    const hsize_t dims[2] = {static_cast<hsize_t>(point ? total[0] : total[1]),
+                             static_cast<hsize_t>(width)};
+    const hid_t space = h5_check(H5Screate_simple(2, dims, nullptr), "H5Screate_simple");
+    types.push_back(h5_type(a->name == "connectivity" ? "Int64" : a->type));
+    by_point.push_back(point);
+    sets.push_back(h5_check(H5Dcreate2(file, h5_name(a->name).c_str(), types.back(), space,
+                                       H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT),
+                            "H5Dcreate2"));
+    H5Sclose(space);
+  }
+  Buffers b;
+  for (int i = 0; i < ns && error.empty(); ++i) {
+    try {
+      b.clear();
+      const SubdomainMesh m = model_.mesh(subdomains[i]);
+      if (m.num_nodes() != nodes[i + 1] - nodes[i] || m.num_cells() != cellc[i + 1] - cellc[i])
+        throw std::logic_error("XDMF: the mesh of subdomain " + std::to_string(m.id) +
+                               " differs from its counted size");
+      std::int64_t off = 0;
+      fill(i, m, first[0] + nodes[i], off, b);  // point ids: global
+      for (size_t k = 0; k < arrays.size(); ++k) {
+        const Array& a = *arrays[k];
+        const auto [data, bytes] =
+            a.name == "connectivity"
+                ? std::pair<const char*, size_t>(reinterpret_cast<const char*>(b.conn.data()),
+                                                 b.conn.size() * sizeof(std::int64_t))
+                : bytes_of(a, b);
+        const bool point = by_point[k];
+        const hsize_t start[2] = {
+            static_cast<hsize_t>(point ? first[0] + nodes[i] : first[1] + cellc[i]), 0};
+        const hsize_t count[2] = {
+            static_cast<hsize_t>(point ? nodes[i + 1] - nodes[i] : cellc[i + 1] - cellc[i]),
+            static_cast<hsize_t>(a.name == "connectivity" ? corners : a.components)};
+        if (count[0] == 0) continue;
+        if (bytes != count[0] * count[1] * H5Tget_size(types[k]))
+          throw std::logic_error("XDMF: array " + a.name + " has an unexpected size");
+        const hid_t space = h5_check(H5Dget_space(sets[k]), "H5Dget_space");
+        H5Sselect_hyperslab(space, H5S_SELECT_SET, start, nullptr, count, nullptr);
+        const hid_t mem = h5_check(H5Screate_simple(2, count, nullptr), "H5Screate_simple");
+        const herr_t status = H5Dwrite(sets[k], types[k], mem, space, H5P_DEFAULT, data);
+        H5Sclose(mem), H5Sclose(space);
+        if (status < 0) throw std::runtime_error("HDF5: writing " + a.name + " failed");
+      }
+    } catch (const std::exception& e) {
+      error = e.what();
+    }
+  }
+  for (hid_t s : sets) H5Dclose(s);
+}
+
+std::string PieceWriter::xdmf_text(const std::string& h5, std::int64_t points, std::int64_t cells,
+                                   CellType type) const {
+  const char* topology = type == CellType::tri3    ? "Triangle"
+                         : type == CellType::quad4 ? "Quadrilateral"
+                         : type == CellType::tet4  ? "Tetrahedron"
+                                                   : "Hexahedron";
+  std::ostringstream o;
+  auto item = [&](std::int64_t rows, int columns, const std::string& vtk_type,
+                  const std::string& name) {
+    const bool real = vtk_type == "Float64";
+    o << "<DataItem Dimensions=\"" << rows << " " << columns << "\" NumberType=\""
+      << (real ? "Float" : "Int") << "\" Precision=\"" << (vtk_type == "Int32" ? 4 : 8)
+      << "\" Format=\"HDF\">" << h5 << ":/" << name << "</DataItem>\n";
+  };
+  o << "<?xml version=\"1.0\" ?>\n<!DOCTYPE Xdmf SYSTEM \"Xdmf.dtd\" []>\n"
+       "<Xdmf Version=\"2.0\">\n<Domain>\n<Grid Name=\"htfeti\" GridType=\"Uniform\">\n"
+    << "<Topology TopologyType=\"" << topology << "\" NumberOfElements=\"" << cells << "\">\n";
+  item(cells, cell_nodes(type), "Int64", "cells");
+  o << "</Topology>\n<Geometry GeometryType=\"XYZ\">\n";
+  item(points, 3, "Float64", "points");
+  o << "</Geometry>\n";
+  for (const auto* group : {&pa_, &ca_})
+    for (const Array& a : *group) {
+      o << "<Attribute Name=\"" << a.name << "\" AttributeType=\""
+        << (a.components == 3 ? "Vector" : "Scalar") << "\" Center=\""
+        << (group == &pa_ ? "Node" : "Cell") << "\">\n";
+      item(group == &pa_ ? points : cells, a.components, a.type, a.name);
+      o << "</Attribute>\n";
+    }
+  o << "</Grid>\n</Domain>\n</Xdmf>\n";
+  return o.str();
+}
+
 // The parallel file that lists the ranks' pieces (rank 0, several ranks).
 void write_pvtu(const std::string& tmp, const std::vector<std::string>& files, bool elastic,
                 bool friction,
@@ -569,6 +710,75 @@ VtuWritten write_vtu(const std::string& path, const Model& model, DualProblem& d
   comm.agree(ec ? "cannot rename the output to " + piece + ": " + ec.message() : "");
   written.path = files[0];
   return written;
+}
+
+std::vector<std::string> xdmf_files(const std::string& path) {
+  std::filesystem::path h5(path);
+  h5.replace_extension(".h5");
+  return {path, h5.string()};
+}
+
+// As write_vtu: the fields first (collective), then the HDF5 file under a temporary name, written
+// by all ranks through MPI-IO, and the XDMF text by rank 0; renamed into place only when every
+// rank succeeded.
+void write_xdmf(const std::string& path, const Model& model, DualProblem& dual,
+                const std::vector<Eigen::VectorXd>& u, const Eigen::VectorXd& lambda) {
+  const Comm& comm = dual.comm();
+  const auto files = xdmf_files(path);
+  // One temporary name on every rank (temporary names carry the process id): rank 0's.
+  const std::string xdmf_tmp = temp_name(files[0]);
+  std::string h5_tmp = temp_name(files[1]);
+  int length = static_cast<int>(h5_tmp.size());
+  MPI_Bcast(&length, 1, MPI_INT, 0, comm.raw());
+  h5_tmp.resize(static_cast<size_t>(length));
+  MPI_Bcast(h5_tmp.data(), length, MPI_CHAR, 0, comm.raw());
+  const bool contact = dual.has_inequalities();
+  std::vector<int> subdomains;
+  for (const auto& s : dual.subdomains()) subdomains.push_back(s->id());
+  auto forces = dual.contact_forces(lambda);  // (collective, in this order on every rank)
+  auto gaps = dual.contact_gap_field(u);
+  auto fields = dual.contact_fields(u, lambda);
+  PieceWriter writer(model, u, std::move(forces), std::move(gaps), std::move(fields), contact,
+                     dual.has_friction(), comm.rank());
+  int type = subdomains.empty() ? -1 : static_cast<int>(model.mesh(subdomains[0]).type);
+  type = static_cast<int>(comm.max(static_cast<double>(type)));
+  std::string error;
+  H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);
+  const hid_t fapl = H5Pcreate(H5P_FILE_ACCESS);
+  H5Pset_fapl_mpio(fapl, comm.raw(), MPI_INFO_NULL);
+  const hid_t file = H5Fcreate(h5_tmp.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, fapl);
+  H5Pclose(fapl);
+  comm.agree(file < 0 ? "cannot create " + files[1] : "");  // (H5Fcreate is collective)
+  std::int64_t points = 0, cells = 0;
+  try {
+    writer.write_hdf5(subdomains, file, comm, points, cells, error);
+  } catch (const std::exception& e) {
+    error = e.what();
+  }
+  if (H5Fclose(file) < 0 && error.empty()) error = "error while writing " + files[1];
+  if (error.empty() && comm.rank() == 0) {
+    try {
+      write_atomically(xdmf_tmp,
+                       writer.xdmf_text(std::filesystem::path(files[1]).filename().string(), points,
+                                        cells, static_cast<CellType>(type)));
+    } catch (const std::exception& e) {
+      error = e.what();
+    }
+  }
+  try {
+    comm.agree(error);
+  } catch (...) {
+    std::error_code ec;
+    if (comm.rank() == 0)
+      std::filesystem::remove(h5_tmp, ec), std::filesystem::remove(xdmf_tmp, ec);
+    throw;
+  }
+  std::error_code ec;
+  if (comm.rank() == 0) {
+    std::filesystem::rename(h5_tmp, files[1], ec);
+    if (!ec) std::filesystem::rename(xdmf_tmp, files[0], ec);
+  }
+  comm.agree(ec ? "cannot rename the output to " + files[0] + ": " + ec.message() : "");
 }
 
 }  // namespace htfeti

@@ -50,4 +50,15 @@ VtuWritten write_vtu(const std::string& path, const Model& model, DualProblem& d
                      const std::vector<Eigen::VectorXd>& u, const Eigen::VectorXd& lambda,
                      const VtuOptions& options = {});
 
+/// The XDMF output: FILE.xdmf (or .xmf), light XML that ParaView opens, and beside it FILE.h5,
+/// one HDF5 file written by all ranks at once (MPI-IO through parallel HDF5): the same points,
+/// cells and arrays as the VTU, each a dataset of the whole mesh (/points, /cells with global
+/// point ids, /u, ..., /subdomain, /von_mises), rank r's values after those of ranks < r.
+/// Returns {xdmf, h5} for a given path.
+std::vector<std::string> xdmf_files(const std::string& path);
+
+/// Writes the XDMF output (collective); as write_vtu, nothing is left behind on failure.
+void write_xdmf(const std::string& path, const Model& model, DualProblem& dual,
+                const std::vector<Eigen::VectorXd>& u, const Eigen::VectorXd& lambda);
+
 }  // namespace htfeti

@@ -660,6 +660,34 @@ void write_pvtu(const std::string& tmp, const std::vector<std::string>& files, b
   if (!o) throw std::runtime_error("error while writing " + files[0]);
 }
 
+// The writer of this rank's subdomains (listed in `subdomains`), with the contact fields
+// computed first (collective, in this order on every rank).
+std::unique_ptr<PieceWriter> make_writer(const Model& model, DualProblem& dual,
+                                         const std::vector<Eigen::VectorXd>& u,
+                                         const Eigen::VectorXd& lambda,
+                                         std::vector<int>& subdomains) {
+  subdomains.clear();
+  for (const auto& s : dual.subdomains()) subdomains.push_back(s->id());
+  auto forces = dual.contact_forces(lambda);
+  auto gaps = dual.contact_gap_field(u);
+  auto fields = dual.contact_fields(u, lambda);
+  return std::make_unique<PieceWriter>(model, u, std::move(forces), std::move(gaps),
+                                       std::move(fields), dual.has_inequalities(),
+                                       dual.has_friction(), dual.comm().rank());
+}
+
+// Every rank's error agreed on; on one, `temporaries` (this rank's) are removed and it throws.
+void agree_or_remove(const Comm& comm, const std::string& error,
+                     const std::vector<std::string>& temporaries) {
+  try {
+    comm.agree(error);
+  } catch (...) {
+    std::error_code ec;
+    for (const auto& f : temporaries) std::filesystem::remove(f, ec);
+    throw;
+  }
+}
+
 }  // namespace
 
 // The fields are computed first (collective), then every rank writes its piece under a temporary
@@ -677,13 +705,8 @@ VtuWritten write_vtu(const std::string& path, const Model& model, DualProblem& d
   const bool elastic = model.physics().kind == PhysicsKind::elasticity;
   const bool contact = dual.has_inequalities();
   std::vector<int> subdomains;
-  for (const auto& s : dual.subdomains()) subdomains.push_back(s->id());
-  auto forces = dual.contact_forces(lambda);  // (collective, in this order on every rank)
-  auto gaps = dual.contact_gap_field(u);
-  auto fields = dual.contact_fields(u, lambda);
-  PieceWriter writer(model, u, std::move(forces), std::move(gaps), std::move(fields), contact,
-                     dual.has_friction(),
-                     comm.rank());
+  const auto made = make_writer(model, dual, u, lambda, subdomains);
+  PieceWriter& writer = *made;
   std::string error;
   try {
     if (options.ascii)
@@ -695,14 +718,9 @@ VtuWritten write_vtu(const std::string& path, const Model& model, DualProblem& d
   } catch (const std::exception& e) {
     error = e.what();
   }
-  try {
-    comm.agree(error);
-  } catch (...) {
-    std::error_code ec;
-    std::filesystem::remove(piece_tmp, ec);
-    if (comm.rank() == 0 && comm.size() > 1) std::filesystem::remove(temp_name(files[0]), ec);
-    throw;
-  }
+  std::vector<std::string> temporaries{piece_tmp};
+  if (comm.rank() == 0 && comm.size() > 1) temporaries.push_back(temp_name(files[0]));
+  agree_or_remove(comm, error, temporaries);
   std::error_code ec;
   std::filesystem::rename(piece_tmp, piece, ec);
   if (!ec && comm.rank() == 0 && comm.size() > 1)
@@ -732,14 +750,9 @@ void write_xdmf(const std::string& path, const Model& model, DualProblem& dual,
   MPI_Bcast(&length, 1, MPI_INT, 0, comm.raw());
   h5_tmp.resize(static_cast<size_t>(length));
   MPI_Bcast(h5_tmp.data(), length, MPI_CHAR, 0, comm.raw());
-  const bool contact = dual.has_inequalities();
   std::vector<int> subdomains;
-  for (const auto& s : dual.subdomains()) subdomains.push_back(s->id());
-  auto forces = dual.contact_forces(lambda);  // (collective, in this order on every rank)
-  auto gaps = dual.contact_gap_field(u);
-  auto fields = dual.contact_fields(u, lambda);
-  PieceWriter writer(model, u, std::move(forces), std::move(gaps), std::move(fields), contact,
-                     dual.has_friction(), comm.rank());
+  const auto made = make_writer(model, dual, u, lambda, subdomains);
+  PieceWriter& writer = *made;
   int type = subdomains.empty() ? -1 : static_cast<int>(model.mesh(subdomains[0]).type);
   type = static_cast<int>(comm.max(static_cast<double>(type)));
   std::string error;
@@ -765,14 +778,9 @@ void write_xdmf(const std::string& path, const Model& model, DualProblem& dual,
       error = e.what();
     }
   }
-  try {
-    comm.agree(error);
-  } catch (...) {
-    std::error_code ec;
-    if (comm.rank() == 0)
-      std::filesystem::remove(h5_tmp, ec), std::filesystem::remove(xdmf_tmp, ec);
-    throw;
-  }
+  agree_or_remove(
+      comm, error,
+      comm.rank() == 0 ? std::vector<std::string>{h5_tmp, xdmf_tmp} : std::vector<std::string>{});
   std::error_code ec;
   if (comm.rank() == 0) {
     std::filesystem::rename(h5_tmp, files[1], ec);

@@ -83,8 +83,6 @@ int cell_facet_measures(const Mesh& mesh, int e, double* out) {
 void split_cells_by_area(const Mesh& mesh, const std::vector<int>* cells, idx_t nparts,
                          idx_t* options, idx_t* out) {
   const int ne = cells ? static_cast<int>(cells->size()) : mesh.num_cells();
-  std::vector<int> local(mesh.num_cells(), -1);
-  for (int i = 0; i < ne; ++i) local[cells ? (*cells)[i] : i] = i;
   const int nc = cell_nodes(mesh.type), nf = cell_facet_count(mesh.type);
   std::vector<std::pair<FacetKey, int>> f;  // (key, local cell * nf + facet) of the subset
   f.reserve(static_cast<size_t>(ne) * nf);

@@ -220,6 +220,10 @@ class PieceWriter {
   void fill(int i, const SubdomainMesh& m, std::int64_t base, std::int64_t& off, Buffers& b) const;
   std::pair<const char*, size_t> bytes_of(const Array& a, const Buffers& b) const;
   bool use_int32(std::int64_t points, std::int64_t corners);
+  bool by_points(const Array* a) const {  // one value (tuple) per point, else per cell or corner
+    return a == &coords_ ||
+           std::any_of(pa_.begin(), pa_.end(), [&](const Array& p) { return &p == a; });
+  }
   Layout layout(const std::vector<int>& subdomains);
   void fill_checked(const std::vector<int>& subdomains, const Layout& L, int i, Buffers& b) const;
   // The two ways the values reach the file (write_binary); each records its first error.
@@ -360,8 +364,7 @@ PieceWriter::Layout PieceWriter::layout(const std::vector<int>& subdomains) {
   L.P = L.nodes[ns], L.C = L.cells[ns], L.K = L.corners[ns];
   L.narrow = use_int32(L.P, L.K);
   for (const Array* a : arrays_) {
-    const bool point = a == &coords_ || std::any_of(pa_.begin(), pa_.end(),
-                                                    [&](const Array& p) { return &p == a; });
+    const bool point = by_points(a);
     const std::uint64_t width = a->type == "Float64" || a->type == "Int64" ? 8
                                 : a->type == "Int32"                       ? 4
                                                                            : 1;
@@ -543,8 +546,7 @@ void PieceWriter::write_hdf5(const std::vector<int>& subdomains, hid_t file, con
   std::vector<hid_t> sets, types;
   std::vector<char> by_point;
   for (const Array* a : arrays) {
-    const bool point = a == &coords_ ||
-                       std::any_of(pa_.begin(), pa_.end(), [&](const Array& p) { return &p == a; });
+    const bool point = by_points(a);
     const int width = a->name == "connectivity" ? corners : a->components;
     const hsize_t dims[2] = {static_cast<hsize_t>(point ? total[0] : total[1]),
                              static_cast<hsize_t>(width)};

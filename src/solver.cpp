@@ -145,7 +145,8 @@ QpSolve solve_with_contact(DualProblem& dual, DualOperators& ops, Vec& lambda,
       y += (v - pw) / rho;
     };
   Vec x = Vec::Zero(n);
-  auto r = qp::smalbe(qp, normA, x, red, so, hooks, progress);
+  Vec nu;  // the equality's multiplier: each Coulomb solve starts from the last one's
+  auto r = qp::smalbe(qp, normA, x, red, so, hooks, progress, &nu);
   lambda = qp.shift + x;
   QpSolve out;
   out.outer = r.outer_iterations;
@@ -154,9 +155,10 @@ QpSolve solve_with_contact(DualProblem& dual, DualOperators& ops, Vec& lambda,
   out.converged = r.reason == qp::StopReason::converged;
   out.reason = to_string(r.reason);
   // Coulomb friction: the fixed point on the slip bound. The first solve had no bound on the
-  // Coulomb rows (it sticks, and has a solution whenever the normal contact holds the bodies);
-  // each next one takes mu lambda_n of the last and starts from its solution (the set changes,
-  // the QP's operators and shift do not).
+  // Coulomb rows whose gap was closed (they stick: a solution whenever the normal contact holds
+  // the bodies) and bound 0 on the open ones (constraints.cpp);
+  // each next one takes mu lambda_n of the last and starts from its solution and its equality
+  // multiplier (the set changes, the QP's operators and shift do not).
   nlohmann::json history = nlohmann::json::array();
   bool fixed_point = !dual.has_coulomb();
   int solves = 1;
@@ -173,7 +175,7 @@ QpSolve solve_with_contact(DualProblem& dual, DualOperators& ops, Vec& lambda,
     if (it >= options.coulomb_max_iterations) break;
     dual.update_coulomb_bounds(lambda, true);
     qp.constraints = dual.constraint_set()->shifted(qp.shift);
-    r = qp::smalbe(qp, normA, x, red, so, hooks, progress);
+    r = qp::smalbe(qp, normA, x, red, so, hooks, progress, &nu);
     ++solves;
     lambda = qp.shift + x;
     out.outer += r.outer_iterations;

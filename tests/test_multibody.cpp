@@ -324,6 +324,32 @@ TEST(Multibody, FrictionBetweenBodiesTransmitsTheBoundAtFullSlip) {
   }
 }
 
+// The upper block held by friction alone: no roller on its side, a sideways traction q = p / 10
+// on its top, Coulomb's mu = 0.5 between the blocks. Nothing else holds it sideways, so the
+// contact's tangential force balances q exactly; q < mu p, so most of the contact sticks (in 3D
+// the moment of q opens the trailing edge and the nodes next to it slip). Coulomb's first solve
+// sticks on the rows whose gap is closed at the start (all of them here): a frictionless start
+// would have no solution.
+TEST(Multibody, BodyHeldByFrictionAloneUnderASidewaysLoad) {
+  Comm comm;
+  for (const char* mesh : {"two-squares-quad.msh", "two-cubes-hex.msh"}) {
+    ProblemSpec s = stacked_blocks(mesh, true, false);
+    const bool three = std::string(mesh).find("cubes") != std::string::npos;
+    s.loads[0].value[0] = 0.1 * kPressure;
+    s.contact[0].friction_coefficient = 0.5;
+    SolveOptions opt;
+    opt.rtol = 1e-10;
+    const auto out = solve(std::shared_ptr<const Model>(make_model(s)), opt, comm);
+    ASSERT_TRUE(out.converged) << mesh << ": " << out.report["stop_reason"];
+    const auto& c = out.report["contact_summary"][0];
+    EXPECT_GT(c["stick_nodes"].get<long long>(), c["slip_nodes"].get<long long>()) << mesh;
+    const double tx =
+        three ? c["tangential_force"][0].get<double>() : c["tangential_force"].get<double>();
+    EXPECT_NEAR(std::abs(tx), 0.1 * kPressure, 1e-7 * kPressure) << mesh;
+    if (three) EXPECT_NEAR(c["tangential_force"][1].get<double>(), 0.0, 1e-7 * kPressure);
+  }
+}
+
 // An obstacle and a pair in one problem: the upper block pressed on the lower one, both on a
 // frictionless floor at y = 0 (an obstacle under the lower block, instead of its rollers): the
 // rows of both kinds on the same subdomains, the contact summary in the file's order.

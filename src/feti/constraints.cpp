@@ -276,11 +276,18 @@ void subdomain_rows(const FetiLayout& L, const SubdomainInput& in, std::vector<L
         row.direction = t[m];
         row.side = c.side;  // the contact force -B_I^T lambda takes it (contact_forces)
         row.key_node = c.key;
-        // Coulomb's rows start unbounded (the first solve sticks: it has a solution whenever
-        // the normal contact holds the body, also under a tangential load).
+        // Coulomb's first solve: unbounded (stick) where the gap is closed at the start, so
+        // that it has a solution whenever the normal contact holds the body, also under a
+        // tangential load; frictionless (bound 0) where the gap is open, as the fixed point's
+        // next bound mu lambda_n = 0 is there unless the gap closes. (Sticking across an open
+        // gap would glue the bodies along the tangents of surfaces far apart: on the 3D
+        // Cattaneo-Mindlin sphere that first solve took 41,000 CG steps, the rest 7,000.)
+        // "Closed": gap <= 1e-8 sqrt(A) (2D: 1e-8 A), the node's contact area A as length scale.
         // (the row's force is W scale lambda: |W scale lambda| <= g A)
+        const double closed = 1e-8 * (dpn == 3 ? std::sqrt(c.area) : c.area);
         row.bound = c.slip_bound >= 0 ? c.slip_bound * c.area / (scale * c.weight)
-                                      : std::numeric_limits<double>::infinity();
+                    : c.gap <= closed ? std::numeric_limits<double>::infinity()
+                                      : 0.0;
         row.mu = c.friction_coefficient;
         for (int i = 0; i < dpn; ++i)
           if (row.direction[i] != 0.0)

@@ -9,7 +9,8 @@
 namespace htfeti::qp {
 
 SmalbeResult smalbe(const QuadraticProgram& qp, double normA, Vec& x, const Reducer& red,
-                    const SmalbeOptions& opt, const SmalbeHooks& hooks, const Progress& progress) {
+                    const SmalbeOptions& opt, const SmalbeHooks& hooks, const Progress& progress,
+                    Vec* multiplier) {
   qp.check();
   // MPRGP solves the inner problems on bounds (lower, or a box), MPGP on a separable set with
   // discs (Tresca friction in 3D); the outer loop is the same for both.
@@ -75,10 +76,14 @@ SmalbeResult smalbe(const QuadraticProgram& qp, double normA, Vec& x, const Redu
   image.tx = Vec::Zero(n);  // set by MPRGP's first application of H to the start x
   mo.image = &image;
   Vec nu = Vec::Zero(n), rhs(n), g(n), lag(n);
+  if (multiplier && multiplier->size() == n) nu = *multiplier;
+  if (multiplier && multiplier->size() != 0 && multiplier->size() != n)
+    throw std::invalid_argument("SMALBE-M: the multiplier has the wrong size");
   MprgpWorkspace work;  // shared by all inner solves: no allocation inside the outer loop
   double L_prev = 0;
   double qnorm = 0, qnorm_prev = 0;
   int stalls = 0;  // consecutive stalled outer iterations (step 4)
+  int idle = 0;    // consecutive inner solves without a step (step 3)
   bool global_stop = false;
   bool late = false;  // an inner solve has met the gradient test: only feasibility is left
   // The inner stopping test with ||G x|| = ||Q x|| from the tracked image (no projection); the
@@ -129,7 +134,12 @@ SmalbeResult smalbe(const QuadraticProgram& qp, double normA, Vec& x, const Redu
     const double rho = H.rho();
     nu += rho * qx;  // mu^{k+1} = mu^k + rho G x^k, kept as nu = G' mu
     g += rho * qx;   // the gradient of L moves with nu; x does not change
-    if (k > 0 && L < L_prev + 0.5 * rho * qnorm * qnorm) M /= opt.beta;
+    // Also after kIdleCount consecutive inner solves that took no step before the gradient
+    // test was met: x stays, so the test above cannot pass (L grows by exactly rho ||G x||^2),
+    // and only mu moves, by rho G x per outer iteration, until g^P outgrows M ||G x|| (on a
+    // body held by friction alone that took hundreds of outer iterations).
+    idle = inner.iterations == 0 && inner.projected_gradient > grad_tol ? idle + 1 : 0;
+    if ((k > 0 && L < L_prev + 0.5 * rho * qnorm * qnorm) || idle >= kIdleCount) M /= opt.beta;
     L_prev = L;
     // Step 4: the late penalty update, also when the multiplier updates stall: an inner solve
     // that took no step and ||G x|| down by less than kStallFactor since the last outer
@@ -150,6 +160,7 @@ SmalbeResult smalbe(const QuadraticProgram& qp, double normA, Vec& x, const Redu
   }
   res.rho = H.rho();
   res.hessian_applications = H.count();
+  if (multiplier) *multiplier = nu;
   return res;
 }
 

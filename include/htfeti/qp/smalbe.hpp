@@ -10,6 +10,10 @@
 //      g = H_rho x - b + nu (the gradient of the augmented Lagrangian L);
 //   2. nu^{k+1} = nu^k + rho Q x^k;
 //   3. if L(x^k, mu^k) < L(x^{k-1}, mu^{k-1}) + rho/2 ||G x^k||^2, then M_{k+1} = M_k / beta;
+//      also after kIdleCount consecutive inner solves that took no step with the gradient test
+//      unmet (x is then unchanged and the test cannot pass: L grows by rho ||G x||^2 exactly;
+//      only mu moves, and on a body held by friction alone it crept for hundreds of outer
+//      iterations before g^P outgrew M ||G x||);
 //   4. late penalty update (PERMON's SMALXE, rho_update_late): once an inner solve has ended
 //      with the gradient test ||g^P|| <= tol met and only the equality test left, rho is
 //      multiplied by rho_update_late after every outer iteration whose equality residual
@@ -51,6 +55,9 @@ inline constexpr double kMaxRhoGrowth = 1024.0;
 /// this factor; kStallCount consecutive stalls raise rho (step 4).
 inline constexpr double kStallFactor = 0.9;
 inline constexpr int kStallCount = 5;
+/// After this many consecutive outer iterations whose inner solve took no step (x unchanged, the
+/// gradient test not met), each further one divides M by beta (step 3).
+inline constexpr int kIdleCount = 10;
 
 struct SmalbeOptions {
   double rtol = 1e-4;            ///< relative precision eps (paper: 1e-4)
@@ -97,9 +104,11 @@ struct SmalbeHooks {
 
 /// qp: bounds (LowerBounds or BoxBounds) and an equality projector are required
 /// (std::invalid_argument otherwise). normA: an estimate of ||A|| (estimate_norm). x: start in,
-/// solution out (of qp; its shift is the caller's to add).
+/// solution out (of qp; its shift is the caller's to add). multiplier (optional): nu = G' mu,
+/// the equality's multiplier, to start from (zero when empty) and its last value out; with x it
+/// warm-starts a sequence of QPs that differ only in their bounds (Coulomb's fixed point).
 SmalbeResult smalbe(const QuadraticProgram& qp, double normA, Vec& x, const Reducer& red,
                     const SmalbeOptions& options, const SmalbeHooks& hooks = {},
-                    const Progress& progress = {});
+                    const Progress& progress = {}, Vec* multiplier = nullptr);
 
 }  // namespace htfeti::qp

@@ -212,6 +212,30 @@ TEST(TrescaFriction3D, FullSlipTransmitsTheBoundTimesTheArea) {
   EXPECT_NEAR(c["resultant"][2].get<double>(), kPressure * area, 1e-8 * kPressure * area);
 }
 
+// The same block on rollers at y = 0 (a symmetry plane): its 5 nodes on the bottom edge there
+// can only slip along x. They keep one tangential row each, along x (an interval, not a disc:
+// a second row along y would repeat the roller, and as half of a disc would take an arbitrary
+// share of the bound), so the full slip still transmits g A.
+TEST(TrescaFriction3D, NodesOnARollerPlaneSlipAlongIt) {
+  Comm comm;
+  const double g = 1.0, area = kSide * kSide;
+  ProblemSpec spec = block3d_on_plane(0.1, g);
+  spec.dirichlet.push_back({"y0", {0, 0, 0}, {1}});
+  const auto out = run(spec, comm);
+  ASSERT_TRUE(out.converged) << out.report["stop_reason"];
+  EXPECT_EQ(out.report["friction_rows"].get<long long>(), 2 * 20 + 5);
+  const auto& c = out.report["contact_summary"][0];
+  EXPECT_EQ(c["slip_nodes"].get<long long>(), 25);
+  const auto t = c["tangential_force"].get<std::vector<double>>();
+  EXPECT_NEAR(t[0], -g * area, 1e-8 * g * area);
+  // On rollers at x = 0 as well, the corner node (0, 0, 0) cannot slip: no tangential row.
+  spec.dirichlet.push_back({"x0", {0, 0, 0}, {0}});
+  spec.dirichlet[0].value = {0, 0, 0};  // the drag would fight the roller at x = 0
+  const auto held = run(spec, comm);
+  ASSERT_TRUE(held.converged) << held.report["stop_reason"];
+  EXPECT_EQ(held.report["friction_rows"].get<long long>(), 2 * 16 + 8);
+}
+
 TEST(TrescaFriction3D, SmallDragSticksAndAZeroBoundIsFrictionless) {
   Comm comm;
   const auto stuck = run(block3d_on_plane(1e-5, 1.0), comm);

@@ -350,6 +350,36 @@ TEST(Multibody, BodyHeldByFrictionAloneUnderASidewaysLoad) {
   }
 }
 
+// The same drag in 3D with both blocks on rollers at y = 0 (a symmetry plane): the slave nodes
+// there slip along x only and keep one tangential row each (an interval), so the full slip
+// still transmits g A or mu p A.
+TEST(Multibody, FrictionOnARollerPlaneTransmitsTheBoundAtFullSlip) {
+  Comm comm;
+  for (const char* law : {"tresca", "coulomb"}) {
+    ProblemSpec s = stacked_blocks("two-cubes-hex.msh", true, false);
+    s.dirichlet.clear();
+    s.dirichlet.push_back({"bottom", {0, 0, 0}, {}});
+    s.dirichlet.push_back({"top", {0.5, 0, 0}, {0, 1}});
+    s.dirichlet.push_back({"lower_y0", {0, 0, 0}, {1}});
+    s.dirichlet.push_back({"upper_y0", {0, 0, 0}, {1}});
+    s.physics.material.poisson = 0.0;
+    if (std::string(law) == "tresca")
+      s.contact[0].slip_bound = 1.0;
+    else
+      s.contact[0].friction_coefficient = 0.2;
+    SolveOptions opt;
+    opt.rtol = 1e-10;
+    const auto out = solve(std::shared_ptr<const Model>(make_model(s)), opt, comm);
+    ASSERT_TRUE(out.converged) << law << ": " << out.report["stop_reason"];
+    const auto& c = out.report["contact_summary"][0];
+    EXPECT_EQ(c["stick_nodes"].get<long long>(), 0) << law;
+    // Every slave node has two rows but those on y = 0, which have one.
+    EXPECT_LT(out.report["friction_rows"].get<long long>(), 2 * c["rows"].get<long long>()) << law;
+    const double expected = std::string(law) == "tresca" ? -1.0 : -0.2 * kPressure;
+    EXPECT_NEAR(c["tangential_force"][0].get<double>(), expected, 1e-7 * std::abs(expected)) << law;
+  }
+}
+
 // An obstacle and a pair in one problem: the upper block pressed on the lower one, both on a
 // frictionless floor at y = 0 (an obstacle under the lower block, instead of its rollers): the
 // rows of both kinds on the same subdomains, the contact summary in the file's order.

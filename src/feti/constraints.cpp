@@ -259,14 +259,17 @@ void subdomain_rows(const FetiLayout& L, const SubdomainInput& in, std::vector<L
       // |lambda_t| <= g A / (W scale) summed over the copies of the node (Tresca; A the row's
       // contact area) or mu lambda_n (Coulomb, set between solves). No right-hand side: the
       // tangential displacement is free where the bound is reached (slip), zero below it (stick).
+      // In 3D a node that Dirichlet conditions leave one tangential direction has the row
+      // along c.tangent alone (key index kSingleTangent: an interval, no disc partner).
       const auto& n = c.direction;
       std::array<std::array<double, 3>, 2> t{};
       t[0] = dpn == 2 ? std::array<double, 3>{-n[1], n[0], 0} : c.tangent;
       t[1] = {n[1] * t[0][2] - n[2] * t[0][1], n[2] * t[0][0] - n[0] * t[0][2],
               n[0] * t[0][1] - n[1] * t[0][0]};
-      for (int m = 0; m < dpn - 1; ++m) {
+      const bool single = dpn == 3 && c.tangent_rows == 1;
+      for (int m = 0; m < (single ? 1 : dpn - 1); ++m) {
         row = LocalRow{};
-        row.key = {0, c.node_a, 3, c.condition, m, 0};
+        row.key = {0, c.node_a, 3, c.condition, single ? kSingleTangent : m, 0};
         row.kind = MultiplierKind::friction;
         row.owner_subdomain = c.owner_subdomain;
         row.scale = scale;

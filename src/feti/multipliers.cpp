@@ -196,7 +196,7 @@ void Multipliers::pair_friction_rows(const FetiLayout& fl, const std::vector<Row
       if (normal == owned.end())
         throw std::logic_error("a friction row without its contact row on the same rank");
       friction_normal[k] = normal->second;
-      if (fl.dim == 3) {
+      if (fl.dim == 3 && key[4] != kSingleTangent) {
         if (other == owned.end()) throw std::logic_error("a 3D friction row without its partner");
         friction_partner[k] = other->second;
       }

@@ -192,8 +192,9 @@ DualProblem::ContactRowValues DualProblem::contact_row_values(const std::vector<
       const double sf = multipliers_.contact_scale[f] * multipliers_.contact_weight[f];
       const double t1 = -sf * lambda[f], d1 = (a[f] - b[f]) / sf;
       const double t2 = g >= 0 ? -sf * lambda[g] : 0.0, d2 = g >= 0 ? (a[g] - b[g]) / sf : 0.0;
-      if (area > 0) v.tangential[k] = (g < 0 ? t1 : std::hypot(t1, t2)) / area;
-      v.slip[k] = g < 0 ? d1 : std::hypot(d1, d2);
+      const bool signed_1d = layout_.dim == 2;  // 3D: lengths, also for a single row
+      if (area > 0) v.tangential[k] = (signed_1d ? t1 : std::hypot(t1, t2)) / area;
+      v.slip[k] = signed_1d ? d1 : std::hypot(d1, d2);
       v.state[k] = !(lambda[k] > 0) ? 0.0 : friction_slips(f, lambda, 1e-6) ? 2.0 : 1.0;
     }
   }

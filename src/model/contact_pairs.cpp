@@ -92,6 +92,26 @@ std::array<double, 3> friction_tangent(const std::array<double, 3>& n,
   return t;
 }
 
+FrictionRows friction_rows(const std::array<double, 3>& n, const std::array<double, 3>& t1,
+                           const std::array<bool, 3>& fixed) {
+  FrictionRows f;
+  f.tangent = t1;
+  int in_plane = -1;
+  for (int d = 0; d < 3; ++d)
+    if (fixed[d] && std::abs(n[d]) < 1 - 1e-12) {
+      if (in_plane >= 0) return {0, t1};  // two fixed axes: no tangential motion left
+      in_plane = d;
+    }
+  if (in_plane < 0) return f;
+  // t = n x e_d, normalized: orthogonal to the fixed axis and to n.
+  const int a = (in_plane + 1) % 3, b = (in_plane + 2) % 3;
+  std::array<double, 3> t{0, 0, 0};
+  t[a] = n[b], t[b] = -n[a];
+  const double len = std::hypot(t[a], t[b]);
+  for (double& v : t) v /= len;
+  return {1, t};
+}
+
 ContactPairs::ContactPairs(const ProblemSpec& spec, const Physics& physics, const Mesh& mesh,
                            const MeshPartition& part) {
   const int dpn = physics.dofs_per_node();
@@ -153,7 +173,14 @@ ContactPairs::ContactPairs(const ProblemSpec& spec, const Physics& physics, cons
       } else {
         r.normal = mr.normal;
         r.gap = mr.gap;
-        if (mesh.dim == 3) r.tangent = friction_tangent(r.normal, axis);
+        if (mesh.dim == 3) {
+          const std::array<bool, 3> held{fixed.count({mr.slave_node, 0}) > 0,
+                                         fixed.count({mr.slave_node, 1}) > 0,
+                                         fixed.count({mr.slave_node, 2}) > 0};
+          const FrictionRows f = friction_rows(r.normal, friction_tangent(r.normal, axis), held);
+          r.tangent = f.tangent;
+          r.tangent_rows = f.rows;
+        }
       }
       // A row on dofs that Dirichlet conditions hold all of repeats their rows: dropped.
       bool all_fixed = true;
@@ -210,9 +237,10 @@ void ContactPairs::add_rows(const SubdomainMesh& m, SubdomainInput& in) const {
       r.key = g == row.slave;
       r.area = r.key ? row.weight / r.copies : 0.0;
       const Info& info = info_[row.condition];
-      r.slip_bound = info.slip_bound;
-      r.friction_coefficient = info.friction_coefficient;
+      r.slip_bound = row.tangent_rows > 0 ? info.slip_bound : -1;
+      r.friction_coefficient = row.tangent_rows > 0 ? info.friction_coefficient : -1;
       r.tangent = row.tangent;
+      r.tangent_rows = row.tangent_rows;
       in.contact.push_back(r);
     }
   }

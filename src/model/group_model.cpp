@@ -314,20 +314,25 @@ class GroupModel final : public Model {
         r.condition = static_cast<int>(ci);
         r.area = area[k];
         if (friction) {
-          // No tangential rows where a Dirichlet condition fixes a component of the tangent
-          // plane: in 2D they would repeat its row (t = (-n_y, n_x) fixed); in 3D, where the
-          // node's two rows form a disc, a fixed component would make one of them repeat it.
+          // Where a Dirichlet condition fixes a component of the tangent plane: in 2D no
+          // tangential row (it would repeat the Dirichlet row, t = (-n_y, n_x) fixed); in 3D the
+          // one direction left free, or none (friction_rows).
           bool t_fixed = dpn == 2;
-          for (int d = 0; d < dpn; ++d) {
-            const bool in_plane =
-                dpn == 2 ? c.direction[1 - d] != 0 : std::abs(c.direction[d]) < 1 - 1e-12;
-            if (dpn == 2 && in_plane && !fixed.count({k, d})) t_fixed = false;
-            if (dpn == 3 && in_plane && fixed.count({k, d})) t_fixed = true;
+          FrictionRows f{dpn - 1, tangent};
+          if (dpn == 2) {
+            for (int d = 0; d < dpn; ++d)
+              if (c.direction[1 - d] != 0 && !fixed.count({k, d})) t_fixed = false;
+          } else {
+            f = friction_rows(
+                c.direction, tangent,
+                {fixed.count({k, 0}) > 0, fixed.count({k, 1}) > 0, fixed.count({k, 2}) > 0});
+            t_fixed = f.rows == 0;
           }
           if (!t_fixed) {
             r.slip_bound = c.slip_bound;
             r.friction_coefficient = c.friction_coefficient;
-            r.tangent = tangent;
+            r.tangent = f.tangent;
+            r.tangent_rows = f.rows;
           }
         }
         in.contact.push_back(r);

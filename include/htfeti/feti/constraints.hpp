@@ -44,10 +44,14 @@
 namespace htfeti {
 
 /// friction: a tangential row of a contact row with friction (one in 2D, two in 3D), |lambda| <=
-/// bound (in 3D the node's two rows together: a disc).
+/// bound (in 3D the node's two rows together: a disc; one row, an interval, where Dirichlet
+/// conditions leave the node one tangential direction).
 enum class MultiplierKind : std::uint8_t { gluing, dirichlet, contact, friction };
 
 using RowKey = std::array<long long, 6>;
+/// A friction row's key is {0, node, 3, condition, m, 0}: m = 0, 1 the two rows of a 3D disc
+/// (or the one row in 2D), m = kSingleTangent the single row of a 3D interval.
+inline constexpr long long kSingleTangent = 2;
 
 /// The part of one row of B~ on one local subdomain.
 struct LocalRow {

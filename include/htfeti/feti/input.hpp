@@ -102,9 +102,12 @@ struct ContactRow {
   /// mu (>= 0; the bound is then mu times the normal pressure of the previous solve); < 0: none.
   /// The tangential rows t.(sum_j c_j avg u_j) take the normal row's coefficients: in 2D
   /// t = (-n_y, n_x), in 3D t1 = `tangent` (unit, orthogonal to n) and t2 = n x t1.
+  /// 3D: the node's Dirichlet conditions leave it one tangential direction (`tangent_rows` =
+  /// 1: the row along `tangent` alone, its set an interval; FrictionRows in contact_pairs.hpp).
   double slip_bound = -1;
   double friction_coefficient = -1;
   std::array<double, 3> tangent{0, 0, 0};
+  int tangent_rows = 2;
 };
 
 /// One local subdomain's input: moved into the FETI stage, which keeps what it needs.

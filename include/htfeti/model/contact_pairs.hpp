@@ -34,6 +34,21 @@ std::array<double, 3> reference_axis(const std::array<double, 3>& n);
 std::array<double, 3> friction_tangent(const std::array<double, 3>& n,
                                        const std::array<double, 3>& a);
 
+/// The tangential rows of a 3D friction node whose own displacement a Dirichlet condition
+/// fixes along some coordinate axes (`fixed[d]`). A fixed axis e_d that is not the normal
+/// (|n_d| < 1 - 1e-12) leaves the node free to slip only along t = n x e_d / |n x e_d|: a row
+/// along the other tangent would repeat the Dirichlet row (with the normal row), and as the
+/// second half of a disc it would take an arbitrary share of the bound (on a symmetry plane,
+/// the stick zone of a sphere came out with slipping nodes on the plane). Then one row along t,
+/// an interval (`rows` = 1, `tangent` = t); two such axes: no tangential row (`rows` = 0); none:
+/// the disc of `rows` = 2 along `tangent` = the condition's t1 and n x t1.
+struct FrictionRows {
+  int rows = 2;
+  std::array<double, 3> tangent{0, 0, 0};
+};
+FrictionRows friction_rows(const std::array<double, 3>& n, const std::array<double, 3>& t1,
+                           const std::array<bool, 3>& fixed);
+
 class ContactPairs {
  public:
   ContactPairs() = default;
@@ -54,6 +69,7 @@ class ContactPairs {
     int condition = 0;
     int slave = 0;  ///< the slave node (global)
     std::array<double, 3> normal{0, 0, 0}, tangent{0, 0, 0};
+    int tangent_rows = 2;  ///< 3D friction: FrictionRows::rows
     double weight = 0, gap = 0, norm_sq = 0;
     int owner = 0;
   };

@@ -295,21 +295,37 @@ TEST(Multibody, BadPairsAreRefused) {
 // spread and a full slip is along x). A large drag slips everywhere: the lower
 // block holds the upper one back with exactly g A (Tresca) or mu p A (Coulomb), A = 1, through
 // the tangential mortar rows.
+namespace {
+
+// The upper block's top moved by 0.5 in x (and held in y in 3D), pressed by p; the lower block
+// clamped at its bottom; nu = 0 in 3D; Tresca's g = 1 or Coulomb's mu = 0.2 between them;
+// rollers: both blocks also on rollers at y = 0 (3D).
+ProblemSpec dragged_blocks(const char* mesh, const std::string& law, bool rollers = false) {
+  ProblemSpec s = stacked_blocks(mesh, true, false);
+  const bool three = std::string(mesh).find("cubes") != std::string::npos;
+  s.dirichlet.clear();
+  s.dirichlet.push_back({"bottom", {0, 0, 0}, {}});
+  s.dirichlet.push_back({"top", {0.5, 0, 0}, three ? std::vector<int>{0, 1} : std::vector<int>{0}});
+  if (rollers) {
+    s.dirichlet.push_back({"lower_y0", {0, 0, 0}, {1}});
+    s.dirichlet.push_back({"upper_y0", {0, 0, 0}, {1}});
+  }
+  if (three) s.physics.material.poisson = 0.0;  // no spreading: the slip is along x
+  if (law == "tresca")
+    s.contact[0].slip_bound = 1.0;
+  else
+    s.contact[0].friction_coefficient = 0.2;
+  return s;
+}
+
+}  // namespace
+
 TEST(Multibody, FrictionBetweenBodiesTransmitsTheBoundAtFullSlip) {
   Comm comm;
   for (const char* law : {"tresca", "coulomb"}) {
     for (const char* mesh : {"two-squares-quad.msh", "two-cubes-hex.msh"}) {
-      ProblemSpec s = stacked_blocks(mesh, true, false);
+      const ProblemSpec s = dragged_blocks(mesh, law);
       const bool three = std::string(mesh).find("cubes") != std::string::npos;
-      s.dirichlet.clear();
-      s.dirichlet.push_back({"bottom", {0, 0, 0}, {}});
-      s.dirichlet.push_back(
-          {"top", {0.5, 0, 0}, three ? std::vector<int>{0, 1} : std::vector<int>{0}});
-      if (three) s.physics.material.poisson = 0.0;  // no spreading: the slip is along x
-      if (std::string(law) == "tresca")
-        s.contact[0].slip_bound = 1.0;
-      else
-        s.contact[0].friction_coefficient = 0.2;
       SolveOptions opt;
       opt.rtol = 1e-10;
       const auto out = solve(std::shared_ptr<const Model>(make_model(s)), opt, comm);
@@ -356,17 +372,7 @@ TEST(Multibody, BodyHeldByFrictionAloneUnderASidewaysLoad) {
 TEST(Multibody, FrictionOnARollerPlaneTransmitsTheBoundAtFullSlip) {
   Comm comm;
   for (const char* law : {"tresca", "coulomb"}) {
-    ProblemSpec s = stacked_blocks("two-cubes-hex.msh", true, false);
-    s.dirichlet.clear();
-    s.dirichlet.push_back({"bottom", {0, 0, 0}, {}});
-    s.dirichlet.push_back({"top", {0.5, 0, 0}, {0, 1}});
-    s.dirichlet.push_back({"lower_y0", {0, 0, 0}, {1}});
-    s.dirichlet.push_back({"upper_y0", {0, 0, 0}, {1}});
-    s.physics.material.poisson = 0.0;
-    if (std::string(law) == "tresca")
-      s.contact[0].slip_bound = 1.0;
-    else
-      s.contact[0].friction_coefficient = 0.2;
+    const ProblemSpec s = dragged_blocks("two-cubes-hex.msh", law, true);
     SolveOptions opt;
     opt.rtol = 1e-10;
     const auto out = solve(std::shared_ptr<const Model>(make_model(s)), opt, comm);

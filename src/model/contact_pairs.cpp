@@ -92,8 +92,8 @@ std::array<double, 3> friction_tangent(const std::array<double, 3>& n,
   return t;
 }
 
-FrictionRows friction_rows(const std::array<double, 3>& n, const std::array<double, 3>& t1,
-                           const std::array<bool, 3>& fixed) {
+FrictionRows friction_rows_at(const std::array<double, 3>& n, const std::array<double, 3>& t1,
+                              const std::array<bool, 3>& fixed) {
   FrictionRows f;
   f.tangent = t1;
   int in_plane = -1;
@@ -177,7 +177,7 @@ ContactPairs::ContactPairs(const ProblemSpec& spec, const Physics& physics, cons
           const std::array<bool, 3> held{fixed.count({mr.slave_node, 0}) > 0,
                                          fixed.count({mr.slave_node, 1}) > 0,
                                          fixed.count({mr.slave_node, 2}) > 0};
-          const FrictionRows f = friction_rows(r.normal, friction_tangent(r.normal, axis), held);
+          const FrictionRows f = friction_rows_at(r.normal, friction_tangent(r.normal, axis), held);
           r.tangent = f.tangent;
           r.tangent_rows = f.rows;
         }

@@ -316,14 +316,14 @@ class GroupModel final : public Model {
         if (friction) {
           // Where a Dirichlet condition fixes a component of the tangent plane: in 2D no
           // tangential row (it would repeat the Dirichlet row, t = (-n_y, n_x) fixed); in 3D the
-          // one direction left free, or none (friction_rows).
+          // one direction left free, or none (friction_rows_at).
           bool t_fixed = dpn == 2;
           FrictionRows f{dpn - 1, tangent};
           if (dpn == 2) {
             for (int d = 0; d < dpn; ++d)
               if (c.direction[1 - d] != 0 && !fixed.count({k, d})) t_fixed = false;
           } else {
-            f = friction_rows(
+            f = friction_rows_at(
                 c.direction, tangent,
                 {fixed.count({k, 0}) > 0, fixed.count({k, 1}) > 0, fixed.count({k, 2}) > 0});
             t_fixed = f.rows == 0;

@@ -46,8 +46,8 @@ struct FrictionRows {
   int rows = 2;
   std::array<double, 3> tangent{0, 0, 0};
 };
-FrictionRows friction_rows(const std::array<double, 3>& n, const std::array<double, 3>& t1,
-                           const std::array<bool, 3>& fixed);
+FrictionRows friction_rows_at(const std::array<double, 3>& n, const std::array<double, 3>& t1,
+                              const std::array<bool, 3>& fixed);
 
 class ContactPairs {
  public:

@@ -37,7 +37,10 @@ CASES = [
     "--problem cube-obstacle --elements 8,8,8 --subdomains 4,4,4 -m 2",
 ]
 EXAMPLES = ["block3d", "bracket", "cube-obstacle", "heterogeneous", "membranes-coercive",
-            "membranes", "plate-with-hole", "poisson2d"]
+            "membranes", "plate-with-hole", "poisson2d",
+            # contact between bodies (mortar rows) and friction
+            "cylinder-on-block", "membranes-two-bodies", "punch-on-block", "sphere-on-block",
+            "friction-block", "friction-block-3d"]
 CASES += [os.path.join(ROOT, "examples", e + ".toml") for e in EXAMPLES]
 KKT = ("equality_residual", "max_violation", "min_multiplier", "complementarity")
 

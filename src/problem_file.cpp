@@ -380,7 +380,9 @@ void read_conditions(const toml::table& root, ProblemSpec& spec) {
   i = 0;
   for (const toml::table* t : array_of_tables("contact")) {
     const std::string where = "contact #" + std::to_string(++i);
-    check_keys(*t, where, {"group", "master", "search_distance", "direction", "gap", "friction"});
+    check_keys(
+        *t, where,
+        {"group", "master", "search_distance", "multipliers", "direction", "gap", "friction"});
     ProblemSpec::Contact c;
     c.group = get_string(*t, where, "group", "", true);
     // Between two bodies: the slave group against a master group (mortar rows). In elasticity
@@ -400,14 +402,21 @@ void read_conditions(const toml::table& root, ProblemSpec& spec) {
         if (!(c.search_distance > 0) || !std::isfinite(c.search_distance))
           bad(where + ".search_distance", "must be a finite number > 0");
       }
+      if (t->contains("multipliers")) {
+        const std::string m = get_string(*t, where, "multipliers", "", true);
+        if (m != "dual" && m != "standard")
+          bad(where + ".multipliers", "must be \"dual\" or \"standard\", not \"" + m + "\"");
+        c.multipliers = m == "dual" ? MortarBasis::dual : MortarBasis::standard;
+      }
       if (spec.physics.kind == PhysicsKind::elasticity) {
         if (const toml::node* fn = t->get("friction")) read_friction(*fn, where, c);
         spec.contact.push_back(c);
         continue;
       }
       if (!t->contains("direction")) c.direction = {1, 0, 0};
-    } else if (t->contains("search_distance")) {
-      bad(where + ".search_distance", "applies to contact between bodies (with master)");
+    } else {
+      for (const char* k : {"search_distance", "multipliers"})
+        if (t->contains(k)) bad(where + "." + k, "applies to contact between bodies (with master)");
     }
     const toml::node* dn = t->get("direction");
     if (!dn && !c.master.empty()) {

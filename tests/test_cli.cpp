@@ -425,6 +425,8 @@ TEST_F(Cli, BadContactPairsExitWithCode2) {
       "contact #1.direction");
   bad("master = \"block_top\"", "master = \"block_top\"\nsearch_distance = -1.0",
       "search_distance");
+  bad("master = \"block_top\"", "master = \"block_top\"\nmultipliers = \"lumped\"",
+      "contact #1.multipliers");
   bad("master = \"block_top\"", "master = \"block_bottom\"", "faces a facet of master");
   bad("master = \"block_top\"",
       "master = \"block_top\"\n[[contact]]\ngroup = \"punch_bottom\"\nmaster = \"block_top\"",

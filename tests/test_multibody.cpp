@@ -35,12 +35,24 @@ double entry(const MortarRow& r, int node) {
 // The slave segment [0, 1] at y = 0 (normal +y) under two master segments at y = 0.1: (-0.5,
 // 0.5) and (0.5, 1.5), facing down. By hand for slave node 0 (phi_0 = 1 - x): D_00 = 1/3,
 // D_01 = 1/6; M_02 = int_0^.5 (1-x)(.5-x) = 5/48, M_03 = 3/8, M_04 = 1/48; the weighted gap
-// 0.1 * 1/2.
+// 0.1 * 1/2. With the dual test function psi_0 = 3 phi_0 - 1 = 2 - 3x: D_00 = 1/2, D_01 = 0;
+// M_02 = int_0^.5 (2-3x)(.5-x) = 3/16, M_04 = int_.5^1 (2-3x)(x-.5) = -1/16, M_03 = 3/8; the
+// same weight and weighted gap.
 TEST(Mortar, SegmentAgainstTwoMasterSegmentsByHand) {
   const std::vector<double> x = {0, 0, 0, 1, 0, 0, -0.5, 0.1, 0, 0.5, 0.1, 0, 1.5, 0.1, 0};
   ContactSurface slave{2, {0, 1}, {{0, 1, 0}}};
   ContactSurface master{2, {2, 3, 3, 4}, {{0, -1, 0}, {0, -1, 0}}};
-  const auto rows = mortar_rows(2, x, slave, master, 0.5);
+  const auto dual = mortar_rows(2, x, slave, master, 0.5);
+  ASSERT_EQ(dual.size(), 2u);
+  const MortarRow& d = row_of(dual, 0);
+  EXPECT_NEAR(entry(d, 0), 0.5, 1e-15);
+  EXPECT_NEAR(entry(d, 1), 0.0, 1e-15);
+  EXPECT_NEAR(entry(d, 2), -3.0 / 16.0, 1e-15);
+  EXPECT_NEAR(entry(d, 3), -3.0 / 8.0, 1e-15);
+  EXPECT_NEAR(entry(d, 4), 1.0 / 16.0, 1e-15);
+  EXPECT_NEAR(d.weight, 0.5, 1e-15);
+  EXPECT_NEAR(d.gap, 0.1, 1e-15);
+  const auto rows = mortar_rows(2, x, slave, master, 0.5, MortarBasis::standard);
   ASSERT_EQ(rows.size(), 2u);
   const MortarRow& r = row_of(rows, 0);
   EXPECT_NEAR(entry(r, 0), 1.0 / 3.0, 1e-15);
@@ -51,6 +63,25 @@ TEST(Mortar, SegmentAgainstTwoMasterSegmentsByHand) {
   EXPECT_NEAR(r.weight, 0.5, 1e-15);
   EXPECT_NEAR(r.gap, 0.1, 1e-15);
   EXPECT_NEAR(r.normal[1], 1.0, 1e-15);
+  // A master that covers half the slave segment ([0.5, 1.5] only): the facet keeps the standard
+  // functions (the dual weight of node 0 would be int_.5^1 (2 - 3x) = -1/8), W_0 = 1/8.
+  ContactSurface half{2, {3, 4}, {{0, -1, 0}}};
+  const auto part = mortar_rows(2, x, slave, half, 0.5);
+  ASSERT_EQ(part.size(), 2u);
+  EXPECT_NEAR(row_of(part, 0).weight, 1.0 / 8.0, 1e-15);
+  EXPECT_NEAR(row_of(part, 1).weight, 3.0 / 8.0, 1e-15);
+  // A master along y = 0.1 + 0.2 x (through (-0.5, 0) and (1.5, 0.4)): the dual weighted gap of
+  // this linear gap is its nodal value, 0.1 and 0.3; the standard one its phi-weighted mean,
+  // 0.1 + 0.2 / 3 and 0.3 - 0.2 / 3.
+  const std::vector<double> xs = {0, 0, 0, 1, 0, 0, -0.5, 0, 0, 1.5, 0.4, 0};
+  const double l = std::hypot(2.0, 0.4);
+  ContactSurface slope{2, {2, 3}, {{0.4 / l, -2.0 / l, 0}}};
+  const auto sd = mortar_rows(2, xs, slave, slope, 0.5);
+  EXPECT_NEAR(row_of(sd, 0).gap, 0.1, 1e-14);
+  EXPECT_NEAR(row_of(sd, 1).gap, 0.3, 1e-14);
+  const auto ss = mortar_rows(2, xs, slave, slope, 0.5, MortarBasis::standard);
+  EXPECT_NEAR(row_of(ss, 0).gap, 0.1 + 0.2 / 3.0, 1e-14);
+  EXPECT_NEAR(row_of(ss, 1).gap, 0.3 - 0.2 / 3.0, 1e-14);
   // The search distance leaves the master out when it is farther away.
   EXPECT_TRUE(mortar_rows(2, x, slave, master, 0.05).empty());
   // A master that does not face the slave is not paired with it.
@@ -60,14 +91,20 @@ TEST(Mortar, SegmentAgainstTwoMasterSegmentsByHand) {
 }
 
 // The unit square (bilinear quad, normal +z) under two skewed triangles at z = 0.2 that cover
-// it: D is the bilinear mass matrix (1/9, 1/18, 1/36), sum_k M_ik = 1/4, and a linear field
-// of the plane satisfies every row with equality (the master interpolates it exactly).
+// it: with the standard space D is the bilinear mass matrix (1/9, 1/18, 1/36), with the dual
+// one D = I / 4; in both sum_k M_ik = 1/4, and a linear field of the plane satisfies every row
+// with equality (the master interpolates it exactly).
 TEST(Mortar, QuadAgainstSkewedTrianglesIsExact) {
   const std::vector<double> x = {0,    0,    0,   1,   0,    0,   1,   1,   0,   0,    1,   0,
                                  -0.3, -0.2, 0.2, 1.4, -0.1, 0.2, 1.2, 1.3, 0.2, -0.2, 1.1, 0.2};
   ContactSurface slave{4, {0, 1, 2, 3}, {{0, 0, 1}}};
   ContactSurface master{3, {4, 5, 6, 4, 6, 7}, {{0, 0, -1}, {0, 0, -1}}};
-  const auto rows = mortar_rows(3, x, slave, master, 0.5);
+  const auto dual = mortar_rows(3, x, slave, master, 0.5);
+  ASSERT_EQ(dual.size(), 4u);
+  for (const auto& row : dual)
+    for (int k = 0; k < 4; ++k)
+      EXPECT_NEAR(entry(row, k), k == row.slave_node ? 0.25 : 0.0, 1e-14) << row.slave_node;
+  const auto rows = mortar_rows(3, x, slave, master, 0.5, MortarBasis::standard);
   ASSERT_EQ(rows.size(), 4u);
   const MortarRow& r = row_of(rows, 0);
   EXPECT_NEAR(entry(r, 0), 1.0 / 9.0, 1e-14);
@@ -77,7 +114,9 @@ TEST(Mortar, QuadAgainstSkewedTrianglesIsExact) {
   EXPECT_NEAR(r.weight, 0.25, 1e-14);
   EXPECT_NEAR(r.gap, 0.2, 1e-14);
   auto f = [&](int k) { return 1.0 + 2.0 * x[3 * k] - 3.0 * x[3 * k + 1]; };
-  for (const auto& row : rows) {
+  std::vector<MortarRow> both = rows;
+  both.insert(both.end(), dual.begin(), dual.end());
+  for (const auto& row : both) {
     double m = 0, lin = 0;
     for (const auto& [k, v] : row.entries) {
       if (k >= 4) m -= v;

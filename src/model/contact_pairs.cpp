@@ -148,7 +148,9 @@ ContactPairs::ContactPairs(const ProblemSpec& spec, const Physics& physics, cons
                                ? c.search_distance
                                : 2.0 * std::max(largest_facet_diameter(mesh.coords, slave),
                                                 largest_facet_diameter(mesh.coords, master));
-    const auto rows = mortar_rows(mesh.dim, mesh.coords, slave, master, info.search_distance);
+    info.multipliers = c.multipliers;
+    const auto rows =
+        mortar_rows(mesh.dim, mesh.coords, slave, master, info.search_distance, c.multipliers);
     info.slip_bound = c.slip_bound;
     info.friction_coefficient = c.friction_coefficient;
     // Friction in 3D: one reference axis for the condition, from the slave surface's mean normal.
@@ -255,6 +257,7 @@ nlohmann::json ContactPairs::describe(int c) const {
   const Info& i = info_[c];
   return {{"rows", i.rows},
           {"search_distance", i.search_distance},
+          {"multipliers", i.multipliers == MortarBasis::dual ? "dual" : "standard"},
           {"slave_bodies", one_based(i.slave_bodies)},
           {"master_bodies", one_based(i.master_bodies)}};
 }

@@ -2,6 +2,7 @@
 // and the Gauss rules on them.
 #include "htfeti/model/mortar.hpp"
 
+#include <Eigen/Dense>
 #include <algorithm>
 #include <cmath>
 #include <stdexcept>
@@ -174,21 +175,67 @@ class Bins {
   std::unordered_map<long long, std::vector<int>> bins_;
 };
 
+// One Gauss point of a slave facet's overlaps with master facets: weight, the slave facet's
+// shape values, the master facet and its shape values, the gap vector x_m - x_s.
+struct GaussPoint {
+  double w;
+  double phi[4];
+  int master;
+  double N[4];
+  V3 dx;
+};
+
+// The dual basis of a slave facet (Wohlmuth's biorthogonal multipliers): psi_a = sum_b A_ab
+// phi_b with int psi_a phi_b = delta_ab int phi_b over the facet, so A = D_e M_e^-1, M_e the
+// facet's mass matrix and D_e = diag(int phi_b). A segment: A = [[2, -1], [-1, 2]] (psi_a = 3
+// phi_a - 1); a triangle: psi_a = 4 phi_a - 1; a quad: M_e by the 7-point rule on the facet's
+// fan of triangles (as the overlaps are integrated). `S`: the facet's nodes in its plane (3D).
+void dual_coefficients(int sf, const std::vector<P2>& S, double A[4][4]) {
+  for (int a = 0; a < 4; ++a)
+    for (int b = 0; b < 4; ++b) A[a][b] = 0.0;
+  if (sf == 2 || sf == 3) {
+    const double c = sf == 2 ? 3.0 : 4.0;
+    for (int a = 0; a < sf; ++a)
+      for (int b = 0; b < sf; ++b) A[a][b] = (a == b ? c : 0.0) - 1.0;
+    return;
+  }
+  Eigen::Matrix4d M = Eigen::Matrix4d::Zero();
+  P2 cen{0, 0};
+  for (const auto& p : S) cen[0] += p[0] / 4, cen[1] += p[1] / 4;
+  for (int e = 0; e < 4; ++e) {
+    const P2& p1 = S[e];
+    const P2& p2 = S[(e + 1) % 4];
+    const double At =
+        std::abs(0.5 * ((p1[0] - cen[0]) * (p2[1] - cen[1]) - (p2[0] - cen[0]) * (p1[1] - cen[1])));
+    for (const auto& r : kT7) {
+      const P2 p{r[0] * cen[0] + r[1] * p1[0] + r[2] * p2[0],
+                 r[0] * cen[1] + r[1] * p1[1] + r[2] * p2[1]};
+      double phi[4];
+      plane_shape(S, p, phi);
+      for (int a = 0; a < 4; ++a)
+        for (int b = 0; b < 4; ++b) M(a, b) += At * r[3] * phi[a] * phi[b];
+    }
+  }
+  const Eigen::Matrix4d Minv = M.inverse();
+  for (int a = 0; a < 4; ++a)
+    for (int b = 0; b < 4; ++b) A[a][b] = M.row(a).sum() * Minv(a, b);
+}
+
 // Per slave node: its D and M entries and weighted gap, accumulated facet by facet.
 struct Accumulator {
   std::vector<std::vector<std::pair<int, double>>> entries;  // per slave node (index), unmerged
   std::vector<double> gap;
-  // One Gauss point: weight w, slave nodes/shape values, master nodes/shape values, the gap
-  // vector x_m - x_s.
-  void add(double w, const int* sn, const int* sl, const double* phi, int ns, const int* mn,
-           const double* N, int nm, const V3& dx, const std::vector<V3>& normal) {
+  // One Gauss point: the test functions theta (the slave facet's phi or psi), slave nodes/shape
+  // values phi, master nodes/shape values N.
+  void add(const GaussPoint& q, const double* theta, const int* sn, const int* sl, int ns,
+           const int* mn, int nm, const std::vector<V3>& normal) {
     for (int a = 0; a < ns; ++a) {
       const int i = sl[a];
-      const double wa = w * phi[a];
+      const double wa = q.w * theta[a];
       if (wa == 0.0) continue;
-      for (int b = 0; b < ns; ++b) entries[i].push_back({sn[b], wa * phi[b]});
-      for (int b = 0; b < nm; ++b) entries[i].push_back({mn[b], -wa * N[b]});
-      gap[i] += wa * dot(normal[i], dx);
+      for (int b = 0; b < ns; ++b) entries[i].push_back({sn[b], wa * q.phi[b]});
+      for (int b = 0; b < nm; ++b) entries[i].push_back({mn[b], -wa * q.N[b]});
+      gap[i] += wa * dot(normal[i], q.dx);
     }
   }
 };
@@ -208,7 +255,7 @@ double largest_facet_diameter(const std::vector<double>& x, const ContactSurface
 
 std::vector<MortarRow> mortar_rows(int dim, const std::vector<double>& x,
                                    const ContactSurface& slave, const ContactSurface& master,
-                                   double delta) {
+                                   double delta, MortarBasis basis) {
   const int sf = slave.facet_nodes, mf = master.facet_nodes;
   if ((dim == 2 && (sf != 2 || mf != 2)) || (dim == 3 && (sf < 3 || mf < 3)))
     throw std::invalid_argument("mortar_rows: facets do not fit the dimension");
@@ -241,6 +288,7 @@ std::vector<MortarRow> mortar_rows(int dim, const std::vector<double>& x,
   acc.gap.assign(ns, 0.0);
   const Bins bins(x, master, delta);
   std::vector<int> cand;
+  std::vector<GaussPoint> points;  // of one slave facet
   for (int f = 0; f < slave.num_facets(); ++f) {
     const int* fs = slave.nodes.data() + static_cast<size_t>(f) * sf;
     int sl[4];
@@ -269,6 +317,7 @@ std::vector<MortarRow> mortar_rows(int dim, const std::vector<double>& x,
     }
     std::vector<P2> Sccw = S;
     if (dim == 3 && signed_area(Sccw) < 0) std::reverse(Sccw.begin(), Sccw.end());
+    points.clear();
     for (int g : cand) {
       const int* fm = master.nodes.data() + static_cast<size_t>(g) * mf;
       if (dot(nf, master.normals[g]) >= 0) continue;  // not facing each other
@@ -295,7 +344,7 @@ std::vector<MortarRow> mortar_rows(int dim, const std::vector<double>& x,
           V3 dx;
           for (int d = 0; d < 3; ++d)
             dx[d] = (1 - s) * xm[0][d] + s * xm[1][d] - ((1 - ts) * xs[0][d] + ts * xs[1][d]);
-          acc.add(w, fs, sl, phi, 2, fm, N, 2, dx, normal);
+          points.push_back({w, {phi[0], phi[1], 0, 0}, g, {N[0], N[1], 0, 0}, dx});
         }
         continue;
       }
@@ -324,9 +373,31 @@ std::vector<MortarRow> mortar_rows(int dim, const std::vector<double>& x,
             for (int a = 0; a < sf; ++a) dx[d] -= phi[a] * xs[a][d];
             for (int b = 0; b < mf; ++b) dx[d] += N[b] * xm[b][d];
           }
-          acc.add(At * r[3], fs, sl, phi, sf, fm, N, mf, dx, normal);
+          GaussPoint q{At * r[3], {0, 0, 0, 0}, g, {0, 0, 0, 0}, dx};
+          std::copy(phi, phi + sf, q.phi);
+          std::copy(N, N + mf, q.N);
+          points.push_back(q);
         }
       }
+    }
+    // The test functions: the dual basis where the master covers the whole facet, else (at the
+    // master surface's edge, where the dual weights of a partly covered facet can vanish or turn
+    // negative) the standard one. The coverage: the overlaps' total measure against the facet's.
+    double covered = 0.0;
+    for (const auto& q : points) covered += q.w;
+    const double whole = dim == 2 ? norm(sub(xs[1], xs[0])) : std::abs(signed_area(S));
+    const bool dual = basis == MortarBasis::dual && covered >= (1.0 - 1e-9) * whole;
+    double A[4][4];
+    if (dual) dual_coefficients(sf, S, A);
+    for (const auto& q : points) {
+      double theta[4];
+      for (int a = 0; a < sf; ++a) {
+        theta[a] = dual ? 0.0 : q.phi[a];
+        if (dual)
+          for (int b = 0; b < sf; ++b) theta[a] += A[a][b] * q.phi[b];
+      }
+      acc.add(q, theta, fs, sl, sf, master.nodes.data() + static_cast<size_t>(q.master) * mf, mf,
+              normal);
     }
   }
   // Merge each slave node's entries by node, in a fixed order.

@@ -85,6 +85,7 @@ class ContactPairs {
   struct Info {
     long long rows = 0;
     double search_distance = 0;
+    MortarBasis multipliers = MortarBasis::dual;
     std::vector<int> slave_bodies, master_bodies;
     double slip_bound = -1, friction_coefficient = -1;
   };

@@ -15,6 +15,7 @@
 #include "htfeti/mesh/box.hpp"
 #include "htfeti/model/decomposition.hpp"
 #include "htfeti/model/model.hpp"
+#include "htfeti/model/mortar.hpp"
 #include "htfeti/parallel/comm.hpp"
 #include "htfeti/partition/partition.hpp"
 
@@ -30,7 +31,7 @@ struct ProblemSpec {
   /// mesh.parts: a mesh that Gmsh partitioned in advance, one file per part (NAME_1.msh ...
   /// NAME_N.msh for mesh.parts = "NAME.msh", resolved); every rank reads only its own parts.
   std::string mesh_parts;
-  BoxGridOptions box;     ///< generator = "box" (subdomains/cluster_size filled from below)
+  BoxGridOptions box;  ///< generator = "box" (subdomains/cluster_size filled from below)
   Physics physics;
   std::string source = "0";  ///< Laplace source: a number or an expression in x, y, z
   struct Dirichlet {
@@ -58,6 +59,9 @@ struct ProblemSpec {
     /// Contact between bodies: master facets farther than this from a slave facet's plane are
     /// not paired with it; 0: twice the largest facet diameter of the two surfaces.
     double search_distance = 0;
+    /// Contact between bodies: the mortar rows' multiplier space (multipliers = "dual" |
+    /// "standard"; model/mortar.hpp).
+    MortarBasis multipliers = MortarBasis::dual;
   };
   std::vector<Dirichlet> dirichlet;
   std::vector<Load> loads;

@@ -20,7 +20,8 @@ level off between 1e-6 and 2e-5 on these meshes (the precision of the normal mul
 tighter test would not be met. The half-width of the discrete stick zone in 2D is taken halfway
 between the outermost stick nodes and their slip neighbours.
 
-Usage: bench/cattaneo_mindlin.py [--dim 2|3] [--out OUT]   (needs the gmsh program)
+Usage: bench/cattaneo_mindlin.py [--dim 2|3] [--levels H ...] [--threads T] [--out OUT]
+(needs the gmsh program; --levels: only these mesh sizes, e.g. the finest one alone)
 Writes bench/results/OUT."""
 import argparse
 import math
@@ -115,6 +116,8 @@ def radius_3d(c):
 
 p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
 p.add_argument("--dim", type=int, default=2, choices=[2, 3])
+p.add_argument("--levels", type=float, nargs="+", default=None)
+p.add_argument("--threads", type=int, default=2)
 p.add_argument("--out", default=None)
 a = p.parse_args()
 a.out = a.out or ("cattaneo_mindlin.json" if a.dim == 2 else "cattaneo_mindlin_3d.json")
@@ -123,7 +126,7 @@ print("| h | nodes in contact | P | Q / (mu P) | a | c: theory / measured (error
       + ("" if a.dim == 2 else "nodes off the disc | ") + "Coulomb solves | products | converged |")
 print("|---:|---:|---:|---:|---:|---|---:|" + ("" if a.dim == 2 else "---:|") + "---:|---:|---|")
 with tempfile.TemporaryDirectory() as tmp:
-    for h in LEVELS[a.dim]:
+    for h in a.levels or LEVELS[a.dim]:
         geo, option = (("cylinder-on-block.geo", "full") if a.dim == 2
                        else ("sphere-on-block.geo", "half"))
         msh = os.path.join(tmp, f"m-{h}.msh")
@@ -135,7 +138,7 @@ with tempfile.TemporaryDirectory() as tmp:
         with open(toml, "w") as f:
             f.write(PROBLEM.format(mesh=msh, E=E, NU=NU, MU=MU, conditions=CONDITIONS[
                 a.dim].format(side=side, down=-down)))
-        r = solve([toml], threads=2)
+        r = solve([toml], threads=a.threads)
         s = r["contact_summary"][0]
         if a.dim == 2:
             P, Q = s["resultant"][1], abs(s["tangential_force"])
@@ -160,4 +163,6 @@ with tempfile.TemporaryDirectory() as tmp:
               + f"{row['coulomb_solves']} | {row['products']} | "
               f"{'yes' if row['converged'] else 'NO'} |", flush=True)
         save(a.out, {"command": "(partial)", "rows": rows})
-print(save(a.out, {"command": f"bench/cattaneo_mindlin.py --dim {a.dim}", "rows": rows}))
+command = f"bench/cattaneo_mindlin.py --dim {a.dim}" + (
+    " --levels " + " ".join(map(str, a.levels)) if a.levels else "")
+print(save(a.out, {"command": command, "rows": rows}))

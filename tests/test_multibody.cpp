@@ -70,6 +70,15 @@ TEST(Mortar, SegmentAgainstTwoMasterSegmentsByHand) {
   ASSERT_EQ(part.size(), 2u);
   EXPECT_NEAR(row_of(part, 0).weight, 1.0 / 8.0, 1e-15);
   EXPECT_NEAR(row_of(part, 1).weight, 3.0 / 8.0, 1e-15);
+  // Two master segments whose projections overlap on [0.5, 1] (at y = 0.1 and 0.2) and leave
+  // [0, 0.5] uncovered: their measures sum to the slave's, but the facet is not covered whole,
+  // and it keeps the standard functions (dual: W_0 = 2 int_.5^1 (2 - 3x) = -1/4, a lost row).
+  const std::vector<double> xo = {0,   0,   0, 1,   0,   0, 0.5, 0.1, 0,
+                                  1.0, 0.1, 0, 0.5, 0.2, 0, 1.0, 0.2, 0};
+  ContactSurface twice{2, {2, 3, 4, 5}, {{0, -1, 0}, {0, -1, 0}}};
+  const auto over = mortar_rows(2, xo, slave, twice, 0.5);
+  ASSERT_EQ(over.size(), 2u);
+  EXPECT_NEAR(row_of(over, 0).weight, 1.0 / 4.0, 1e-15);
   // A master along y = 0.1 + 0.2 x (through (-0.5, 0) and (1.5, 0.4)): the dual weighted gap of
   // this linear gap is its nodal value, 0.1 and 0.3; the standard one its phi-weighted mean,
   // 0.1 + 0.2 / 3 and 0.3 - 0.2 / 3.

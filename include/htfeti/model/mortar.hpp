@@ -16,7 +16,8 @@
 //   whole), the weighted gap of a linear field is its nodal value, and the nodal conditions
 //   lambda_i >= 0, |lambda_t,i| <= mu lambda_n,i are the weak ones. A facet that the master
 //   covers only in part (the master surface's edge) keeps the standard functions, whose weights
-//   stay positive.
+//   stay positive (covered whole: the overlaps' measures sum to the facet's and every node's dual
+//   weight equals its standard one; docs/method.md).
 // - standard: theta_i = phi_i. D is the slave surface's mass matrix, and the multipliers, D^-T
 //   applied to the nodal forces, oscillate node to node on unstructured meshes: on the 3D
 //   Cattaneo-Mindlin sphere (tet4, h = 0.01) the stick zone's tangential tractions spread over

@@ -178,6 +178,7 @@ SolveOutput run(const ProblemSpec& spec, const Comm& comm) {
 struct PatchCase {
   std::string mesh;
   bool upper_is_slave;
+  MortarBasis basis = MortarBasis::dual;
 };
 
 class ContactPatch : public ::testing::TestWithParam<PatchCase> {};
@@ -186,13 +187,18 @@ class ContactPatch : public ::testing::TestWithParam<PatchCase> {};
 
 // Uniaxial stress sigma = -p in the load direction: plane strain in 2D (eps_xx = p nu (1 + nu)
 // / E, eps_yy = -p (1 - nu^2) / E), eps = (nu p / E, nu p / E, -p / E) in 3D; u = eps x with
-// the rollers at x = 0, y = 0 and the bottom. The mortar rows pass it exactly: the pressure is
-// p at every slave node and the displacement linear, to the solver's precision.
+// the rollers at x = 0, y = 0 and the bottom. The mortar rows pass it exactly with either
+// multiplier space: the pressure is p at every slave node and the displacement linear, to the
+// solver's precision.
 TEST_P(ContactPatch, UniformPressureAndLinearDisplacement) {
   Comm comm;
   const auto& pc = GetParam();
-  const auto out = run(stacked_blocks(pc.mesh, pc.upper_is_slave), comm);
+  ProblemSpec spec = stacked_blocks(pc.mesh, pc.upper_is_slave);
+  spec.contact[0].multipliers = pc.basis;
+  const auto out = run(spec, comm);
   ASSERT_TRUE(out.converged) << out.report["stop_reason"];
+  EXPECT_EQ(out.report["conditions"]["contact"][0]["multipliers"],
+            pc.basis == MortarBasis::dual ? "dual" : "standard");
   const auto& sum = out.report["contact_summary"];
   ASSERT_EQ(sum.size(), 1u);
   EXPECT_EQ(sum[0]["active_rows"], sum[0]["rows"]);
@@ -219,19 +225,22 @@ TEST_P(ContactPatch, UniformPressureAndLinearDisplacement) {
   EXPECT_LT(comm.max(err), 1e-8 * 2 * std::abs(eps[dim - 1]));
 }
 
-INSTANTIATE_TEST_SUITE_P(NonMatching, ContactPatch,
-                         ::testing::Values(PatchCase{"two-squares-quad.msh", true},
-                                           PatchCase{"two-squares-quad.msh", false},
-                                           PatchCase{"two-squares-tri.msh", true},
-                                           PatchCase{"two-cubes-hex.msh", true},
-                                           PatchCase{"two-cubes-hex.msh", false},
-                                           PatchCase{"two-cubes-tet.msh", true}),
-                         [](const auto& info) {
-                           std::string n = info.param.mesh.substr(0, info.param.mesh.size() - 4);
-                           for (char& ch : n)
-                             if (ch == '-') ch = '_';
-                           return n + (info.param.upper_is_slave ? "_upper_slave" : "_lower_slave");
-                         });
+INSTANTIATE_TEST_SUITE_P(
+    NonMatching, ContactPatch,
+    ::testing::Values(PatchCase{"two-squares-quad.msh", true},
+                      PatchCase{"two-squares-quad.msh", false},
+                      PatchCase{"two-squares-tri.msh", true}, PatchCase{"two-cubes-hex.msh", true},
+                      PatchCase{"two-cubes-hex.msh", false}, PatchCase{"two-cubes-tet.msh", true},
+                      PatchCase{"two-squares-quad.msh", true, MortarBasis::standard},
+                      PatchCase{"two-cubes-hex.msh", false, MortarBasis::standard},
+                      PatchCase{"two-cubes-tet.msh", true, MortarBasis::standard}),
+    [](const auto& info) {
+      std::string n = info.param.mesh.substr(0, info.param.mesh.size() - 4);
+      for (char& ch : n)
+        if (ch == '-') ch = '_';
+      return n + (info.param.upper_is_slave ? "_upper_slave" : "_lower_slave") +
+             (info.param.basis == MortarBasis::dual ? "" : "_standard");
+    });
 
 // The upper block held by the contact alone (no roller on its side): frictionless contact does
 // not hold it sideways, a rigid motion nothing restrains, whose coefficient the solver chooses;

@@ -427,6 +427,8 @@ TEST_F(Cli, BadContactPairsExitWithCode2) {
       "search_distance");
   bad("master = \"block_top\"", "master = \"block_top\"\nmultipliers = \"lumped\"",
       "contact #1.multipliers");
+  bad("master = \"block_top\"", "direction = [0.0, 0.0, -1.0]\nmultipliers = \"dual\"",
+      "contact #1.multipliers");  // an obstacle has no mortar rows
   bad("master = \"block_top\"", "master = \"block_bottom\"", "faces a facet of master");
   bad("master = \"block_top\"",
       "master = \"block_top\"\n[[contact]]\ngroup = \"punch_bottom\"\nmaster = \"block_top\"",

@@ -185,11 +185,11 @@ struct GaussPoint {
   V3 dx;
 };
 
-// The dual basis of a slave facet (Wohlmuth's biorthogonal multipliers): psi_a = sum_b A_ab
-// phi_b with int psi_a phi_b = delta_ab int phi_b over the facet, so A = D_e M_e^-1, M_e the
-// facet's mass matrix and D_e = diag(int phi_b). A segment: A = [[2, -1], [-1, 2]] (psi_a = 3
-// phi_a - 1); a triangle: psi_a = 4 phi_a - 1; a quad: M_e by the 7-point rule on the facet's
-// fan of triangles (as the overlaps are integrated). `S`: the facet's nodes in its plane (3D).
+// The dual basis of a slave facet (Wohlmuth's biorthogonal multipliers): theta_a = sum_b A_ab
+// phi_b with int theta_a phi_b = delta_ab int phi_b over the facet, so A = D_e M_e^-1, M_e the
+// facet's mass matrix and D_e = diag(int phi_b). A segment: A = [[2, -1], [-1, 2]] (theta_a =
+// 3 phi_a - 1); a triangle: theta_a = 4 phi_a - 1; a quad: M_e by the 7-point rule on the
+// facet's fan of triangles (as the overlaps are integrated). `S`: the facet's nodes in its plane.
 void dual_coefficients(int sf, const std::vector<P2>& S, double A[4][4]) {
   for (int a = 0; a < 4; ++a)
     for (int b = 0; b < 4; ++b) A[a][b] = 0.0;
@@ -225,8 +225,8 @@ void dual_coefficients(int sf, const std::vector<P2>& S, double A[4][4]) {
 struct Accumulator {
   std::vector<std::vector<std::pair<int, double>>> entries;  // per slave node (index), unmerged
   std::vector<double> gap;
-  // One Gauss point: the test functions theta (the slave facet's phi or psi), slave nodes/shape
-  // values phi, master nodes/shape values N.
+  // One Gauss point: the test functions theta (the slave facet's phi or its dual), slave
+  // nodes/shape values phi, master nodes/shape values N.
   void add(const GaussPoint& q, const double* theta, const int* sn, const int* sl, int ns,
            const int* mn, int nm, const std::vector<V3>& normal) {
     for (int a = 0; a < ns; ++a) {

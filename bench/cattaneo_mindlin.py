@@ -11,10 +11,11 @@ P and Q the normal and tangential forces per unit length (here measured: the rep
 contact_summary resultant and tangential_force). In 3D the stick zone is the disc of radius
     c = a (1 - Q / (mu P))^(1/3),   a^3 = 3 P R / (4 E*),
 P and Q the forces on the whole sphere (twice the half model's), the disc fitted by radius_3d.
-In 3D the block's flat top is the slave side of the pair (its tangents horizontal, as the
-half-space theory has them); with the sphere as the slave the tangents of its rows tilt by r / R,
-the normal approach projects onto them (r^3 / (2 R^2) at the contact's edge, as large as the
-slips), and the stick zone came out shifted by 0.009-0.015 along x and 11-23% narrower. The
+The block's flat top is the slave side of the pair (its tangents horizontal, as the half-space
+theory has them); with the sphere as the slave the tangents of its rows tilt by r / R, the
+normal approach projects onto them (r^3 / (2 R^2) at the contact's edge, as large as the
+slips), and the stick zone came out shifted by 0.009-0.015 along x and 11-23% narrower (3D,
+standard multipliers); in 2D the cylinder as the slave shifted it by 0.007-0.010. The
 Coulomb fixed point stops at a relative change of the bounds of 1e-4: at rtol 1e-8 its changes
 level off between 1e-6 and 2e-5 on these meshes (the precision of the normal multipliers), so a
 tighter test would not be met. The half-width of the discrete stick zone in 2D is taken halfway
@@ -70,8 +71,8 @@ CONDITIONS = {
 group = "cylinder_top"
 value = [{side}, {down}]
 [[contact]]
-group = "cylinder_arc"
-master = "block_top"
+group = "block_top"
+master = "cylinder_arc"
 """,
     3: """[[dirichlet]]
 group = "block_y0"
@@ -141,7 +142,7 @@ with tempfile.TemporaryDirectory() as tmp:
         r = solve([toml], threads=a.threads)
         s = r["contact_summary"][0]
         if a.dim == 2:
-            P, Q = s["resultant"][1], abs(s["tangential_force"])
+            P, Q = abs(s["resultant"][1]), abs(s["tangential_force"])
             radius = math.sqrt(4 * P / (math.pi * E_STAR))
             theory = radius * math.sqrt(max(0.0, 1 - Q / (MU * P)))
             c, centre = half_width(r["contact"])

@@ -175,6 +175,7 @@ QpSolve solve_with_contact(DualProblem& dual, DualOperators& ops, Vec& lambda,
     if (it >= options.coulomb_max_iterations) break;
     dual.update_coulomb_bounds(lambda, true);
     qp.constraints = dual.constraint_set()->shifted(qp.shift);
+    so.idle_count = qp::kWarmIdleCount;  // warm-started (smalbe.hpp)
     r = qp::smalbe(qp, normA, x, red, so, hooks, progress, &nu);
     ++solves;
     lambda = qp.shift + x;

@@ -134,12 +134,12 @@ SmalbeResult smalbe(const QuadraticProgram& qp, double normA, Vec& x, const Redu
     const double rho = H.rho();
     nu += rho * qx;  // mu^{k+1} = mu^k + rho G x^k, kept as nu = G' mu
     g += rho * qx;   // the gradient of L moves with nu; x does not change
-    // Also after kIdleCount consecutive inner solves that took no step before the gradient
+    // Also after idle_count consecutive inner solves that took no step before the gradient
     // test was met: x stays, so the test above cannot pass (L grows by exactly rho ||G x||^2),
     // and only mu moves, by rho G x per outer iteration, until g^P outgrows M ||G x|| (on a
     // body held by friction alone that took hundreds of outer iterations).
     idle = inner.iterations == 0 && inner.projected_gradient > grad_tol ? idle + 1 : 0;
-    if ((k > 0 && L < L_prev + 0.5 * rho * qnorm * qnorm) || idle >= kIdleCount) M /= opt.beta;
+    if ((k > 0 && L < L_prev + 0.5 * rho * qnorm * qnorm) || idle >= opt.idle_count) M /= opt.beta;
     L_prev = L;
     // Step 4: the late penalty update, also when the multiplier updates stall: an inner solve
     // that took no step and ||G x|| down by less than kStallFactor since the last outer

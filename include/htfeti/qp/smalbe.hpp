@@ -10,8 +10,9 @@
 //      g = H_rho x - b + nu (the gradient of the augmented Lagrangian L);
 //   2. nu^{k+1} = nu^k + rho Q x^k;
 //   3. if L(x^k, mu^k) < L(x^{k-1}, mu^{k-1}) + rho/2 ||G x^k||^2, then M_{k+1} = M_k / beta;
-//      also after kIdleCount consecutive inner solves that took no step with the gradient test
-//      unmet (x is then unchanged and the test cannot pass: L grows by rho ||G x||^2 exactly;
+//      also after idle_count (kIdleCount; kWarmIdleCount warm-started) consecutive inner solves
+//      that took no step with the gradient test unmet (x is then unchanged and the test cannot
+//      pass: L grows by rho ||G x||^2 exactly;
 //      only mu moves, and on a body held by friction alone it crept for hundreds of outer
 //      iterations before g^P outgrew M ||G x||);
 //   4. late penalty update (PERMON's SMALXE, rho_update_late): once an inner solve has ended
@@ -58,6 +59,12 @@ inline constexpr int kStallCount = 5;
 /// After this many consecutive outer iterations whose inner solve took no step (x unchanged, the
 /// gradient test not met), each further one divides M by beta (step 3).
 inline constexpr int kIdleCount = 10;
+/// The same count for a solve warm-started from an earlier one's solution and equality
+/// multiplier (Coulomb's Tresca solves after the first): such a solve opens with idle outer
+/// iterations in which only mu moves. Measured on the cube-obstacle with Coulomb friction
+/// (docs/results.md): 3 takes TFETI from 319 to 213 products and H-TFETI-DP from 454 to 294 at
+/// 1 x 1 x 1; a cold solve keeps 10 (5 or 1 raised the membranes' products, n = 512, m = 1).
+inline constexpr int kWarmIdleCount = 3;
 
 struct SmalbeOptions {
   double rtol = 1e-4;            ///< relative precision eps (paper: 1e-4)
@@ -70,7 +77,8 @@ struct SmalbeOptions {
   double gamma = 1.0;            ///< MPRGP proportioning parameter Gamma
   Expansion expansion = Expansion::gradient;  ///< MPRGP's expansion step (mprgp.hpp)
   int max_outer = 200;
-  int max_inner = 100000;  ///< total MPRGP iterations over all outer iterations
+  int max_inner = 100000;       ///< total MPRGP iterations over all outer iterations
+  int idle_count = kIdleCount;  ///< kIdleCount, or kWarmIdleCount for a warm-started solve
 };
 
 struct SmalbeResult {

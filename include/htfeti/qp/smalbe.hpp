@@ -62,7 +62,7 @@ inline constexpr int kIdleCount = 10;
 /// The same count for a solve warm-started from an earlier one's solution and equality
 /// multiplier (Coulomb's Tresca solves after the first): such a solve opens with idle outer
 /// iterations in which only mu moves. Measured on the cube-obstacle with Coulomb friction
-/// (docs/results.md): 3 takes TFETI from 319 to 213 products and H-TFETI-DP from 454 to 294 at
+/// (docs/results.md): 3 takes TFETI from 319 to 229 products and H-TFETI-DP from 454 to 300 at
 /// 1 x 1 x 1; a cold solve keeps 10 (5 or 1 raised the membranes' products, n = 512, m = 1).
 inline constexpr int kWarmIdleCount = 3;
 

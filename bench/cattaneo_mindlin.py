@@ -115,55 +115,60 @@ def radius_3d(c):
     return best[1], best[2], best[0]
 
 
-p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-p.add_argument("--dim", type=int, default=2, choices=[2, 3])
-p.add_argument("--levels", type=float, nargs="+", default=None)
-p.add_argument("--threads", type=int, default=2)
-p.add_argument("--out", default=None)
-a = p.parse_args()
-a.out = a.out or ("cattaneo_mindlin.json" if a.dim == 2 else "cattaneo_mindlin_3d.json")
-rows = []
-print("| h | nodes in contact | P | Q / (mu P) | a | c: theory / measured (error) | centre | "
-      + ("" if a.dim == 2 else "nodes off the disc | ") + "Coulomb solves | products | converged |")
-print("|---:|---:|---:|---:|---:|---|---:|" + ("" if a.dim == 2 else "---:|") + "---:|---:|---|")
-with tempfile.TemporaryDirectory() as tmp:
-    for h in a.levels or LEVELS[a.dim]:
-        geo, option = (("cylinder-on-block.geo", "full") if a.dim == 2
-                       else ("sphere-on-block.geo", "half"))
-        msh = os.path.join(tmp, f"m-{h}.msh")
-        subprocess.run(["gmsh", os.path.join(ROOT, "examples", "meshes", geo), f"-{a.dim}",
-                        "-setnumber", option, "1", "-setnumber", "h", str(h), "-format",
-                        "msh41", "-o", msh], check=True, stdout=subprocess.DEVNULL)
-        toml = os.path.join(tmp, f"cm-{h}.toml")
-        down, side = MOVE[a.dim]
-        with open(toml, "w") as f:
-            f.write(PROBLEM.format(mesh=msh, E=E, NU=NU, MU=MU, conditions=CONDITIONS[
-                a.dim].format(side=side, down=-down)))
-        r = solve([toml], threads=a.threads)
-        s = r["contact_summary"][0]
-        if a.dim == 2:
-            P, Q = abs(s["resultant"][1]), abs(s["tangential_force"])
-            radius = math.sqrt(4 * P / (math.pi * E_STAR))
-            theory = radius * math.sqrt(max(0.0, 1 - Q / (MU * P)))
-            c, centre = half_width(r["contact"])
-        else:  # the half model carries half of the sphere's forces
-            P, Q = 2 * abs(s["resultant"][2]), 2 * abs(s["tangential_force"][0])
-            radius = (3 * P / (4 * E_STAR)) ** (1 / 3)
-            theory = radius * max(0.0, 1 - Q / (MU * P)) ** (1 / 3)
-            c, centre, wrong = radius_3d(r["contact"])
-        row = {"h": h, "nodes_in_contact": s["active_rows"], "P": P, "Q": Q,
-               "Q_over_muP": Q / (MU * P), "a": radius, "c_theory": theory, "c": c,
-               "error": c / theory - 1, "centre": centre,
-               "misclassified": wrong if a.dim == 3 else 0,
-               "coulomb_solves": r["solver"]["coulomb"]["solves"], "products": r["matvecs"],
-               "converged": r["converged"]}
-        rows.append(row)
-        print(f"| {h} | {row['nodes_in_contact']} | {P:.4f} | {row['Q_over_muP']:.3f} | "
-              f"{radius:.4f} | {theory:.4f} / {c:.4f} ({100 * row['error']:+.1f}%) | "
-              + f"{centre:+.4f} | " + ("" if a.dim == 2 else f"{row['misclassified']} | ")
-              + f"{row['coulomb_solves']} | {row['products']} | "
-              f"{'yes' if row['converged'] else 'NO'} |", flush=True)
-        save(a.out, {"command": "(partial)", "rows": rows})
-command = f"bench/cattaneo_mindlin.py --dim {a.dim}" + (
-    " --levels " + " ".join(map(str, a.levels)) if a.levels else "")
-print(save(a.out, {"command": command, "rows": rows}))
+def main():
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--dim", type=int, default=2, choices=[2, 3])
+    p.add_argument("--levels", type=float, nargs="+", default=None)
+    p.add_argument("--threads", type=int, default=2)
+    p.add_argument("--out", default=None)
+    a = p.parse_args()
+    a.out = a.out or ("cattaneo_mindlin.json" if a.dim == 2 else "cattaneo_mindlin_3d.json")
+    rows = []
+    print("| h | nodes in contact | P | Q / (mu P) | a | c: theory / measured (error) | centre | "
+          + ("" if a.dim == 2 else "nodes off the disc | ") + "Coulomb solves | products | converged |")
+    print("|---:|---:|---:|---:|---:|---|---:|" + ("" if a.dim == 2 else "---:|") + "---:|---:|---|")
+    with tempfile.TemporaryDirectory() as tmp:
+        for h in a.levels or LEVELS[a.dim]:
+            geo, option = (("cylinder-on-block.geo", "full") if a.dim == 2
+                           else ("sphere-on-block.geo", "half"))
+            msh = os.path.join(tmp, f"m-{h}.msh")
+            subprocess.run(["gmsh", os.path.join(ROOT, "examples", "meshes", geo), f"-{a.dim}",
+                            "-setnumber", option, "1", "-setnumber", "h", str(h), "-format",
+                            "msh41", "-o", msh], check=True, stdout=subprocess.DEVNULL)
+            toml = os.path.join(tmp, f"cm-{h}.toml")
+            down, side = MOVE[a.dim]
+            with open(toml, "w") as f:
+                f.write(PROBLEM.format(mesh=msh, E=E, NU=NU, MU=MU, conditions=CONDITIONS[
+                    a.dim].format(side=side, down=-down)))
+            r = solve([toml], threads=a.threads)
+            s = r["contact_summary"][0]
+            if a.dim == 2:
+                P, Q = abs(s["resultant"][1]), abs(s["tangential_force"])
+                radius = math.sqrt(4 * P / (math.pi * E_STAR))
+                theory = radius * math.sqrt(max(0.0, 1 - Q / (MU * P)))
+                c, centre = half_width(r["contact"])
+            else:  # the half model carries half of the sphere's forces
+                P, Q = 2 * abs(s["resultant"][2]), 2 * abs(s["tangential_force"][0])
+                radius = (3 * P / (4 * E_STAR)) ** (1 / 3)
+                theory = radius * max(0.0, 1 - Q / (MU * P)) ** (1 / 3)
+                c, centre, wrong = radius_3d(r["contact"])
+            row = {"h": h, "nodes_in_contact": s["active_rows"], "P": P, "Q": Q,
+                   "Q_over_muP": Q / (MU * P), "a": radius, "c_theory": theory, "c": c,
+                   "error": c / theory - 1, "centre": centre,
+                   "misclassified": wrong if a.dim == 3 else 0,
+                   "coulomb_solves": r["solver"]["coulomb"]["solves"], "products": r["matvecs"],
+                   "converged": r["converged"]}
+            rows.append(row)
+            print(f"| {h} | {row['nodes_in_contact']} | {P:.4f} | {row['Q_over_muP']:.3f} | "
+                  f"{radius:.4f} | {theory:.4f} / {c:.4f} ({100 * row['error']:+.1f}%) | "
+                  + f"{centre:+.4f} | " + ("" if a.dim == 2 else f"{row['misclassified']} | ")
+                  + f"{row['coulomb_solves']} | {row['products']} | "
+                  f"{'yes' if row['converged'] else 'NO'} |", flush=True)
+            save(a.out, {"command": "(partial)", "rows": rows})
+    command = f"bench/cattaneo_mindlin.py --dim {a.dim}" + (
+        " --levels " + " ".join(map(str, a.levels)) if a.levels else "")
+    print(save(a.out, {"command": command, "rows": rows}))
+
+
+if __name__ == "__main__":
+    main()

@@ -162,6 +162,7 @@ QpSolve solve_with_contact(DualProblem& dual, DualOperators& ops, Vec& lambda,
   nlohmann::json history = nlohmann::json::array();
   bool fixed_point = !dual.has_coulomb();
   int solves = 1;
+  so.idle_count = qp::kWarmIdleCount;  // the next solves are warm-started (smalbe.hpp)
   for (int it = 1; !fixed_point && out.converged; ++it) {
     const auto [change, size] = dual.update_coulomb_bounds(lambda, false);
     const double rel = size > 0 ? change / size : 0.0;
@@ -175,7 +176,6 @@ QpSolve solve_with_contact(DualProblem& dual, DualOperators& ops, Vec& lambda,
     if (it >= options.coulomb_max_iterations) break;
     dual.update_coulomb_bounds(lambda, true);
     qp.constraints = dual.constraint_set()->shifted(qp.shift);
-    so.idle_count = qp::kWarmIdleCount;  // warm-started (smalbe.hpp)
     r = qp::smalbe(qp, normA, x, red, so, hooks, progress, &nu);
     ++solves;
     lambda = qp.shift + x;

@@ -11,6 +11,7 @@
 #include <thread>
 
 #include "helpers.hpp"
+#include "htfeti/fem/element.hpp"
 #include "htfeti/fem/physics.hpp"
 #include "htfeti/feti/cluster.hpp"
 #include "htfeti/feti/constraints.hpp"
@@ -37,6 +38,116 @@ TEST(Element, P1StiffnessOfTwoRightTriangles) {
     EXPECT_NEAR(k[i][(i + 1) % 4], -0.5, 1e-15);
     EXPECT_NEAR(k[i][(i + 2) % 4], 0.0, 1e-15);
   }
+}
+
+TEST(Element, Q1StiffnessOfTheUnitCube) {
+  // Trilinear Laplace on [0,1]^3: 1/3 on the diagonal, 0 along an edge, -1/12 across a face
+  // diagonal and across the body diagonal (rows sum to zero).
+  const double x[24] = {0, 0, 0, 1, 0, 0, 1, 1, 0, 0, 1, 0, 0, 0, 1, 1, 0, 1, 1, 1, 1, 0, 1, 1};
+  const Eigen::MatrixXd k = laplace_stiffness(CellType::hex8, x);
+  for (int a = 0; a < 8; ++a)
+    for (int b = 0; b < 8; ++b) {
+      int differ = 0;
+      for (int d = 0; d < 3; ++d) differ += x[3 * a + d] != x[3 * b + d];
+      const double expect = differ == 0 ? 1.0 / 3 : differ == 1 ? 0.0 : -1.0 / 12;
+      EXPECT_NEAR(k(a, b), expect, 1e-15) << a << " " << b;
+    }
+}
+
+namespace {
+// B^T D B of linear elasticity integrated by the test's own quadrature: the 3D cells' element
+// matrices against an independent evaluation (hex8 2 x 2 x 2 Gauss points, tet4 one point).
+Eigen::MatrixXd reference_elasticity(CellType t, const double* x, double E, double nu) {
+  const double lambda = E * nu / ((1 + nu) * (1 - 2 * nu)), mu = E / (2 * (1 + nu));
+  Eigen::MatrixXd D = Eigen::MatrixXd::Zero(6, 6);
+  for (int i = 0; i < 3; ++i) {
+    for (int j = 0; j < 3; ++j) D(i, j) = lambda;
+    D(i, i) += 2 * mu;
+    D(3 + i, 3 + i) = mu;
+  }
+  const int n = t == CellType::hex8 ? 8 : 4;
+  std::vector<std::array<double, 4>> pts;  // xi, eta, zeta, weight
+  const double g = 1 / std::sqrt(3.0);
+  if (n == 8) {
+    for (double a : {-g, g})
+      for (double b : {-g, g})
+        for (double c : {-g, g}) pts.push_back({a, b, c, 1.0});
+  } else {
+    pts.push_back({0.25, 0.25, 0.25, 1.0 / 6});
+  }
+  const int s[8][3] = {{-1, -1, -1}, {1, -1, -1}, {1, 1, -1}, {-1, 1, -1},
+                       {-1, -1, 1},  {1, -1, 1},  {1, 1, 1},  {-1, 1, 1}};
+  Eigen::MatrixXd K = Eigen::MatrixXd::Zero(3 * n, 3 * n);
+  for (const auto& p : pts) {
+    Eigen::MatrixXd dN(n, 3);
+    if (n == 8) {
+      for (int a = 0; a < 8; ++a)
+        for (int k = 0; k < 3; ++k) {
+          double v = s[a][k] / 8.0;
+          for (int m = 0; m < 3; ++m)
+            if (m != k) v *= 1 + s[a][m] * p[m];
+          dN(a, k) = v;
+        }
+    } else {
+      dN << -1, -1, -1, 1, 0, 0, 0, 1, 0, 0, 0, 1;
+    }
+    Eigen::Matrix3d J = Eigen::Matrix3d::Zero();
+    for (int a = 0; a < n; ++a)
+      for (int i = 0; i < 3; ++i)
+        for (int k = 0; k < 3; ++k) J(i, k) += x[3 * a + i] * dN(a, k);
+    const Eigen::MatrixXd G = dN * J.inverse();
+    Eigen::MatrixXd B = Eigen::MatrixXd::Zero(6, 3 * n);
+    for (int a = 0; a < n; ++a) {
+      B(0, 3 * a) = B(3, 3 * a + 1) = B(5, 3 * a + 2) = G(a, 0);
+      B(1, 3 * a + 1) = B(3, 3 * a) = B(4, 3 * a + 2) = G(a, 1);
+      B(2, 3 * a + 2) = B(4, 3 * a + 1) = B(5, 3 * a) = G(a, 2);
+    }
+    K += p[3] * std::abs(J.determinant()) * B.transpose() * D * B;
+  }
+  return K;
+}
+}  // namespace
+
+TEST(Element, ElasticityOf3DCellsIsBTransposeDBAndKillsRigidMotions) {
+  // A distorted hex8 (no two faces parallel) and a tet4 of negative orientation.
+  const double hex[24] = {0.0,  0.0,  0.0, 1.1, 0.1, -0.05, 1.2, 0.9, 0.1, -0.1, 1.0, 0.0,
+                          0.05, -0.1, 0.9, 1.0, 0.0, 1.2,   1.3, 1.1, 1.0, 0.0,  0.8, 1.1};
+  const double tet[12] = {0, 0, 0, 0, 1.0, 0.2, 0.9, 0.1, 0, 0.2, 0.3, 1.1};
+  const Material m{2.1e5, 0.3};
+  for (auto [t, x] : {std::pair{CellType::hex8, hex}, std::pair{CellType::tet4, tet}}) {
+    const int n = t == CellType::hex8 ? 8 : 4;
+    const Eigen::MatrixXd k = elasticity_stiffness(t, x, m);
+    const Eigen::MatrixXd r = reference_elasticity(t, x, m.young, m.poisson);
+    ASSERT_EQ(k.rows(), 3 * n);
+    EXPECT_LT((k - r).norm(), 1e-13 * r.norm()) << to_string(t);
+    EXPECT_EQ((k - k.transpose()).norm(), 0.0) << to_string(t);
+    // The six rigid body motions are in the kernel.
+    Eigen::MatrixXd R = Eigen::MatrixXd::Zero(3 * n, 6);
+    for (int a = 0; a < n; ++a) {
+      const double* p = x + 3 * a;
+      for (int d = 0; d < 3; ++d) R(3 * a + d, d) = 1;
+      R(3 * a + 0, 3) = -p[1], R(3 * a + 1, 3) = p[0];
+      R(3 * a + 1, 4) = -p[2], R(3 * a + 2, 4) = p[1];
+      R(3 * a + 2, 5) = -p[0], R(3 * a + 0, 5) = p[2];
+    }
+    EXPECT_LT((k * R).norm(), 1e-12 * k.norm()) << to_string(t);
+    // The tet's volume, and the shape integrals summing to the measure.
+    if (t == CellType::tet4) {
+      Eigen::Matrix3d e;
+      for (int i = 0; i < 3; ++i)
+        for (int d = 0; d < 3; ++d) e(d, i) = x[3 * (i + 1) + d] - x[d];
+      EXPECT_NEAR(cell_measure(t, x), std::abs(e.determinant()) / 6, 1e-15);
+      EXPECT_NEAR(shape_integrals(t, x)[0], std::abs(e.determinant()) / 24, 1e-15);
+    }
+    EXPECT_NEAR(shape_integrals(t, x).sum(), cell_measure(t, x), 1e-14);
+  }
+  // A box: the measure is exact.
+  const double box[24] = {0, 0, 0,   2, 0, 0,   2, 3, 0,   0, 3, 0,
+                          0, 0, 0.5, 2, 0, 0.5, 2, 3, 0.5, 0, 3, 0.5};
+  EXPECT_NEAR(cell_measure(CellType::hex8, box), 3.0, 1e-14);
+  for (int a = 0; a < 8; ++a) EXPECT_NEAR(shape_integrals(CellType::hex8, box)[a], 3.0 / 8, 1e-15);
+  EXPECT_THROW(elasticity_stiffness(CellType::tet4, std::array<double, 12>{}.data(), m),
+               std::invalid_argument);
 }
 
 TEST(Load, TotalLoadIsTheIntegralOfF) {

@@ -133,6 +133,125 @@ Eigen::MatrixXd strain_matrix(int dim, const Eigen::MatrixXd& dN) {
   return B;
 }
 
+// The 3D cells (tet4, hex8) with fixed sizes: N nodes, the reference gradients and weights of
+// their Gauss points tabulated once, Jacobians as 3 x 3 matrices on the stack. These carry the
+// assembly of every 3D subdomain that is not a generated grid (a METIS split computes one element
+// matrix per cell, twice: for K_i and for the energy check), where the general path above spent
+// more time allocating its small dynamic matrices than computing (docs/performance.md, "Element
+// matrices"). The 2D cells keep the general path, on which Tables 2 and 3 were verified.
+template <int N>
+struct Rule3 {
+  int points = 0;
+  double weight[8];
+  double N_[8][N];
+  double dN[8][N][3];
+};
+
+template <int N>
+Rule3<N> make_rule3(CellType t) {
+  Rule3<N> r;
+  std::vector<std::array<double, 4>> pts;
+  gauss_points(t, pts);
+  r.points = static_cast<int>(pts.size());
+  for (int q = 0; q < r.points; ++q) {
+    Eigen::VectorXd Nv;
+    Eigen::MatrixXd dNr;
+    reference_shape(t, pts[q].data(), Nv, dNr);
+    r.weight[q] = pts[q][3];
+    for (int a = 0; a < N; ++a) {
+      r.N_[q][a] = Nv[a];
+      for (int k = 0; k < 3; ++k) r.dN[q][a][k] = dNr(a, k);
+    }
+  }
+  return r;
+}
+
+template <int N>
+const Rule3<N>& rule3() {
+  static const Rule3<N> r = make_rule3<N>(N == 8 ? CellType::hex8 : CellType::tet4);
+  return r;
+}
+
+// At Gauss point q of the cell with coordinates x: the physical gradients g (N x 3) and the
+// weight times |det J|. Throws on a zero or non-finite Jacobian, as quadrature() does.
+template <int N>
+double gradients3(const Rule3<N>& r, int q, const double* x, double (*g)[3], CellType t) {
+  Eigen::Matrix3d J = Eigen::Matrix3d::Zero();  // J(i, k) = sum_a x_a,i dN_a / dxi_k
+  for (int a = 0; a < N; ++a)
+    for (int i = 0; i < 3; ++i)
+      for (int k = 0; k < 3; ++k) J(i, k) += x[3 * a + i] * r.dN[q][a][k];
+  const double det = J.determinant();
+  if (!(std::abs(det) > 0))
+    throw std::invalid_argument("a " + to_string(t) + " element has zero or invalid volume");
+  if (g) {
+    const Eigen::Matrix3d Ji = J.inverse();
+    for (int a = 0; a < N; ++a)
+      for (int j = 0; j < 3; ++j)
+        g[a][j] = r.dN[q][a][0] * Ji(0, j) + r.dN[q][a][1] * Ji(1, j) + r.dN[q][a][2] * Ji(2, j);
+  }
+  return r.weight[q] * std::abs(det);
+}
+
+// Isotropic elasticity, K_ab(i, j) = sum_q w (lambda g_a,i g_b,j + mu g_a,j g_b,i
+// + mu (g_a . g_b) delta_ij): B^T D B written out (exactly symmetric).
+template <int N>
+Eigen::MatrixXd elasticity3(CellType t, const double* x, double lambda, double mu) {
+  const auto& r = rule3<N>();
+  Eigen::Matrix<double, 3 * N, 3 * N> K = Eigen::Matrix<double, 3 * N, 3 * N>::Zero();
+  double g[N][3];
+  for (int q = 0; q < r.points; ++q) {
+    const double w = gradients3<N>(r, q, x, g, t);
+    for (int a = 0; a < N; ++a)
+      for (int b = a; b < N; ++b) {
+        const double gg = g[a][0] * g[b][0] + g[a][1] * g[b][1] + g[a][2] * g[b][2];
+        for (int i = 0; i < 3; ++i)
+          for (int j = 0; j < 3; ++j)
+            K(3 * a + i, 3 * b + j) += w * (lambda * (g[a][i] * g[b][j]) +
+                                            mu * (g[a][j] * g[b][i]) + (i == j ? mu * gg : 0.0));
+      }
+  }
+  for (int a = 0; a < N; ++a)
+    for (int b = a + 1; b < N; ++b)
+      for (int i = 0; i < 3; ++i)
+        for (int j = 0; j < 3; ++j) K(3 * b + j, 3 * a + i) = K(3 * a + i, 3 * b + j);
+  return K;
+}
+
+template <int N>
+Eigen::MatrixXd laplace3(CellType t, const double* x) {
+  const auto& r = rule3<N>();
+  Eigen::Matrix<double, N, N> K = Eigen::Matrix<double, N, N>::Zero();
+  double g[N][3];
+  for (int q = 0; q < r.points; ++q) {
+    const double w = gradients3<N>(r, q, x, g, t);
+    for (int a = 0; a < N; ++a)
+      for (int b = a; b < N; ++b)
+        K(a, b) += w * (g[a][0] * g[b][0] + g[a][1] * g[b][1] + g[a][2] * g[b][2]);
+  }
+  for (int a = 0; a < N; ++a)
+    for (int b = a + 1; b < N; ++b) K(b, a) = K(a, b);
+  return K;
+}
+
+template <int N>
+double measure3(CellType t, const double* x) {
+  const auto& r = rule3<N>();
+  double s = 0;
+  for (int q = 0; q < r.points; ++q) s += gradients3<N>(r, q, x, nullptr, t);
+  return s;
+}
+
+template <int N>
+Eigen::VectorXd shape_integrals3(CellType t, const double* x) {
+  const auto& r = rule3<N>();
+  Eigen::VectorXd v = Eigen::VectorXd::Zero(N);
+  for (int q = 0; q < r.points; ++q) {
+    const double w = gradients3<N>(r, q, x, nullptr, t);
+    for (int a = 0; a < N; ++a) v[a] += w * r.N_[q][a];
+  }
+  return v;
+}
+
 }  // namespace
 
 Eigen::MatrixXd elasticity_matrix(int dim, const Material& m) {
@@ -153,6 +272,8 @@ Eigen::MatrixXd elasticity_matrix(int dim, const Material& m) {
 }
 
 Eigen::MatrixXd laplace_stiffness(CellType t, const double* x) {
+  if (t == CellType::hex8) return laplace3<8>(t, x);
+  if (t == CellType::tet4) return laplace3<4>(t, x);
   const int n = cell_nodes(t);
   Eigen::MatrixXd K = Eigen::MatrixXd::Zero(n, n);
   for (const auto& q : quadrature(t, x)) K.noalias() += q.w * q.dN * q.dN.transpose();
@@ -160,6 +281,12 @@ Eigen::MatrixXd laplace_stiffness(CellType t, const double* x) {
 }
 
 Eigen::MatrixXd elasticity_stiffness(CellType t, const double* x, const Material& m) {
+  if (t == CellType::hex8 || t == CellType::tet4) {
+    const double E = m.young, nu = m.poisson;
+    const double lambda = E * nu / ((1 + nu) * (1 - 2 * nu)), mu = E / (2 * (1 + nu));
+    return t == CellType::hex8 ? elasticity3<8>(t, x, lambda, mu)
+                               : elasticity3<4>(t, x, lambda, mu);
+  }
   const int n = cell_nodes(t), dim = cell_dimension(t);
   const Eigen::MatrixXd D = elasticity_matrix(dim, m);
   Eigen::MatrixXd K = Eigen::MatrixXd::Zero(dim * n, dim * n);
@@ -171,12 +298,16 @@ Eigen::MatrixXd elasticity_stiffness(CellType t, const double* x, const Material
 }
 
 Eigen::VectorXd shape_integrals(CellType t, const double* x) {
+  if (t == CellType::hex8) return shape_integrals3<8>(t, x);
+  if (t == CellType::tet4) return shape_integrals3<4>(t, x);
   Eigen::VectorXd v = Eigen::VectorXd::Zero(cell_nodes(t));
   for (const auto& q : quadrature(t, x)) v += q.w * q.N;
   return v;
 }
 
 double cell_measure(CellType t, const double* x) {
+  if (t == CellType::hex8) return measure3<8>(t, x);
+  if (t == CellType::tet4) return measure3<4>(t, x);
   double s = 0;
   for (const auto& q : quadrature(t, x)) s += q.w;
   return s;

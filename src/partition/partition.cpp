@@ -348,6 +348,41 @@ ClusterOrder order_by_cluster(const std::vector<int>& cluster) {
   return out;
 }
 
+namespace {
+// MeshPartition::groups from the mesh's groups and the partition's copies and cells.
+void index_groups(const Mesh& mesh, MeshPartition& p) {
+  p.groups.assign(p.num_subdomains, {});
+  const auto add = [](std::vector<std::pair<std::string, std::vector<int>>>& list,
+                      const std::string& name, int value) {
+    if (list.empty() || list.back().first != name) list.emplace_back(name, std::vector<int>());
+    list.back().second.push_back(value);
+  };
+  for (const auto& [name, gn] : mesh.node_groups)
+    for (int g : gn)
+      for (int c = p.copy_offset[g]; c < p.copy_offset[g + 1]; ++c)
+        add(p.groups[p.copy_list[c]].nodes, name, g);
+  for (const auto& [name, cg] : mesh.cell_groups)
+    for (int e : cg) add(p.groups[p.cell_subdomain[e]].cells, name, e);
+  const int nc = cell_nodes(mesh.type);
+  for (const auto& [name, fg] : mesh.facet_groups) {
+    const int fn = fg.facet_nodes;
+    for (size_t i = 0; i + fn <= fg.nodes.size(); i += fn) {
+      int owner = -1;
+      const int g0 = fg.nodes[i];
+      for (int c = p.node_cell_offset[g0]; c < p.node_cell_offset[g0 + 1]; ++c) {
+        const int e = p.node_cell_list[c];
+        int hits = 0;
+        for (int a = 0; a < nc; ++a)
+          for (int b = 0; b < fn; ++b)
+            hits += mesh.cells[static_cast<size_t>(e) * nc + a] == fg.nodes[i + b];
+        if (hits == fn && (owner < 0 || p.cell_subdomain[e] < owner)) owner = p.cell_subdomain[e];
+      }
+      if (owner >= 0) add(p.groups[owner].facets, name, static_cast<int>(i / fn));
+    }
+  }
+}
+}  // namespace
+
 MeshPartition partition_mesh(const Mesh& mesh, int subdomains, int cluster_size,
                              PartitionObjective objective) {
   if (subdomains < 1) throw std::invalid_argument("decomposition.subdomains must be positive");
@@ -459,6 +494,7 @@ MeshPartition partition_mesh(const Mesh& mesh, int subdomains, int cluster_size,
       for (int a = 0; a < nc; ++a)
         p.node_cell_list[pos[mesh.cells[static_cast<size_t>(e) * nc + a]]++] = e;
   }
+  index_groups(mesh, p);
   // Domain boundary: nodes of facets that belong to one cell only.
   p.on_boundary.assign(nn, 0);
   for (size_t i = 0; i < facets.size();) {
@@ -505,55 +541,30 @@ SubdomainMesh extract_subdomain(const Mesh& mesh, const MeshPartition& p, int s)
     m.on_boundary[k] = p.on_boundary[g];
   }
   m.cells.reserve(cells.size() * nc);
-  std::vector<int> cell_local(0);
   for (int e : cells)
     for (int a = 0; a < nc; ++a)
       m.cells.push_back(local(mesh.cells[static_cast<size_t>(e) * nc + a]));
-  for (const auto& [name, gn] : mesh.node_groups) {
-    std::vector<int> l;
-    for (int g : gn) {
-      const int k = local(g);
-      if (k >= 0) l.push_back(k);
-    }
-    if (!l.empty()) m.node_groups[name] = std::move(l);
+  const auto& groups = p.groups.at(s);
+  for (const auto& [name, gn] : groups.nodes) {
+    std::vector<int>& l = m.node_groups[name];
+    l.reserve(gn.size());
+    for (int g : gn) l.push_back(local(g));
   }
-  for (const auto& [name, cg] : mesh.cell_groups) {
-    std::vector<int> l;
+  for (const auto& [name, cg] : groups.cells) {
+    std::vector<int>& l = m.cell_groups[name];
+    l.reserve(cg.size());
     for (int e : cg)
-      if (p.cell_subdomain[e] == s)
-        l.push_back(
-            static_cast<int>(std::lower_bound(cells.begin(), cells.end(), e) - cells.begin()));
-    if (!l.empty()) m.cell_groups[name] = std::move(l);
+      l.push_back(
+          static_cast<int>(std::lower_bound(cells.begin(), cells.end(), e) - cells.begin()));
   }
-  // A boundary facet belongs to the subdomain of the cell it bounds: all its nodes are local and
-  // one of the subdomain's cells holds all of them.
-  for (const auto& [name, fg] : mesh.facet_groups) {
-    SubdomainMesh::FacetGroup out;
+  for (const auto& [name, facets] : groups.facets) {
+    const auto& fg = mesh.facet_groups.at(name);
+    SubdomainMesh::FacetGroup& out = m.facet_groups[name];
     out.facet_nodes = fg.facet_nodes;
-    const int fn = fg.facet_nodes;
-    for (size_t i = 0; i + fn <= fg.nodes.size(); i += fn) {
-      int l[4];
-      bool all = true;
-      for (int a = 0; a < fn; ++a) {
-        l[a] = local(fg.nodes[i + a]);
-        all = all && l[a] >= 0;
-      }
-      if (!all) continue;
-      // Owned by the lowest subdomain among those whose cells contain the facet.
-      int owner = -1;
-      const int g0 = fg.nodes[i];
-      for (int c = p.node_cell_offset[g0]; c < p.node_cell_offset[g0 + 1]; ++c) {
-        const int e = p.node_cell_list[c];
-        int hits = 0;
-        for (int a = 0; a < nc; ++a)
-          for (int b = 0; b < fn; ++b)
-            hits += mesh.cells[static_cast<size_t>(e) * nc + a] == fg.nodes[i + b];
-        if (hits == fn && (owner < 0 || p.cell_subdomain[e] < owner)) owner = p.cell_subdomain[e];
-      }
-      if (owner != s) continue;
-      out.nodes.insert(out.nodes.end(), l, l + fn);
-    }
-    if (!out.nodes.empty()) m.facet_groups[name] = std::move(out);
+    out.nodes.reserve(facets.size() * fg.facet_nodes);
+    for (int f : facets)
+      for (int a = 0; a < fg.facet_nodes; ++a)
+        out.nodes.push_back(local(fg.nodes[static_cast<size_t>(f) * fg.facet_nodes + a]));
   }
   return m;
 }

@@ -54,6 +54,15 @@ struct MeshPartition {
   std::vector<int> node_cell_offset, node_cell_list;  ///< per global node: its cells
   PartitionObjective objective = PartitionObjective::volume;  ///< as used (automatic resolved)
   double stretched_share = 0;  ///< share of stretched cells (computed for automatic only)
+  /// The mesh's groups by subdomain, for extract_subdomain (built once by partition_mesh, so that
+  /// extracting a subdomain costs its own size, not the groups' sizes): per subdomain and group
+  /// (in the mesh's name order; groups the subdomain does not touch left out), the global node
+  /// ids and cell ids in the group's order, and the facets (index of the facet in the group) the
+  /// subdomain owns: a boundary facet belongs to the lowest subdomain with a cell holding it.
+  struct Groups {
+    std::vector<std::pair<std::string, std::vector<int>>> nodes, cells, facets;
+  };
+  std::vector<Groups> groups;  ///< per subdomain
 };
 
 /// The share of the cells whose largest facet measure (area in 3D, length in 2D) is at least

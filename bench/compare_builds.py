@@ -6,10 +6,15 @@ The "before" binary is built from an older commit, for example:
         -DCMAKE_BUILD_TYPE=Release && cmake --build /tmp/htfeti-before/b -j2 --target htfeti_app
 
 Usage: bench/compare_builds.py --before /tmp/htfeti-before/b/htfeti [--after build/htfeti]
-           [--repeat 3] [--full] [--threads 2]
+           [--repeat 3] [--full] [--threads 2] [--cases membranes metis40 ...] [--out NAME.json]
 Cases: membranes n = 1024, N_s = 32, m = 4 with the VTU written (default), and with --full the
 Table 3 full size (n = 3168, N_s = 32) for m = 4 (about 10 GB and two minutes per run).
-Writes bench/results/compare_builds.json."""
+--cases picks among them and the METIS-split cubes of issue 32 (no VTU, so that the phases
+compare): metis40 (bench/cases/cube40_metis64.toml), metis80 (cube80_metis512.toml, one run:
+about a minute and 7 GB), metis80pre (the same with --mprgp-expansion preconditioned),
+bracket (examples/bracket.toml, tet4). The builds take turns run by run, so that the drift of a
+shared machine falls on both alike. Each row keeps the phase timings of every run.
+Writes bench/results/compare_builds.json (or --out)."""
 import argparse
 import json
 import os
@@ -26,20 +31,37 @@ p.add_argument("--after", default=os.path.join(ROOT, "build", "htfeti"))
 p.add_argument("--repeat", type=int, default=3)
 p.add_argument("--threads", type=int, default=2)
 p.add_argument("--full", action="store_true")
+p.add_argument("--cases", nargs="+",
+               choices=["membranes", "full", "metis40", "metis80", "metis80pre", "bracket"])
+p.add_argument("--out", default="compare_builds.json")
 a = p.parse_args()
 
-cases = [("membranes n=1024 N_s=32 m=4, VTU written",
-          ["--problem", "membranes", "-n", "1024", "--subdomains", "32", "-m", "4"], True, a.repeat)]
-if a.full:
-    cases.append(("Table 3 full, m=4 (no VTU)",
-                  ["--problem", "membranes", "-n", "3168", "--subdomains", "32", "-m", "4"], False, 1))
+CASES = {
+    "membranes": ("membranes n=1024 N_s=32 m=4, VTU written",
+                  ["--problem", "membranes", "-n", "1024", "--subdomains", "32", "-m", "4"], True,
+                  a.repeat),
+    "full": ("Table 3 full, m=4 (no VTU)",
+             ["--problem", "membranes", "-n", "3168", "--subdomains", "32", "-m", "4"], False, 1),
+    "metis40": ("cube-obstacle 40^3 split by METIS into 64 (no VTU)",
+                [os.path.join(ROOT, "bench", "cases", "cube40_metis64.toml")], False, a.repeat),
+    "metis80": ("cube-obstacle 80^3 split by METIS into 512 (no VTU)",
+                [os.path.join(ROOT, "bench", "cases", "cube80_metis512.toml")], False, 1),
+    "metis80pre": ("cube-obstacle 80^3 split by METIS into 512, preconditioned expansion (no VTU)",
+                   [os.path.join(ROOT, "bench", "cases", "cube80_metis512.toml"),
+                    "--mprgp-expansion", "preconditioned"], False, 1),
+    "bracket": ("bracket, tet4, 12 parts (no VTU)",
+                [os.path.join(ROOT, "examples", "bracket.toml")], False, a.repeat),
+}
+names = a.cases or (["membranes", "full"] if a.full else ["membranes"])
+cases = [CASES[n] for n in names]
 
 rows = []
 for name, args, vtu, repeat in cases:
     row = {"case": name, "args": args}
-    for label, binary in (("before", a.before), ("after", a.after)):
-        walls, reports = [], []
-        for _ in range(repeat):
+    runs = {"before": ([], []), "after": ([], [])}
+    for _ in range(repeat):
+        for label, binary in (("before", a.before), ("after", a.after)):
+            walls, reports = runs[label]
             with tempfile.TemporaryDirectory() as d:
                 cmd = [binary, "solve", *args, "--report", os.path.join(d, "r.json")]
                 cmd += ["--vtu", os.path.join(d, "u.vtu")] if vtu else ["--no-vtu"]
@@ -49,10 +71,14 @@ for name, args, vtu, repeat in cases:
                 with open(os.path.join(d, "r.json")) as f:
                     reports.append(json.load(f))
                 vtu_bytes = os.path.getsize(os.path.join(d, "u.vtu")) if vtu else 0
+    for label, (walls, reports) in runs.items():
         r = reports[0]
         row[label] = {"wall_median_s": statistics.median(walls), "walls_s": walls,
                       "outer": r["outer_iterations"], "matvecs": r["matvecs"],
                       "energy": r["objective"], "timings": r["timings"],
+                      "timings_median": {k: statistics.median(q["timings"][k] for q in reports)
+                                         for k in r["timings"]},
+                      "factor_nonzeros": r["memory"].get("factor_nonzeros"),
                       "peak_rss_mb": r["memory"]["peak_rss_mb_max_rank"], "vtu_bytes": vtu_bytes}
     b, f = row["before"], row["after"]
     print(f"{name}: before {b['wall_median_s']:.2f} s, after {f['wall_median_s']:.2f} s "
@@ -60,5 +86,6 @@ for name, args, vtu, repeat in cases:
           f"energy rel. diff {abs(b['energy'] - f['energy']) / abs(b['energy']):.1e}, "
           f"VTU {b['vtu_bytes'] / 1e6:.0f}/{f['vtu_bytes'] / 1e6:.0f} MB)", flush=True)
     rows.append(row)
-cmd = "bench/compare_builds.py --before BEFORE" + (" --full" if a.full else "") + f" --repeat {a.repeat}"
-print(save("compare_builds.json", {"command": cmd, "threads": a.threads, "rows": rows}))
+cmd = ("bench/compare_builds.py --before BEFORE" + (" --full" if a.full else "") +
+       (" --cases " + " ".join(a.cases) if a.cases else "") + f" --repeat {a.repeat}")
+print(save(a.out, {"command": cmd, "threads": a.threads, "rows": rows}))

@@ -54,11 +54,25 @@ void perturb_load(SubdomainInput& in, double delta) {
     }
 }
 
+// The rtol of the next refinement: the gluing residual is about proportional to the dual
+// residual, so ask for what brings it to half of kRefineTarget rtol, between 1/1000 and 1/4 of
+// the last rtol.
+double refined_rtol(double last, double ratio) {
+  return last * std::clamp(0.5 * kRefineTarget / ratio, 1e-3, 0.25);
+}
+
+// Records one accuracy check in `steps` (the report's solver.accuracy_refinements) and says
+// whether to solve again: the first time above kRefineRatio, then until kRefineTarget.
+bool needs_refinement(double rtol, double ratio, int done, nlohmann::json& steps) {
+  steps.push_back({{"rtol", rtol}, {"gluing_residual_over_rtol", ratio}});
+  return ratio > (done == 0 ? kRefineRatio : kRefineTarget) && done < kMaxRefinements;
+}
+
 // The dual problem without contact (the paper's (11) with equalities only): projected CG from
 // lambda~, preconditioned by P M^{-1} P when a preconditioner was built.
 QpSolve solve_without_contact(DualProblem& dual, DualOperators& ops, Vec& lambda,
                               const SolveOptions& options, const qp::Reducer& red,
-                              const qp::Progress& progress) {
+                              const qp::Progress& progress, const AccuracyCheck& check) {
   const int n = dual.n_owned();
   qp::QuadraticProgram qp;
   qp.hessian = qp::borrow(ops.F);
@@ -74,15 +88,26 @@ QpSolve solve_without_contact(DualProblem& dual, DualOperators& ops, Vec& lambda
     ops.P.apply(pz, y);
   });
   lambda = dual.lambda_tilde();
-  const auto r = qp::projected_cg(qp, lambda, red, po, progress, ops.preconditioned ? &Z : nullptr);
+  auto r = qp::projected_cg(qp, lambda, red, po, progress, ops.preconditioned ? &Z : nullptr);
   QpSolve out;
   out.outer = r.iterations;
-  out.matvecs = ops.F.count();
   out.converged = r.reason == qp::StopReason::converged;
+  // The accuracy refinement: PCG again from lambda (in lambda~ + Ker G~) with a smaller rtol.
+  nlohmann::json steps = nlohmann::json::array();
+  for (int done = 0; out.converged; ++done) {
+    const double ratio = check(lambda);  // over the asked rtol
+    if (!needs_refinement(po.rtol, ratio, done, steps)) break;
+    po.rtol = refined_rtol(po.rtol, ratio);
+    r = qp::projected_cg(qp, lambda, red, po, progress, ops.preconditioned ? &Z : nullptr);
+    out.outer += r.iterations;
+    out.converged = r.reason == qp::StopReason::converged;
+  }
+  out.matvecs = ops.F.count();
   out.reason = to_string(r.reason);
   out.solver = {{"algorithm", "pcg"},
                 {"projected_residual", r.projected_residual},
                 {"projected_rhs", r.projected_rhs}};
+  if (steps.size() > 1) out.solver["accuracy_refinements"] = steps;
   return out;
 }
 
@@ -92,7 +117,7 @@ QpSolve solve_without_contact(DualProblem& dual, DualOperators& ops, Vec& lambda
 // formed from F v and the coarse image (DualProblem::hessian_from_Fv).
 QpSolve solve_with_contact(DualProblem& dual, DualOperators& ops, Vec& lambda,
                            const SolveOptions& options, const qp::Reducer& red,
-                           const qp::Progress& progress, bool merged) {
+                           const qp::Progress& progress, bool merged, const AccuracyCheck& check) {
   const int n = dual.n_owned();
   qp::QuadraticProgram dual_qp;
   dual_qp.hessian = qp::borrow(ops.F);
@@ -189,6 +214,21 @@ QpSolve solve_with_contact(DualProblem& dual, DualOperators& ops, Vec& lambda,
     out.converged = false;
     out.reason = "coulomb_fixed_point";
   }
+  // The accuracy refinement (solve_parts.hpp): SMALBE-M again from x and its multiplier with a
+  // smaller rtol (with Coulomb friction on the bounds of the fixed point's last solve).
+  nlohmann::json steps = nlohmann::json::array();
+  for (int done = 0; out.converged; ++done) {
+    const double ratio = check(lambda);
+    if (!needs_refinement(so.rtol, ratio, done, steps)) break;
+    so.rtol = refined_rtol(so.rtol, ratio);
+    r = qp::smalbe(qp, normA, x, red, so, hooks, progress, &nu);
+    lambda = qp.shift + x;
+    out.outer += r.outer_iterations;
+    out.inner += r.inner_iterations;
+    out.matvecs += r.hessian_applications;
+    out.converged = r.reason == qp::StopReason::converged;
+    out.reason = to_string(r.reason);
+  }
   const bool discs = dynamic_cast<const qp::SeparableSet*>(qp.constraints.get()) != nullptr;
   out.solver = {{"algorithm", discs ? "smalbe-m+mpgp" : "smalbe-m+mprgp"},
                 {"projected_gradient", r.projected_gradient},
@@ -209,6 +249,7 @@ QpSolve solve_with_contact(DualProblem& dual, DualOperators& ops, Vec& lambda,
                 {"expansion_steps", r.expansion_steps},
                 {"expansion_cost_increases", r.expansion_cost_increases},
                 {"proportioning_steps", r.proportioning_steps}};
+  if (steps.size() > 1) out.solver["accuracy_refinements"] = steps;
   // The fixed point's history: per step the relative change of the slip bounds.
   if (dual.has_coulomb())
     out.solver["coulomb"] = {
@@ -382,9 +423,25 @@ SolveOutput solve(std::shared_ptr<const Model> model_ptr, const SolveOptions& op
       std::fprintf(stderr, "  it %5d  ||P r||/||P b|| %.3e  %.2f s\n", it, gp,
                    seconds_now() - t_solve);
   };
-  const QpSolve qs = contact ? solve_with_contact(dual, ops, lambda, options, red, progress, merged)
-                             : solve_without_contact(dual, ops, lambda, options, red, progress);
-  t_solve = seconds_now() - t_solve;
+  // The accuracy check reconstructs u; the last check's u is the solution's (its lambda is the
+  // final one), so the reconstruction below is not repeated.
+  std::vector<Vec> checked_u;
+  double t_rec = 0;
+  DualProblem::Kkt checked_kkt;
+  const AccuracyCheck check = [&](const Vec& lam) {
+    const double t = seconds_now();
+    require_finite(comm, lam.allFinite(), "the multipliers lambda at the end of the solve");
+    checked_u = dual.reconstruct(lam);
+    t_rec = seconds_now() - t;
+    checked_kkt = dual.kkt(checked_u, lam);
+    return checked_kkt.equality_scale > 0
+               ? checked_kkt.equality_residual / checked_kkt.equality_scale / options.rtol
+               : 0.0;
+  };
+  const QpSolve qs =
+      contact ? solve_with_contact(dual, ops, lambda, options, red, progress, merged, check)
+              : solve_without_contact(dual, ops, lambda, options, red, progress, check);
+  t_solve = seconds_now() - t_solve - (qs.converged ? t_rec : 0.0);
   const double peak_mb_solve = peak_rss_mb();
   // A contact solve that did not converge may have had no solution to find: a body the load
   // pulls away from its obstacles. Then the input is at fault (exit 2), not the solver.
@@ -393,14 +450,24 @@ SolveOutput solve(std::shared_ptr<const Model> model_ptr, const SolveOptions& op
     if (!why.empty()) throw std::invalid_argument(why);
   }
 
-  double t_rec = seconds_now();
-  require_finite(comm, lambda.allFinite(), "the multipliers lambda at the end of the solve");
-  out.u = dual.reconstruct(lambda);
-  t_rec = seconds_now() - t_rec;
+  if (!qs.converged) {  // (a converged solve's last check reconstructed u from its lambda)
+    t_rec = seconds_now();
+    require_finite(comm, lambda.allFinite(), "the multipliers lambda at the end of the solve");
+    checked_u = dual.reconstruct(lambda);
+    t_rec = seconds_now() - t_rec;
+  }
+  out.u = std::move(checked_u);
   if (verbose) std::fprintf(stderr, "  reconstruction done in %.2f s\n", t_rec);
   double t_checks = seconds_now();  // the report's checks of the solution
-  const auto kkt = dual.kkt(out.u, lambda);
+  const auto kkt = qs.converged ? checked_kkt : dual.kkt(out.u, lambda);
   if (qs.converged) check_equality_residual(kkt, options.rtol);
+  if (qs.converged && comm.rank() == 0 && kkt.equality_scale > 0 &&
+      kkt.equality_residual / kkt.equality_scale > kRefineRatio * options.rtol)
+    std::fprintf(stderr,
+                 "htfeti: warning: the gluing residual ||B_E u - c_E|| is %.1f rtol of ||u|| + "
+                 "||c_E|| after %d accuracy refinements: the solution is less accurate than rtol "
+                 "says; solve with a smaller rtol, or with TFETI (cluster_size = 1)\n",
+                 kkt.equality_residual / kkt.equality_scale / options.rtol, kMaxRefinements);
   const double energy = dual.energy(out.u);
   {
     bool finite = std::isfinite(energy);

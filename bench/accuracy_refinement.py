@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """The accuracy refinement (src/solve_parts.hpp) on the cases that need it: H-TFETI-DP on
-clusters of 8 METIS parts of the cube of bench/cases (hex8, 64 parts), where the dual stopping
-test at rtol 1e-4 leaves the primal gluing residual ||B_E u - c_E|| at 15-72 rtol of
+clusters of 8 (and 4) METIS parts of the cube of bench/cases (hex8, 64 parts), where the dual
+stopping test at rtol 1e-4 leaves the primal gluing residual ||B_E u - c_E|| at 8-72 rtol of
 ||u|| + ||c_E||. Per case, at rtol 1e-4: the build under test (and --before, a build without the
 refinement), their Hessian products, the refinement steps, the gluing residual in units of rtol
 and the energy's distance from the reference: TFETI on the same 64 parts at rtol 1e-10.
@@ -25,13 +25,17 @@ p.add_argument("--after", default=BIN)
 p.add_argument("--threads", type=int, default=2)
 a = p.parse_args()
 
-CASES = [("cube 24^3, linear", "cube40_metis64_linear.toml", 24),
-         ("cube 40^3, linear", "cube40_metis64_linear.toml", 40),
-         ("cube-obstacle 40^3", "cube40_metis64.toml", 40)]
+CASES = [("cube 24^3, linear", "cube40_metis64_linear.toml", 24, ["--cluster-size", "8"]),
+         ("cube 24^3, linear, corners", "cube40_metis64_linear.toml", 24,
+          ["--cluster-size", "8", "--glue", "corners"]),
+         ("cube 24^3, linear, clusters of 4", "cube40_metis64_linear.toml", 24,
+          ["--cluster-size", "4"]),
+         ("cube 40^3, linear", "cube40_metis64_linear.toml", 40, ["--cluster-size", "8"]),
+         ("cube-obstacle 40^3", "cube40_metis64.toml", 40, ["--cluster-size", "8"])]
 builds = [("after", a.after)] + ([("before", a.before)] if a.before else [])
 rows = []
 with tempfile.TemporaryDirectory() as d:
-    for name, base, n in CASES:
+    for name, base, n, extra in CASES:
         with open(os.path.join(ROOT, "bench", "cases", base)) as f:
             text = f.read()
         text = re.sub(r"elements = \[40, 40, 40\]", f"elements = [{n}, {n}, {n}]", text)
@@ -39,10 +43,10 @@ with tempfile.TemporaryDirectory() as d:
         with open(path, "w") as f:
             f.write(text)
         ref = solve([path, "--rtol", "1e-10", "--cluster-size", "1"], threads=a.threads)
-        row = {"case": name, "reference_energy": ref["objective"],
+        row = {"case": name, "args": extra, "reference_energy": ref["objective"],
                "reference": "TFETI, same 64 parts, rtol 1e-10"}
         for label, binary in builds:
-            r = solve([path, "--cluster-size", "8"], threads=a.threads, binary=binary)
+            r = solve([path, *extra], threads=a.threads, binary=binary)
             steps = r["solver"].get("accuracy_refinements", [])
             row[label] = {
                 "products": r["matvecs"], "outer": r["outer_iterations"],

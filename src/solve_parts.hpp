@@ -46,10 +46,10 @@ struct QpSolve {
 // stopped, with a smaller rtol, until that residual is at most kRefineTarget x rtol, at most
 // kMaxRefinements times. The dual tests bound the dual problem's residuals; on an
 // ill-conditioned F (H-TFETI-DP on clusters of METIS parts) a dual residual of rtol left the
-// gluing residual at 15-72 rtol and the energy 5e-4 to 1.3% off, where the examples and
+// gluing residual at 8-72 rtol and the energy 3e-5 to 1.3% off, where the examples and
 // built-ins all end below 2.6 rtol (docs/reliability.md). One check costs a reconstruction,
 // which a converged solve needs anyway: the last check's u is the solution's.
-constexpr double kRefineRatio = 10.0;
+constexpr double kRefineRatio = 3.0;
 constexpr double kRefineTarget = 0.1;
 constexpr int kMaxRefinements = 4;
 // The check: the gluing residual of lambda over rtol (it reconstructs u, which the driver keeps).

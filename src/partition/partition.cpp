@@ -319,6 +319,18 @@ std::vector<int> cluster_subdomains(const std::vector<std::map<int, int>>& adjac
                                       adjwgt.data(), &nparts, nullptr, nullptr, options, &objval,
                                       out.data()),
                   "subdomain graph into clusters");
+      // METIS 5.1's k-way split of a small graph into many parts can come back degenerate and
+      // still report success: the 64 parts of a METIS-split cube into 32 clusters came back as
+      // one cluster of 64, which silently turned cluster_size = 2 into one cluster. A split
+      // whose largest cluster is more than twice the asked size is redone by recursive
+      // bisection, which does not fail so (Cli.ClustersOfMetisPartsHaveTheAskedSize).
+      std::vector<int> count(target, 0);
+      for (int s = 0; s < ns; ++s) ++count[out[s]];
+      if (*std::max_element(count.begin(), count.end()) > 2 * ((ns + target - 1) / target))
+        metis_check(METIS_PartGraphRecursive(&nv, &ncon, xadj.data(), adjncy.data(), nullptr,
+                                             nullptr, adjwgt.data(), &nparts, nullptr, nullptr,
+                                             options, &objval, out.data()),
+                    "subdomain graph into clusters");
       for (int s = 0; s < ns; ++s) cpart[first + s] = cluster_offset + static_cast<int>(out[s]);
     } else {
       for (int s = 0; s < ns; ++s) cpart[first + s] = cluster_offset;

@@ -179,6 +179,16 @@ QpSolve solve_with_contact(DualProblem& dual, DualOperators& ops, Vec& lambda,
   out.matvecs = r.hessian_applications;
   out.converged = r.reason == qp::StopReason::converged;
   out.reason = to_string(r.reason);
+  // SMALBE-M once more from x and nu (warm), its counts added to the first solve's.
+  const auto solve_again = [&]() {
+    r = qp::smalbe(qp, normA, x, red, so, hooks, progress, &nu);
+    lambda = qp.shift + x;
+    out.outer += r.outer_iterations;
+    out.inner += r.inner_iterations;
+    out.matvecs += r.hessian_applications;
+    out.converged = r.reason == qp::StopReason::converged;
+    out.reason = to_string(r.reason);
+  };
   // Coulomb friction: the fixed point on the slip bound. The first solve had no bound on the
   // Coulomb rows whose gap was closed (they stick: a solution whenever the normal contact holds
   // the bodies) and bound 0 on the open ones (constraints.cpp);
@@ -201,14 +211,8 @@ QpSolve solve_with_contact(DualProblem& dual, DualOperators& ops, Vec& lambda,
     if (it >= options.coulomb_max_iterations) break;
     dual.update_coulomb_bounds(lambda, true);
     qp.constraints = dual.constraint_set()->shifted(qp.shift);
-    r = qp::smalbe(qp, normA, x, red, so, hooks, progress, &nu);
+    solve_again();
     ++solves;
-    lambda = qp.shift + x;
-    out.outer += r.outer_iterations;
-    out.inner += r.inner_iterations;
-    out.matvecs += r.hessian_applications;
-    out.converged = r.reason == qp::StopReason::converged;
-    out.reason = to_string(r.reason);
   }
   if (out.converged && !fixed_point) {
     out.converged = false;
@@ -221,13 +225,7 @@ QpSolve solve_with_contact(DualProblem& dual, DualOperators& ops, Vec& lambda,
     const double ratio = check(lambda);
     if (!needs_refinement(so.rtol, ratio, done, steps)) break;
     so.rtol = refined_rtol(so.rtol, ratio);
-    r = qp::smalbe(qp, normA, x, red, so, hooks, progress, &nu);
-    lambda = qp.shift + x;
-    out.outer += r.outer_iterations;
-    out.inner += r.inner_iterations;
-    out.matvecs += r.hessian_applications;
-    out.converged = r.reason == qp::StopReason::converged;
-    out.reason = to_string(r.reason);
+    solve_again();
   }
   const bool discs = dynamic_cast<const qp::SeparableSet*>(qp.constraints.get()) != nullptr;
   out.solver = {{"algorithm", discs ? "smalbe-m+mpgp" : "smalbe-m+mprgp"},

@@ -54,18 +54,23 @@ void perturb_load(SubdomainInput& in, double delta) {
     }
 }
 
-// The rtol of the next refinement: the gluing residual is about proportional to the dual
-// residual, so ask for what brings it to half of kRefineTarget rtol, between 1/1000 and 1/4 of
-// the last rtol.
-double refined_rtol(double last, double ratio) {
-  return last * std::clamp(0.5 * kRefineTarget / ratio, 1e-3, 0.25);
-}
-
-// Records one accuracy check in `steps` (the report's solver.accuracy_refinements) and says
-// whether to solve again: the first time above kRefineRatio, then until kRefineTarget.
-bool needs_refinement(double rtol, double ratio, int done, nlohmann::json& steps) {
-  steps.push_back({{"rtol", rtol}, {"gluing_residual_over_rtol", ratio}});
-  return ratio > (done == 0 ? kRefineRatio : kRefineTarget) && done < kMaxRefinements;
+// The accuracy refinement (solve_parts.hpp) after a converged solve: the gluing residual of
+// lambda is checked, and while it is too large (the first time above kRefineRatio, then until
+// kRefineTarget) `again` solves on from where the last solve stopped, with rtol made smaller in
+// proportion (the gluing residual falls about as the dual residual does: half of what brings it
+// to kRefineTarget, between 1/1000 and 1/4 of the last rtol); `again` updates lambda and
+// converged. Returns the steps for the report's solver.accuracy_refinements (one per check).
+nlohmann::json refine_accuracy(const AccuracyCheck& check, const Vec& lambda, double& rtol,
+                               const bool& converged, const std::function<void()>& again) {
+  nlohmann::json steps = nlohmann::json::array();
+  for (int done = 0; converged; ++done) {
+    const double ratio = check(lambda);  // in units of the asked rtol
+    steps.push_back({{"rtol", rtol}, {"gluing_residual_over_rtol", ratio}});
+    if (!(ratio > (done == 0 ? kRefineRatio : kRefineTarget)) || done >= kMaxRefinements) break;
+    rtol *= std::clamp(0.5 * kRefineTarget / ratio, 1e-3, 0.25);
+    again();
+  }
+  return steps;
 }
 
 // The dual problem without contact (the paper's (11) with equalities only): projected CG from
@@ -93,15 +98,11 @@ QpSolve solve_without_contact(DualProblem& dual, DualOperators& ops, Vec& lambda
   out.outer = r.iterations;
   out.converged = r.reason == qp::StopReason::converged;
   // The accuracy refinement: PCG again from lambda (in lambda~ + Ker G~) with a smaller rtol.
-  nlohmann::json steps = nlohmann::json::array();
-  for (int done = 0; out.converged; ++done) {
-    const double ratio = check(lambda);  // over the asked rtol
-    if (!needs_refinement(po.rtol, ratio, done, steps)) break;
-    po.rtol = refined_rtol(po.rtol, ratio);
+  const nlohmann::json steps = refine_accuracy(check, lambda, po.rtol, out.converged, [&]() {
     r = qp::projected_cg(qp, lambda, red, po, progress, ops.preconditioned ? &Z : nullptr);
     out.outer += r.iterations;
     out.converged = r.reason == qp::StopReason::converged;
-  }
+  });
   out.matvecs = ops.F.count();
   out.reason = to_string(r.reason);
   out.solver = {{"algorithm", "pcg"},
@@ -220,13 +221,7 @@ QpSolve solve_with_contact(DualProblem& dual, DualOperators& ops, Vec& lambda,
   }
   // The accuracy refinement (solve_parts.hpp): SMALBE-M again from x and its multiplier with a
   // smaller rtol (with Coulomb friction on the bounds of the fixed point's last solve).
-  nlohmann::json steps = nlohmann::json::array();
-  for (int done = 0; out.converged; ++done) {
-    const double ratio = check(lambda);
-    if (!needs_refinement(so.rtol, ratio, done, steps)) break;
-    so.rtol = refined_rtol(so.rtol, ratio);
-    solve_again();
-  }
+  const nlohmann::json steps = refine_accuracy(check, lambda, so.rtol, out.converged, solve_again);
   const bool discs = dynamic_cast<const qp::SeparableSet*>(qp.constraints.get()) != nullptr;
   out.solver = {{"algorithm", discs ? "smalbe-m+mpgp" : "smalbe-m+mprgp"},
                 {"projected_gradient", r.projected_gradient},
@@ -424,14 +419,16 @@ SolveOutput solve(std::shared_ptr<const Model> model_ptr, const SolveOptions& op
   // The accuracy check reconstructs u; the last check's u is the solution's (its lambda is the
   // final one), so the reconstruction below is not repeated.
   std::vector<Vec> checked_u;
-  double t_rec = 0;
+  double t_rec = 0, t_kkt = 0;
   DualProblem::Kkt checked_kkt;
   const AccuracyCheck check = [&](const Vec& lam) {
-    const double t = seconds_now();
+    double t = seconds_now();
     require_finite(comm, lam.allFinite(), "the multipliers lambda at the end of the solve");
     checked_u = dual.reconstruct(lam);
     t_rec = seconds_now() - t;
+    t = seconds_now();
     checked_kkt = dual.kkt(checked_u, lam);
+    t_kkt = seconds_now() - t;
     return checked_kkt.equality_scale > 0
                ? checked_kkt.equality_residual / checked_kkt.equality_scale / options.rtol
                : 0.0;
@@ -439,7 +436,7 @@ SolveOutput solve(std::shared_ptr<const Model> model_ptr, const SolveOptions& op
   const QpSolve qs =
       contact ? solve_with_contact(dual, ops, lambda, options, red, progress, merged, check)
               : solve_without_contact(dual, ops, lambda, options, red, progress, check);
-  t_solve = seconds_now() - t_solve - (qs.converged ? t_rec : 0.0);
+  t_solve = seconds_now() - t_solve - (qs.converged ? t_rec + t_kkt : 0.0);
   const double peak_mb_solve = peak_rss_mb();
   // A contact solve that did not converge may have had no solution to find: a body the load
   // pulls away from its obstacles. Then the input is at fault (exit 2), not the solver.
@@ -448,16 +445,12 @@ SolveOutput solve(std::shared_ptr<const Model> model_ptr, const SolveOptions& op
     if (!why.empty()) throw std::invalid_argument(why);
   }
 
-  if (!qs.converged) {  // (a converged solve's last check reconstructed u from its lambda)
-    t_rec = seconds_now();
-    require_finite(comm, lambda.allFinite(), "the multipliers lambda at the end of the solve");
-    checked_u = dual.reconstruct(lambda);
-    t_rec = seconds_now() - t_rec;
-  }
+  // A converged solve's last check was on its final lambda; reconstruct the others the same way.
+  if (!qs.converged) check(lambda);
   out.u = std::move(checked_u);
   if (verbose) std::fprintf(stderr, "  reconstruction done in %.2f s\n", t_rec);
-  double t_checks = seconds_now();  // the report's checks of the solution
-  const auto kkt = qs.converged ? checked_kkt : dual.kkt(out.u, lambda);
+  double t_checks = seconds_now() - t_kkt;  // the report's checks of the solution
+  const DualProblem::Kkt& kkt = checked_kkt;
   if (qs.converged) check_equality_residual(kkt, options.rtol);
   if (qs.converged && comm.rank() == 0 && kkt.equality_scale > 0 &&
       kkt.equality_residual / kkt.equality_scale > kRefineRatio * options.rtol)

@@ -1342,14 +1342,11 @@ TEST_F(Cli, PartitionedMeshSameBitsOnOneAndThreeRanksOfTwoThreads) {
   EXPECT_FALSE(fs::exists("m.json"));
 }
 
-// The accuracy refinement: H-TFETI-DP on clusters of 8 METIS parts of a 24^3 hex8 cube under
-// its own weight, where the dual stopping test at rtol 1e-4 left the gluing residual
-// ||B_E u - c_E|| at 15 rtol of ||u|| + ||c_E||: the solve goes on from there with a smaller
-// rtol until it is at most 0.1 rtol (where TFETI's solves end by themselves). Checked against
-// TFETI on the same parts: the same energy to 2e-5 (measured 7e-6; the unrefined H-TFETI-DP
-// solve was 5e-4 off).
-TEST_F(Cli, AccuracyRefinementBringsTheGluingResidualToRtol) {
-  std::ofstream("cube.toml") << R"([mesh]
+namespace {
+// The 24^3 hex8 cube of side 100 under its own weight, clamped at x = 0, split by METIS into 64
+// parts, in clusters of cluster_size parts.
+void write_metis_cube(const std::string& path, int cluster_size) {
+  std::ofstream(path) << R"([mesh]
 generator = "box"
 size = [100.0, 100.0, 100.0]
 elements = [24, 24, 24]
@@ -1365,10 +1362,19 @@ group = "x0"
 value = [0.0, 0.0, 0.0]
 [decomposition]
 subdomains = 64
-cluster_size = 8
-[solver]
-rtol = 1e-4
-)";
+cluster_size = )" << cluster_size
+                      << "\n[solver]\nrtol = 1e-4\n";
+}
+}  // namespace
+
+// The accuracy refinement: H-TFETI-DP on clusters of 8 METIS parts of a 24^3 hex8 cube under
+// its own weight, where the dual stopping test at rtol 1e-4 left the gluing residual
+// ||B_E u - c_E|| at 15 rtol of ||u|| + ||c_E||: the solve goes on from there with a smaller
+// rtol until it is at most 0.1 rtol (where TFETI's solves end by themselves). Checked against
+// TFETI on the same parts: the same energy to 2e-5 (measured 7e-6; the unrefined H-TFETI-DP
+// solve was 5e-4 off).
+TEST_F(Cli, AccuracyRefinementBringsTheGluingResidualToRtol) {
+  write_metis_cube("cube.toml", 8);
   ASSERT_EQ(run(bin + " solve cube.toml --no-vtu --report h.json"), 0) << stderr_text();
   ASSERT_EQ(run(bin + " solve cube.toml --cluster-size 1 --no-vtu --report t.json"), 0)
       << stderr_text();
@@ -1394,21 +1400,7 @@ rtol = 1e-4
 // parts of a METIS-split cube into 32 clusters came back as one cluster of 64 (partition.cpp).
 TEST_F(Cli, ClustersOfMetisPartsHaveTheAskedSize) {
   for (const int m : {2, 3, 8}) {
-    std::ofstream("c.toml") << R"([mesh]
-generator = "box"
-size = [1.0, 1.0, 1.0]
-elements = [24, 24, 24]
-element = "hex8"
-[physics]
-type = "elasticity"
-young = 1.0
-poisson = 0.3
-[[dirichlet]]
-group = "x0"
-value = [0.0, 0.0, 0.0]
-[decomposition]
-subdomains = 64
-cluster_size = )" << m << "\n";
+    write_metis_cube("c.toml", m);
     // The dry run prints the problem as JSON after two lines of text.
     const int status =
         std::system((bin + " solve c.toml --dry-run > d.txt 2> cli_stderr.txt").c_str());

@@ -368,6 +368,12 @@ void add_memory_options(std::vector<OptionSpec>& t) {
        },
        [](const RunOptions& r) { return nlohmann::json(r.solve.feti.factor_budget_bytes == 0); }});
   t.push_back(integer(
+      "coarse_ranks", "--coarse-ranks",
+      "ranks that hold the coarse factor (G G^T): 0 every rank; K splits the ranks into K groups "
+      "of consecutive ranks, the first of each factors and solves and sends the solution to the "
+      "rest (memory: one factor per group, e.g. per machine; the same solution bit for bit)",
+      [](RunOptions& r) -> int& { return r.solve.feti.coarse_ranks; }, 0, 1000000000));
+  t.push_back(integer(
       "symbolic_cache", "--symbolic-cache",
       "subdomain factorizations share the symbolic analysis (ordering, supernodes) of "
       "subdomains with the same sparsity pattern; at most this many patterns are kept per rank "

@@ -197,6 +197,7 @@ void report_timings_and_memory(nlohmann::json& rep, DualProblem& dual, const Com
       {"limit_mb", options.feti.memory_limit_mb},
       {"factor_nonzeros", comm.sum(static_cast<long long>(dual.factor_nonzeros()))},
       {"coarse_factor_nonzeros", dual.coarse_factor_nonzeros()},
+      {"coarse_factor_ranks", dual.coarse_factor_ranks()},
       {"explicit_mb", comm.sum(static_cast<double>(dual.explicit_bytes())) / 1048576.0},
       {"cluster_dense_mb", comm.sum(8.0 * dual.cluster_dense_doubles()) / 1048576.0},
       {"preconditioner_mb", comm.sum(static_cast<double>(dual.preconditioner_bytes())) / 1048576.0},

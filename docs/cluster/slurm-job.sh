@@ -19,5 +19,7 @@ export OMP_PROC_BIND=close OMP_PLACES=cores
 # setup when it does not fit. For a mesh too large for one machine give it as Gmsh's parts
 # (`[mesh] parts = "NAME.msh"`, one file per part): every rank then reads only its own, and
 # `srun ... htfeti solve "$problem" --dry-run` prints what each rank holds before anything runs.
-srun --cpu-bind=cores htfeti solve "$problem" \
+# --coarse-ranks: one copy of the coarse factor per machine instead of one per rank (srun places
+# the ranks machine by machine, so the groups of consecutive ranks are the machines).
+srun --cpu-bind=cores htfeti solve "$problem" --coarse-ranks "${SLURM_JOB_NUM_NODES}" \
   --report "htfeti-${SLURM_JOB_ID}.json" --vtu "htfeti-${SLURM_JOB_ID}.pvtu" --progress

@@ -164,7 +164,7 @@ void CoarseSpace::assemble_image_coarse_matrix() {
           for (int q = im.e_ptr[e]; q < im.e_ptr[e + 1]; ++q)
             products.push_back({gcol[i].k, gcol[a].row, im.e_col[q], gcol[a].g * im.e_val[q]});
       });
-  const std::vector<CoarseTriplet> all = allgather_sorted(mine);
+  const std::vector<CoarseTriplet> all = allgather_sorted(mine, comm_.raw());
   const int nc = dimension();
   im.c_ptr.assign(nc + 1, 0);
   im.c_col.clear(), im.c_val.clear();

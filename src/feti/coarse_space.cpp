@@ -3,7 +3,8 @@
 // of the multipliers in a fixed order, its factor (sparse Cholesky, or dense with the null space
 // of unrestrained rigid motions), and the projector P = I - G~^T (G~ G~^T)^{-1} G~. Cost of one
 // projection: one pass of G~ and of G~^T over the owned multipliers, one allreduce of a coarse
-// vector, one sparse coarse solve on every rank.
+// vector, one sparse coarse solve on every rank (or, with coarse_ranks, on the first rank of
+// each group and a broadcast of the coarse vector in the group).
 #include "htfeti/feti/coarse_space.hpp"
 
 #include <mpi.h>
@@ -22,8 +23,32 @@
 
 namespace htfeti {
 
+CoarseSpace::~CoarseSpace() {
+  int finalized = 0;
+  MPI_Finalized(&finalized);
+  if (finalized) return;
+  if (group_comm_ != MPI_COMM_NULL) MPI_Comm_free(&group_comm_);
+  if (leader_comm_ != MPI_COMM_NULL) MPI_Comm_free(&leader_comm_);
+}
+
 void CoarseSpace::set_up(const std::vector<std::unique_ptr<Cluster>>& clusters, int first_cluster,
-                         std::vector<int> sub_first, bool threads_over_clusters) {
+                         std::vector<int> sub_first, bool threads_over_clusters, int coarse_ranks) {
+  {  // The ranks that factor: every rank, or the first of each group of consecutive ranks.
+    const int P = comm_.size(), rank = comm_.rank();
+    const int K = coarse_ranks <= 0 ? P : std::min(coarse_ranks, P);
+    if (group_comm_ != MPI_COMM_NULL) MPI_Comm_free(&group_comm_);
+    if (leader_comm_ != MPI_COMM_NULL) MPI_Comm_free(&leader_comm_);
+    subset_ = K < P;
+    leader_ = true;
+    factor_ranks_ = P;
+    if (subset_) {
+      const int stride = (P + K - 1) / K;
+      leader_ = rank % stride == 0;
+      factor_ranks_ = (P + stride - 1) / stride;
+      MPI_Comm_split(comm_.raw(), rank / stride, rank, &group_comm_);
+      MPI_Comm_split(comm_.raw(), leader_ ? 0 : MPI_UNDEFINED, rank, &leader_comm_);
+    }
+  }
   first_cluster_ = first_cluster;
   sub_first_ = std::move(sub_first);
   outer_parallel_ = threads_over_clusters;
@@ -140,8 +165,17 @@ void CoarseSpace::project(const Vec& x, Vec& y) {
 int CoarseSpace::solve_weighted(const std::vector<double>& weight, Vec& coarse) {
   Factor factor;
   assemble(weight, factor);
-  factor.solve(coarse);
+  solve_with(factor, coarse);
   return factor.null_dimension();
+}
+
+void CoarseSpace::solve_with(Factor& factor, Vec& x) {
+  if (!subset_ || factor.use_dense) {
+    factor.solve(x);
+    return;
+  }
+  if (leader_) factor.sparse.solve(x.data(), x.data());
+  MPI_Bcast(x.data(), static_cast<int>(x.size()), MPI_DOUBLE, 0, group_comm_);
 }
 
 namespace {
@@ -159,6 +193,31 @@ MPI_Datatype struct_type(const std::array<MPI_Aint, N>& disp,
   return out;
 }
 }  // namespace
+
+MPI_Datatype CoarseSpace::triplet_type() {
+  return struct_type<CoarseTriplet, 4>({offsetof(CoarseTriplet, k), offsetof(CoarseTriplet, a),
+                                        offsetof(CoarseTriplet, b), offsetof(CoarseTriplet, v)},
+                                       {MPI_LONG_LONG, MPI_INT, MPI_INT, MPI_DOUBLE});
+}
+
+std::vector<CoarseSpace::CoarseTriplet> CoarseSpace::gather_to_factor_ranks(
+    const std::vector<CoarseTriplet>& mine) const {
+  if (!subset_) return allgather_sorted(mine, comm_.raw());
+  // The group's triplets to its first rank, then every first rank gets all of them; sorted by
+  // key there, so the order of arrival does not matter.
+  MPI_Datatype trip_type = triplet_type();
+  int G = 1, nmine = static_cast<int>(mine.size());
+  MPI_Comm_size(group_comm_, &G);
+  std::vector<int> counts(G), disp(G + 1, 0);
+  MPI_Gather(&nmine, 1, MPI_INT, counts.data(), 1, MPI_INT, 0, group_comm_);
+  for (int r = 0; r < G; ++r) disp[r + 1] = disp[r] + counts[r];
+  std::vector<CoarseTriplet> group(leader_ ? disp[G] : 0);
+  MPI_Gatherv(mine.data(), nmine, trip_type, group.data(), counts.data(), disp.data(), trip_type, 0,
+              group_comm_);
+  MPI_Type_free(&trip_type);
+  if (!leader_) return {};
+  return allgather_sorted(group, leader_comm_);
+}
 
 std::vector<CoarseSpace::GItem> CoarseSpace::g_columns_at_owners() const {
   // Every cluster sends (k, coarse row, g) for its nonzeros of G~ to the owner of k. Counts are
@@ -193,19 +252,17 @@ std::vector<CoarseSpace::GItem> CoarseSpace::g_columns_at_owners() const {
 }
 
 std::vector<CoarseSpace::CoarseTriplet> CoarseSpace::allgather_sorted(
-    const std::vector<CoarseTriplet>& mine) const {
-  MPI_Datatype trip_type =
-      struct_type<CoarseTriplet, 4>({offsetof(CoarseTriplet, k), offsetof(CoarseTriplet, a),
-                                     offsetof(CoarseTriplet, b), offsetof(CoarseTriplet, v)},
-                                    {MPI_LONG_LONG, MPI_INT, MPI_INT, MPI_DOUBLE});
-  const int P = comm_.size();
+    const std::vector<CoarseTriplet>& mine, MPI_Comm comm) const {
+  MPI_Datatype trip_type = triplet_type();
+  int P = 1;
+  MPI_Comm_size(comm, &P);
   int nmine = static_cast<int>(mine.size());
   std::vector<int> counts(P), disp(P + 1, 0);
-  MPI_Allgather(&nmine, 1, MPI_INT, counts.data(), 1, MPI_INT, comm_.raw());
+  MPI_Allgather(&nmine, 1, MPI_INT, counts.data(), 1, MPI_INT, comm);
   for (int r = 0; r < P; ++r) disp[r + 1] = disp[r] + counts[r];
   std::vector<CoarseTriplet> all(disp[P]);
   MPI_Allgatherv(mine.data(), nmine, trip_type, all.data(), counts.data(), disp.data(), trip_type,
-                 comm_.raw());
+                 comm);
   MPI_Type_free(&trip_type);
   // Each entry's partial sums in key order, whatever rank formed them.
   std::sort(all.begin(), all.end(), [](const CoarseTriplet& x, const CoarseTriplet& y) {
@@ -274,14 +331,18 @@ void CoarseSpace::assemble(const std::vector<double>& weight, Factor& factor) {
             }
       });
   rbuf = {};
-  // Sum each entry's partial sums in cluster order whatever rank formed them (k: the cluster).
-  const std::vector<Triplet> all = allgather_sorted(mine);
+  // Sum each entry's partial sums in cluster order whatever rank formed them (k: the cluster);
+  // on the ranks that factor (coarse_ranks), the others have none.
+  std::vector<Triplet> all = gather_to_factor_ranks(mine);
   mine = {};
-  std::vector<Eigen::Triplet<double>> trip;
-  trip.reserve(all.size());
-  for (const auto& t : all) trip.emplace_back(t.a, t.b, t.v);
   Eigen::SparseMatrix<double> GGt(dimension(), dimension());
-  GGt.setFromTriplets(trip.begin(), trip.end());
+  const auto build = [&]() {
+    std::vector<Eigen::Triplet<double>> trip;
+    trip.reserve(all.size());
+    for (const auto& t : all) trip.emplace_back(t.a, t.b, t.v);
+    GGt.setFromTriplets(trip.begin(), trip.end());
+  };
+  build();
   factor.sparse = SparseCholesky(Ordering::amd);
   factor.use_dense = false;
   factor.null.resize(0, 0);
@@ -295,13 +356,13 @@ void CoarseSpace::assemble(const std::vector<double>& weight, Factor& factor) {
     omp_set_num_threads(1);
     try {
       inject_failure("coarse", comm_.rank());
-      factor.sparse.factorize(GGt);
+      if (leader_) factor.sparse.factorize(GGt);
       // A semidefinite G~ W G~^T (a rigid motion that only the masked rows restrain) can factor
       // with a round-off pivot instead of failing: the sphere of examples/sphere-on-block.toml,
       // split with the cut objective, with its contact rows masked did (rcond 1.2e-16; its null
       // eigenvalue 3e-17 of 0.84). rcond >= 1 / cond, so below 1e-15 the matrix is singular to
       // working precision: taken as singular (the dense path finds its null space).
-      if (factor.sparse.rcond() < kSingularRcond) singular = true;
+      if (leader_ && factor.sparse.rcond() < kSingularRcond) singular = true;
     } catch (const std::bad_alloc&) {
       oom = true;  // this rank alone, maybe: agreed on below
     } catch (const std::exception&) {
@@ -312,6 +373,14 @@ void CoarseSpace::assemble(const std::vector<double>& weight, Factor& factor) {
   // Every rank factors the same matrix, so a singular one is singular everywhere; running out of
   // memory is not, and is agreed on before the ranks' paths could part.
   comm_.agree(oom ? "out of memory while factoring the coarse problem" : "", true);
+  if (subset_) {  // the ranks that factored tell the others (all of them found the same)
+    long long s[2] = {singular ? 1 : 0, leader_ ? factor.sparse.factor_nonzeros() : 0};
+    MPI_Allreduce(MPI_IN_PLACE, s, 2, MPI_LONG_LONG, MPI_MAX, comm_.raw());
+    singular = s[0] != 0;
+    factor.nonzeros = static_cast<long>(s[1]);
+  } else {
+    factor.nonzeros = factor.sparse.factor_nonzeros();
+  }
   if (!singular) return;
   const int nc = dimension();
   if (nc > kMaxDense)
@@ -319,6 +388,16 @@ void CoarseSpace::assemble(const std::vector<double>& weight, Factor& factor) {
         "the coarse problem G G^T is singular: some rigid motion of a subdomain or cluster is "
         "restrained by no Dirichlet condition or contact row (coarse dimension " +
         std::to_string(nc) + " is too large to name it)");
+  factor.nonzeros = static_cast<long>(nc) * (nc + 1) / 2;
+  if (subset_) {  // the dense path runs on every rank: the group's first rank sends the matrix
+    int n = static_cast<int>(all.size());
+    MPI_Bcast(&n, 1, MPI_INT, 0, group_comm_);
+    all.resize(n);
+    MPI_Datatype trip_type = triplet_type();
+    MPI_Bcast(all.data(), n, trip_type, 0, group_comm_);
+    MPI_Type_free(&trip_type);
+    if (!leader_) build();
+  }
   try {
     const Eigen::MatrixXd upper(GGt);  // entries (a, b) with a <= b
     Eigen::MatrixXd A = upper.selfadjointView<Eigen::Upper>();

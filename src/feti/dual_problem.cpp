@@ -359,7 +359,7 @@ void DualProblem::set_up_clusters(Setup& st) {
 void DualProblem::set_up_coarse_space(Setup& st) {
   // 4. The coarse space: cluster kernel dimensions, the rows of G~, the pairs of G~^T.
   st.coarse_start = seconds_now();
-  coarse_.set_up(clusters_, first_cluster_, sub_first_, outer_parallel_);
+  coarse_.set_up(clusters_, first_cluster_, sub_first_, outer_parallel_, st.options.coarse_ranks);
 }
 
 void DualProblem::finish_setup(Setup& st) {

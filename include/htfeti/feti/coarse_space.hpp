@@ -5,14 +5,20 @@
 // product (coarse_image.cpp).
 //
 // Every rank holds the rows of G~ of its clusters (sparse: the entries at the multipliers the
-// cluster's rows touch) and factors the same coarse matrix, assembled from partial sums formed
-// per owner cluster and added in cluster order, so that nothing depends on the number of ranks.
+// cluster's rows touch). The coarse matrix is assembled from partial sums formed per owner
+// cluster and added in cluster order, so that nothing depends on the number of ranks, and
+// factored by every rank, or (FetiOptions::coarse_ranks = K) by the first rank of each of K
+// groups of consecutive ranks, which solves and broadcasts the solution to its group: the same
+// factor and the same solution bit for bit, held once per group instead of once per rank.
 // G~ and G~^T: every cluster writes its own coarse entries and its own pairs, so threads take
 // clusters and each value is formed in the same order as by one thread.
 // Cost: apply_G one pass over the rank's G~ and an allreduce of the coarse vector; apply_Gt one
 // pass and one reverse exchange (ordered sums over clusters); project both and one sparse
-// coarse solve. None allocates.
+// coarse solve (with coarse_ranks: on the group's first rank, then a broadcast of the coarse
+// vector in the group). None allocates.
 #pragma once
+
+#include <mpi.h>
 
 #include <Eigen/Dense>
 #include <functional>
@@ -36,15 +42,19 @@ class CoarseSpace {
       : layout_(layout), comm_(comm), m_(multipliers) {}
   CoarseSpace(const CoarseSpace&) = delete;
   CoarseSpace& operator=(const CoarseSpace&) = delete;
+  ~CoarseSpace();
 
   /// The kernel dimension of every cluster (allgathered), the rank's rows of G~ and the pairs of
   /// G~^T. clusters: the rank's clusters [first_cluster, first_cluster + clusters.size()), local
   /// cluster c holding the local subdomains [sub_first[c], sub_first[c + 1]); threads go over
-  /// clusters when threads_over_clusters. Collective.
+  /// clusters when threads_over_clusters; coarse_ranks: FetiOptions::coarse_ranks. Collective.
   void set_up(const std::vector<std::unique_ptr<Cluster>>& clusters, int first_cluster,
-              std::vector<int> sub_first, bool threads_over_clusters);
+              std::vector<int> sub_first, bool threads_over_clusters, int coarse_ranks = 0);
   /// Assembles and factors G~ G~^T. Collective.
-  void factor() { assemble(std::vector<double>(m_.n_owned(), 1.0), factor_); }
+  void factor() {
+    assemble(std::vector<double>(m_.n_owned(), 1.0), factor_);
+    factor_nonzeros_ = factor_.nonzeros;
+  }
 
   int dimension() const { return first_.empty() ? 0 : first_.back(); }
   /// Cluster c's first coarse index (all clusters; c = num_clusters gives dimension()).
@@ -59,8 +69,8 @@ class CoarseSpace {
   void apply_G(const Vec& lambda, Vec& coarse);
   /// lambda = G~^T coarse.
   void apply_Gt(const Vec& coarse, Vec& lambda);
-  /// coarse <- (G~ G~^T)^{-1} coarse.
-  void solve(Vec& coarse) { factor_.solve(coarse); }
+  /// coarse <- (G~ G~^T)^{-1} coarse. Collective when the factor is held by a subset of ranks.
+  void solve(Vec& coarse) { solve_with(factor_, coarse); }
   /// y = P x (x and y may alias).
   void project(const Vec& x, Vec& y);
   /// coarse <- (G~ W G~^T)^{-1} coarse with W = diag(weight) on the owned multipliers (the
@@ -70,10 +80,12 @@ class CoarseSpace {
   /// Directions of the coarse space that no constraint row restrains (see Factor).
   int null_dimension() const { return factor_.null_dimension(); }
   const Eigen::MatrixXd& null_space() const { return factor_.null; }
-  long factor_nonzeros() const {
-    return factor_.use_dense ? static_cast<long>(dimension()) * (dimension() + 1) / 2
-                             : factor_.sparse.factor_nonzeros();
-  }
+  /// Of one copy of the factor (the same on every rank, also where none is held).
+  long factor_nonzeros() const { return factor_nonzeros_; }
+  /// How many ranks hold the coarse factor (every rank, or one per group: coarse_ranks).
+  int factor_ranks() const { return factor_ranks_; }
+  /// Whether this rank holds it.
+  bool holds_factor() const { return leader_ || factor_.use_dense; }
   /// "k rigid motion(s) of cluster(s) ..." for the null directions Z (columns).
   std::string describe_null(const Eigen::MatrixXd& Z) const;
   /// Why the contact problem with coarse right-hand side e has no solution, or "" (Farkas'
@@ -110,6 +122,7 @@ class CoarseSpace {
     Eigen::LLT<Eigen::MatrixXd> dense;
     Eigen::MatrixXd null;  // Z (orthonormal columns); empty when the sparse factor is used
     bool use_dense = false;
+    long nonzeros = 0;  // of the factor (the same on every rank, also where none is held)
     void solve(Vec& x) {
       if (use_dense)
         x = dense.solve(x);  // allocates: only for degenerate problems
@@ -121,6 +134,9 @@ class CoarseSpace {
   static constexpr int kMaxDense = 4000;
   static constexpr double kSingularRcond = 1e-15;  // SparseCholesky::rcond() below it: singular
   void assemble(const std::vector<double>& weight, Factor& factor);
+  // x <- factor^{-1} x: on every rank (replicated, or the dense factor of a singular problem),
+  // or on the group's first rank and broadcast in the group.
+  void solve_with(Factor& factor, Vec& x);
   void gt_into_ext(const Vec& coarse);  // m_.ext_out = G~^T coarse (owners summed)
   int local_clusters() const { return static_cast<int>(rows_.size()); }
   int members(int c) const { return sub_first_[c + 1] - sub_first_[c]; }
@@ -140,7 +156,13 @@ class CoarseSpace {
     int a, b;
     double v;
   };
-  std::vector<CoarseTriplet> allgather_sorted(const std::vector<CoarseTriplet>& mine) const;
+  static MPI_Datatype triplet_type();  // committed; the caller frees it
+  std::vector<CoarseTriplet> allgather_sorted(const std::vector<CoarseTriplet>& mine,
+                                              MPI_Comm comm) const;
+  // The summed triplets on the ranks that factor (all, or the groups' first ranks; the others
+  // get none): allgather_sorted, or a gather to each group's first rank and an allgather among
+  // those.
+  std::vector<CoarseTriplet> gather_to_factor_ranks(const std::vector<CoarseTriplet>& mine) const;
   // Partial sums of a coarse matrix sum_k (products at multiplier k): products_of(i, j, out)
   // appends the products of gcol[i, j) (one multiplier's items), which are summed per (a, b)
   // over each owner cluster's multipliers in multiplier order (key: the owner cluster).
@@ -166,6 +188,14 @@ class CoarseSpace {
   Vec pairs_;                    // work: one value per (cluster, multiplier) pair
   Vec work_;                     // work: one coarse vector
   Factor factor_;
+  long factor_nonzeros_ = 0;
+  // The ranks that hold the coarse factor (FetiOptions::coarse_ranks): every rank (subset_
+  // false), or the first rank of each group of consecutive ranks (leader_): group_comm_ is the
+  // group (its first rank is rank 0 in it), leader_comm_ the groups' first ranks
+  // (MPI_COMM_NULL on the others).
+  bool subset_ = false, leader_ = true;
+  int factor_ranks_ = 1;
+  MPI_Comm group_comm_ = MPI_COMM_NULL, leader_comm_ = MPI_COMM_NULL;
   // build_image(): E by owned rows (CSR, columns sorted), C = G~ F G~^T (CSR, all ranks).
   struct Image {
     bool built = false;

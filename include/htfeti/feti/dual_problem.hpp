@@ -101,6 +101,11 @@ struct FetiOptions {
   /// preconditioner (dirichlet), or another kind (the automatic choice falls back to none: the
   /// implicit one needs a second factor per subdomain, which the memory check does not count).
   PreconditionerKind dirichlet_fallback = PreconditionerKind::dirichlet;
+  /// How many ranks hold the factor of the coarse matrix G~ G~^T (CoarseSpace): 0 (or the rank
+  /// count or more) every rank, as before; K > 0 splits the ranks into groups of ceil(P / K)
+  /// consecutive ranks, whose first rank factors and solves, then broadcasts the solution to its
+  /// group. The same solution bit for bit; the other ranks hold no coarse factor.
+  int coarse_ranks = 0;
 };
 
 constexpr int kExplicitMinNodes = 25;
@@ -391,6 +396,8 @@ class DualProblem {
   long explicit_bytes() const;         ///< bytes of the explicit blocks on this rank
   long cluster_dense_doubles() const;  ///< doubles in the clusters' K^+ C^T blocks and LUs
   long coarse_factor_nonzeros() const { return coarse_.factor_nonzeros(); }
+  /// How many ranks hold a copy of the coarse factor (FetiOptions::coarse_ranks).
+  int coarse_factor_ranks() const { return coarse_.factor_ranks(); }
 
  private:
   // The setup in stages (the constructor calls them in this order; Setup carries what one stage

@@ -147,13 +147,14 @@ const CLI::Validator kPositive(
 // What selects the problem (not options of the solve): a problem file or a built-in, and the
 // built-ins' sizes. Each has a problem-file key of its own in [mesh] or [decomposition].
 struct ProblemArgs {
-  std::string file, problem = "membranes", element = "q1", glue = "averages", objective = "auto";
+  std::string file, problem = "membranes", element = "q1", glue = "averages", objective = "auto",
+                    cluster_split = "mesh";
   std::string elements = "128", subdomains = "8";
   int cluster_size = 1;
   double amplitude = 1.0;
   CLI::Option *o_problem = nullptr, *o_elements = nullptr, *o_subdomains = nullptr, *o_m = nullptr,
               *o_glue = nullptr, *o_element = nullptr, *o_amplitude = nullptr,
-              *o_objective = nullptr;
+              *o_objective = nullptr, *o_cluster_split = nullptr;
 };
 
 void add_problem_args(CLI::App* cmd, ProblemArgs& p) {
@@ -192,6 +193,14 @@ void add_problem_args(CLI::App* cmd, ProblemArgs& p) {
                                   "the cells are stretched, largest facet >= 2.5 x smallest; else "
                                   "volume) [decomposition.objective]")
                       ->capture_default_str();
+  p.o_cluster_split =
+      cmd->add_option("--cluster-split", p.cluster_split,
+                      "problem files split by METIS, H-TFETI-DP: how clusters are formed, mesh "
+                      "(METIS splits the mesh into clusters, then each cluster into its "
+                      "subdomains: compact clusters) | subdomains (METIS splits the mesh into "
+                      "the subdomains, then groups them: the same subdomains as TFETI's) "
+                      "[decomposition.cluster_split]")
+          ->capture_default_str();
   p.o_element =
       cmd->add_option("--element", p.element, "built-ins: q1 (bilinear) | p1 (linear triangles)")
           ->capture_default_str();
@@ -270,6 +279,12 @@ std::shared_ptr<const Model> file_model(const ProblemArgs& p, const TableArgs& a
       throw std::invalid_argument(
           "--partition-objective is for meshes split by METIS (decomposition.subdomains = N)");
   }
+  if (p.o_cluster_split->count()) {
+    spec.cluster_split = parse_cluster_split(p.cluster_split);
+    if (spec.subdomains.size() != 1 || !spec.mesh_parts.empty())
+      throw std::invalid_argument(
+          "--cluster-split is for meshes split by METIS (decomposition.subdomains = N)");
+  }
   if (!spec.builtin.empty() && p.o_elements->count()) {
     const auto e = parse_int_list(p.elements, "--elements");
     if (e.size() != 1) throw std::invalid_argument("--elements takes one number for a built-in");
@@ -312,6 +327,8 @@ std::shared_ptr<const Model> builtin_model(const ProblemArgs& p, const TableArgs
     throw std::invalid_argument("--obstacle-amplitude is for --problem cube-obstacle");
   if (p.o_objective->count())
     throw std::invalid_argument("--partition-objective is for problem files split by METIS");
+  if (p.o_cluster_split->count())
+    throw std::invalid_argument("--cluster-split is for problem files split by METIS");
   DecompositionOptions& d = run.solve.decomposition;
   d.problem = parse_problem(p.problem);
   d.element = parse_element(p.element);

@@ -442,7 +442,8 @@ void read_conditions(const toml::table& root, ProblemSpec& spec) {
 // objective (METIS's).
 void read_decomposition(const toml::table& root, ProblemSpec& spec) {
   if (const toml::table* dec = table_of(root, "decomposition", false)) {
-    check_keys(*dec, "decomposition", {"subdomains", "cluster_size", "glue", "objective"});
+    check_keys(*dec, "decomposition",
+               {"subdomains", "cluster_size", "glue", "objective", "cluster_split"});
     if (const toml::node* s = dec->get("subdomains")) {
       spec.subdomains.clear();
       if (s->is_integer()) {
@@ -475,6 +476,16 @@ void read_decomposition(const toml::table& root, ProblemSpec& spec) {
           parse_partition_objective(get_string(*dec, "decomposition", "objective", "auto"));
     } catch (const std::invalid_argument& e) {
       bad("decomposition.objective", e.what());
+    }
+    if (dec->contains("cluster_split") && (!spec.mesh_parts.empty() || spec.subdomains.size() != 1))
+      bad("decomposition.cluster_split",
+          "is for meshes split by METIS (decomposition.subdomains = N); a mesh partitioned in "
+          "advance groups its parts, a box split into boxes has box clusters");
+    try {
+      spec.cluster_split =
+          parse_cluster_split(get_string(*dec, "decomposition", "cluster_split", "mesh"));
+    } catch (const std::invalid_argument& e) {
+      bad("decomposition.cluster_split", e.what());
     }
   }
 }

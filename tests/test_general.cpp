@@ -6,7 +6,9 @@
 #include <gtest/gtest.h>
 #include <omp.h>
 
+#include <algorithm>
 #include <cstring>
+#include <functional>
 #include <map>
 #include <set>
 
@@ -358,6 +360,60 @@ TEST(Partition, AutomaticObjectiveKeepsTheVolumeOnRegularCells) {
   EXPECT_EQ(stretched_cell_share(quad_strip(4, 4, 4 * 2.5, 4.0)), 1.0);
   EXPECT_EQ(partition_mesh(square, 4, 1, PartitionObjective::area).objective,
             PartitionObjective::area);
+}
+
+// Clusters split from the mesh (ClusterSplit::mesh): the subdomains are numbered cluster-major,
+// every cluster holds its share of the subdomains (64 in clusters of 8: 8 each; 30 in clusters
+// of 4: 8 clusters of 3 or 4), and each cluster is one compact piece: its cells are joined by
+// shared edges, and it touches few other clusters (a square of 64 x 64 cells in 8 clusters).
+// Split from the subdomains instead, the clusters are unions of the same subdomains as
+// cluster_size = 1 gives.
+TEST(Partition, ClustersSplitFromTheMeshAreConnectedAndHoldTheirShare) {
+  const Mesh square = quad_strip(64, 64, 1.0, 1.0);
+  for (const auto& [subdomains, size] : {std::pair{64, 8}, std::pair{30, 4}}) {
+    const MeshPartition p = partition_mesh(square, subdomains, size);
+    EXPECT_EQ(p.cluster_split, ClusterSplit::mesh);
+    const int clusters = (subdomains + size - 1) / size;
+    ASSERT_EQ(p.num_clusters, clusters);
+    ASSERT_EQ(p.num_subdomains, subdomains);
+    for (int c = 0; c < clusters; ++c) {
+      const int members = p.cluster_first[c + 1] - p.cluster_first[c];
+      EXPECT_GE(members, subdomains / clusters) << c;
+      EXPECT_LE(members, size) << c;
+    }
+    // The cells of each cluster joined through shared edges: one component per cluster.
+    std::vector<int> cluster_of_cell(square.num_cells()), parent(square.num_cells());
+    for (int e = 0; e < square.num_cells(); ++e) {
+      const int s = p.cell_subdomain[e];
+      cluster_of_cell[e] =
+          static_cast<int>(std::upper_bound(p.cluster_first.begin(), p.cluster_first.end(), s) -
+                           p.cluster_first.begin() - 1);
+      parent[e] = e;
+    }
+    std::function<int(int)> root = [&](int a) {
+      return parent[a] == a ? a : parent[a] = root(parent[a]);
+    };
+    for (int j = 0; j < 64; ++j)
+      for (int i = 0; i < 64; ++i) {
+        const int e = j * 64 + i;
+        for (const int f : {i + 1 < 64 ? e + 1 : -1, j + 1 < 64 ? e + 64 : -1})
+          if (f >= 0 && cluster_of_cell[e] == cluster_of_cell[f]) parent[root(e)] = root(f);
+      }
+    std::set<int> roots;
+    for (int e = 0; e < square.num_cells(); ++e) roots.insert(root(e));
+    EXPECT_EQ(static_cast<int>(roots.size()), clusters) << subdomains;
+  }
+  const MeshPartition tfeti = partition_mesh(square, 64, 1);
+  const MeshPartition grouped =
+      partition_mesh(square, 64, 8, PartitionObjective::automatic, ClusterSplit::subdomains);
+  EXPECT_EQ(grouped.cluster_split, ClusterSplit::subdomains);
+  // The same subdomains (renumbered cluster-major): cells in one TFETI subdomain stay together.
+  std::map<int, int> renamed;
+  for (int e = 0; e < square.num_cells(); ++e) {
+    const auto [it, fresh] = renamed.insert({tfeti.cell_subdomain[e], grouped.cell_subdomain[e]});
+    EXPECT_EQ(it->second, grouped.cell_subdomain[e]) << e;
+  }
+  EXPECT_EQ(renamed.size(), 64u);
 }
 
 TEST(Kernels, RigidBodyMotionsAreTheKernelAndKPlusIsAGeneralizedInverse) {

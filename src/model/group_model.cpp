@@ -128,7 +128,8 @@ class MetisSplit final : public MeshSource {
   // Split after the physics was checked (the dimension comes from the mesh).
   void split(const ProblemSpec& spec) {
     part_ = std::make_unique<MeshPartition>(
-        partition_mesh(*mesh_, spec.subdomains.at(0), spec.cluster_size, spec.partition_objective));
+        partition_mesh(*mesh_, spec.subdomains.at(0), spec.cluster_size, spec.partition_objective,
+                       spec.cluster_split));
   }
   int dim() const override { return mesh_->dim; }
   int num_subdomains() const override { return part_->num_subdomains; }
@@ -160,6 +161,7 @@ class MetisSplit final : public MeshSource {
                                                         {"cells", mesh_->num_cells()}};
     j["partitioner"] = "metis";
     j["partition_objective"] = to_string(part_->objective);
+    if (spec.cluster_size > 1) j["cluster_split"] = to_string(part_->cluster_split);
     if (spec.partition_objective == PartitionObjective::automatic)
       j["stretched_cells"] = part_->stretched_share;
   }

@@ -17,8 +17,8 @@
 //      is split) and answers each part.
 //   4. H-TFETI-DP only: the home ranks count the nodes each pair of parts shares; the counts
 //      (about 14 neighbours per part) are gathered on every rank, which forms the clusters with
-//      METIS (cluster_subdomains, as for a whole mesh); the parts are then read again by the
-//      ranks that own their clusters and steps 1-3 repeated.
+//      METIS (cluster_subdomains, as a whole mesh with cluster_split = "subdomains"); the parts
+//      are then read again by the ranks that own their clusters and steps 1-3 repeated.
 //
 // Per rank: the part files of its clusters, their nodes' and boundary facets' records (a few
 // dozen bytes each) in the rendezvous, the group names, and 3 counts per subdomain (the writers
@@ -204,8 +204,8 @@ class PartitionedSource final : public MeshSource {
   }
 
  private:
-  // The number of parts: from part 1 (read by rank 0, which holds it first in every layout), checked
-  // against decomposition.subdomains.
+  // The number of parts: from part 1 (read by rank 0, which holds it first in every layout),
+  // checked against decomposition.subdomains.
   void count_parts(const ProblemSpec& spec) {
     long long n = 0;
     agreed(comm_, [&] {

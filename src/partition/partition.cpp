@@ -290,6 +290,12 @@ std::string to_string(PartitionObjective objective) {
   return name_of(kPartitionObjectiveNames, objective);
 }
 
+ClusterSplit parse_cluster_split(const std::string& name) {
+  return parse_name(kClusterSplitNames, name, "cluster split");
+}
+
+std::string to_string(ClusterSplit split) { return name_of(kClusterSplitNames, split); }
+
 std::vector<int> cluster_subdomains(const std::vector<std::map<int, int>>& adjacency,
                                     const std::vector<int>& body_first, int cluster_size) {
   const int subdomains = body_first.back(), nb = static_cast<int>(body_first.size()) - 1;
@@ -396,7 +402,7 @@ void index_groups(const Mesh& mesh, MeshPartition& p) {
 }  // namespace
 
 MeshPartition partition_mesh(const Mesh& mesh, int subdomains, int cluster_size,
-                             PartitionObjective objective) {
+                             PartitionObjective objective, ClusterSplit split) {
   if (subdomains < 1) throw std::invalid_argument("decomposition.subdomains must be positive");
   if (cluster_size < 1) throw std::invalid_argument("decomposition.cluster_size must be positive");
   const int ne = mesh.num_cells(), nn = mesh.num_nodes(), nc = cell_nodes(mesh.type);
@@ -417,10 +423,13 @@ MeshPartition partition_mesh(const Mesh& mesh, int subdomains, int cluster_size,
                                 " is fewer than the " + std::to_string(nb) +
                                 " bodies of the mesh (a subdomain never spans two bodies)");
   // 1. Subdomains: METIS on the dual graph, of the whole mesh (one body) or of each body with
-  // a share of the subdomains proportional to its cells (subdomain ids body-major).
-  // A body whose METIS split left a subdomain hinged at a node or in pieces (METIS's parts need
-  // not be connected) is split again with connected parts asked for (METIS_OPTION_CONTIG);
-  // other splits are kept as METIS gave them.
+  // a share of the subdomains proportional to its cells (subdomain ids body-major). With
+  // clusters split from the mesh (ClusterSplit::mesh), each body is first split into its
+  // clusters and each cluster into its share of the body's subdomains (ids cluster-major).
+  // A region (body or cluster) whose METIS split left a subdomain hinged at a node or in pieces
+  // (METIS's parts need not be connected) is split again with connected parts asked for
+  // (METIS_OPTION_CONTIG); other splits are kept as METIS gave them.
+  p.cluster_split = split;
   std::vector<idx_t> part(ne, 0);
   std::vector<int> body_first(nb + 1, 0);  // first subdomain of each body
   const auto facets = all_facets(mesh);
@@ -430,20 +439,50 @@ MeshPartition partition_mesh(const Mesh& mesh, int subdomains, int cluster_size,
   for (int b = 0; b < nb; ++b) counts[b] = static_cast<long long>(cells[b].size());
   const std::vector<int> n =
       nb == 1 ? std::vector<int>{subdomains} : parts_per_body(counts, subdomains);
+  // Splits the cells `region` (subset: nullptr for the whole mesh) into k parts of `out`.
+  const auto split_region = [&](const std::vector<int>* subset, const std::vector<int>& region,
+                                int k, std::vector<idx_t>& out, bool subdomain_parts,
+                                const std::string& what) {
+    split_cells(mesh, subset, k, objective, out);
+    const SplitDefects defects = k > 1 ? split_defects(mesh, region, out, facets) : SplitDefects{};
+    if (!defects.hinged && !defects.pieces) return;
+    split_cells(mesh, subset, k, objective, out, true);
+    if (subdomain_parts && split_defects(mesh, region, out, facets).hinged)
+      throw std::invalid_argument("METIS could not split " + what + " into " + std::to_string(k) +
+                                  " subdomains without one hinged at a node (a mechanism): use "
+                                  "fewer subdomains");
+  };
+  const bool by_mesh = split == ClusterSplit::mesh && cluster_size > 1;
+  std::vector<int> cluster_of;  // by_mesh: the cluster of each subdomain
   for (int b = 0; b < nb; ++b) {
     const std::vector<int>* subset = nb == 1 ? nullptr : &cells[b];
-    split_cells(mesh, subset, n[b], objective, part);
-    const SplitDefects defects =
-        n[b] > 1 ? split_defects(mesh, cells[b], part, facets) : SplitDefects{};
-    if (defects.hinged || defects.pieces) {
-      split_cells(mesh, subset, n[b], objective, part, true);
-      if (split_defects(mesh, cells[b], part, facets).hinged)
-        throw std::invalid_argument(
-            "METIS could not split body " + std::to_string(b + 1) + " into " +
-            std::to_string(n[b]) +
-            " subdomains without one hinged at a node (a mechanism): use fewer subdomains");
+    const std::string body = "body " + std::to_string(b + 1);
+    const int nclusters = (n[b] + cluster_size - 1) / cluster_size;
+    const int first_cluster = cluster_of.empty() ? 0 : cluster_of.back() + 1;
+    if (!by_mesh || nclusters == 1) {
+      split_region(subset, cells[b], n[b], part, true, body);
+      for (int e : cells[b]) part[e] += body_first[b];
+      if (by_mesh) cluster_of.insert(cluster_of.end(), n[b], first_cluster);
+    } else {
+      std::vector<idx_t> cpart(ne, 0);
+      split_region(subset, cells[b], nclusters, cpart, false, body);
+      std::vector<std::vector<int>> in(nclusters);
+      for (int e : cells[b]) in[cpart[e]].push_back(e);
+      std::vector<long long> cluster_cells(nclusters);
+      for (int c = 0; c < nclusters; ++c) {
+        if (in[c].empty())
+          throw std::invalid_argument("METIS left a cluster of " + body +
+                                      " empty: use fewer subdomains for this mesh");
+        cluster_cells[c] = static_cast<long long>(in[c].size());
+      }
+      const std::vector<int> k = parts_per_body(cluster_cells, n[b]);
+      for (int c = 0, offset = body_first[b]; c < nclusters; offset += k[c], ++c) {
+        split_region(&in[c], in[c], k[c], part, true,
+                     "cluster " + std::to_string(first_cluster + c) + " (" + body + ")");
+        for (int e : in[c]) part[e] += offset;
+        cluster_of.insert(cluster_of.end(), k[c], first_cluster + c);
+      }
     }
-    for (int e : cells[b]) part[e] += body_first[b];
     body_first[b + 1] = body_first[b] + n[b];
   }
   {
@@ -467,16 +506,17 @@ MeshPartition partition_mesh(const Mesh& mesh, int subdomains, int cluster_size,
       if (std::find(v.begin(), v.end(), static_cast<int>(part[e])) == v.end()) v.push_back(part[e]);
     }
 
-  // 2. Clusters: METIS on the subdomain graph, of each body apart.
+  // 2. Clusters: as split from the mesh, or METIS on the subdomain graph, of each body apart.
   std::vector<std::map<int, int>> adj;
-  if (cluster_size > 1) {
+  if (cluster_size > 1 && !by_mesh) {
     adj.resize(subdomains);
     for (const auto& v : node_subs)
       for (size_t i = 0; i < v.size(); ++i)
         for (size_t j = 0; j < v.size(); ++j)
           if (i != j) ++adj[v[i]][v[j]];
   }
-  const ClusterOrder order = order_by_cluster(cluster_subdomains(adj, body_first, cluster_size));
+  const ClusterOrder order =
+      order_by_cluster(by_mesh ? cluster_of : cluster_subdomains(adj, body_first, cluster_size));
   const std::vector<int>& new_id = order.new_id;
   p.num_subdomains = subdomains;
   p.num_clusters = static_cast<int>(order.cluster_first.size()) - 1;

@@ -73,6 +73,8 @@ struct ProblemSpec {
   Glue glue = Glue::averages;
   /// METIS's objective when a mesh is split (not a box split into boxes).
   PartitionObjective partition_objective = PartitionObjective::automatic;
+  /// How a METIS split forms the clusters (cluster_size > 1; partition.hpp).
+  ClusterSplit cluster_split = ClusterSplit::mesh;
 };
 
 /// The cube-obstacle benchmark (DESIGN.md; the paper's Table 4, ESPRESO's former obstacle

@@ -41,6 +41,24 @@ inline constexpr double kStretchRatio = 2.5, kStretchedShare = 0.1;
 PartitionObjective parse_partition_objective(const std::string& name);  // std::invalid_argument
 std::string to_string(PartitionObjective objective);
 
+/// How a METIS split of a mesh forms H-TFETI-DP's clusters (cluster_size > 1):
+/// - mesh: METIS splits each body into ceil(subdomains of the body / cluster_size) clusters, then
+///   each cluster into its share of the body's subdomains (proportional to its cells). Clusters
+///   are compact pieces of the mesh, and the subdomains of a cluster share many faces, as a
+///   cluster of a box split does. The default.
+/// - subdomains: METIS splits the mesh into the subdomains (the same as with cluster_size = 1),
+///   which METIS then groups by their adjacency (cluster_subdomains). The clusters follow the
+///   subdomains' shapes: on a cube of 64 parts in clusters of 8 their face-average graphs were
+///   nearly trees, with necks of a few nodes, and F was so ill-conditioned that PCG took 461
+///   iterations to 1e-10 where TFETI on the same parts took 48 and the mesh split 63
+///   (docs/method.md, "Clusters of a METIS split"). Kept for comparing H-TFETI-DP and TFETI on
+///   the same subdomains.
+enum class ClusterSplit { mesh, subdomains };
+inline constexpr std::array<EnumName<ClusterSplit>, 2> kClusterSplitNames{
+    {{ClusterSplit::mesh, "mesh"}, {ClusterSplit::subdomains, "subdomains"}}};
+ClusterSplit parse_cluster_split(const std::string& name);  // std::invalid_argument
+std::string to_string(ClusterSplit split);
+
 struct MeshPartition {
   int num_bodies = 1;          ///< connected components of the cells (numbered by first cell)
   std::vector<int> cell_body;  ///< per cell
@@ -54,6 +72,7 @@ struct MeshPartition {
   std::vector<int> node_cell_offset, node_cell_list;  ///< per global node: its cells
   PartitionObjective objective = PartitionObjective::volume;  ///< as used (automatic resolved)
   double stretched_share = 0;  ///< share of stretched cells (computed for automatic only)
+  ClusterSplit cluster_split = ClusterSplit::mesh;  ///< how the clusters were formed
   /// The mesh's groups by subdomain, for extract_subdomain (built once by partition_mesh, so that
   /// extracting a subdomain costs its own size, not the groups' sizes): per subdomain and group
   /// (in the mesh's name order; groups the subdomain does not touch left out), the global node
@@ -70,9 +89,10 @@ struct MeshPartition {
 double stretched_cell_share(const Mesh& mesh);
 
 /// Throws std::invalid_argument if the numbers do not fit the mesh (an empty subdomain).
-/// cluster_size: subdomains per cluster (1: TFETI).
+/// cluster_size: subdomains per cluster (1: TFETI); split: how clusters are formed.
 MeshPartition partition_mesh(const Mesh& mesh, int subdomains, int cluster_size,
-                             PartitionObjective objective = PartitionObjective::automatic);
+                             PartitionObjective objective = PartitionObjective::automatic,
+                             ClusterSplit split = ClusterSplit::mesh);
 
 /// Clusters of subdomains (H-TFETI-DP): METIS k-way on the subdomain graph of each body apart
 /// (subdomains [body_first[b], body_first[b + 1]) form body b; adjacency[s] maps each neighbour

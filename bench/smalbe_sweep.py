@@ -6,7 +6,8 @@ cases of Table 3 reduced (membranes, H_s/h = 16, m = 1, 2, 4, 8), the Table 4 ro
 and H-TFETI-DP, no preconditioner, as in the table), the contact examples, the cube-obstacle
 with partial contact (amplitude 20), ESPRESO's default cube at rtol 1e-10 and the plate with an
 inactive contact at rtol 1e-6; with --metis also the cube-obstacle at 40^3 split by METIS into
-64 parts (volume and cut objective, issue 32) and the contact pairs cylinder-, sphere- and
+64 parts (volume and cut objective, issue 32; and in clusters of 8, split from the mesh) and
+the contact pairs cylinder-, sphere- and
 punch-on-block. Robustness first: a setting is ranked by its failures (not converged within 200
 outer iterations), then by the geometric mean over the cases of its Hessian products relative
 to the defaults' (rho 1.1, M_0 100, eta 0.1, late factor 2, the power method); with
@@ -56,6 +57,9 @@ if a.metis:
     CASES += [(f"cube-obstacle 40^3 METIS 64 ({o})",
                [os.path.join(ROOT, "bench", "cases", "cube40_metis64.toml"),
                 "--partition-objective", o]) for o in ("volume", "cut")]
+    CASES += [("cube-obstacle 40^3 METIS 64, clusters of 8 (H-TFETI-DP)",
+               [os.path.join(ROOT, "bench", "cases", "cube40_metis64.toml"), "--cluster-size",
+                8])]
     CASES += [(f"example {n}", [EX(n)])
               for n in ("cylinder-on-block", "sphere-on-block", "punch-on-block")]
 norms = a.norm_estimate or ["power"]

@@ -14,7 +14,12 @@ The problems: the cube of bench/cases (hex8, own weight, clamped at x = 0; 64 ME
 plate-with-hole: 2D, 16 parts in clusters of 4); with --large also the 80^3 cube-obstacle of
 512 parts in clusters of 8.
 
+With --conditioning instead: the 24^3 cube in clusters of 8 solved to rtol 1e-10 by TFETI and
+by H-TFETI-DP with both cluster splits (PCG iterations: what F's conditioning costs), written to
+cluster_split_conditioning.json.
+
 Usage: bench/cluster_split.py [--large] [--threads 2] [--repeat 3] [--out cluster_split.json]
+       bench/cluster_split.py --conditioning
 Writes bench/results/OUT and prints a markdown table."""
 import argparse
 import os
@@ -29,6 +34,7 @@ p.add_argument("--large", action="store_true")
 p.add_argument("--threads", type=int, default=2)
 p.add_argument("--repeat", type=int, default=3)
 p.add_argument("--out", default="cluster_split.json")
+p.add_argument("--conditioning", action="store_true")
 a = p.parse_args()
 
 CASE = lambda name: os.path.join(ROOT, "bench", "cases", name)  # noqa: E731
@@ -47,6 +53,34 @@ if a.large:
 
 def products(r):
     return r["matvecs"] + r["solver"].get("norm_estimate_matvecs", 0)
+
+
+def cube24(d):
+    with open(CASE("cube40_metis64_linear.toml")) as f:
+        text = re.sub(r"elements = \[\d+, \d+, \d+\]", "elements = [24, 24, 24]", f.read())
+    path = os.path.join(d, "cube24.toml")
+    with open(path, "w") as f:
+        f.write(text)
+    return path
+
+
+if a.conditioning:
+    rows = []
+    with tempfile.TemporaryDirectory() as d:
+        path = cube24(d)
+        for label, extra in [("TFETI", ["--cluster-size", 1]),
+                             ("clusters of 8 from the parts",
+                              ["--cluster-size", 8, "--cluster-split", "subdomains"]),
+                             ("clusters of 8 from the mesh",
+                              ["--cluster-size", 8, "--cluster-split", "mesh"])]:
+            r = solve([path, "--rtol", 1e-10, *extra], threads=a.threads)
+            rows.append({"setting": label, "pcg_iterations": r["matvecs"],
+                         "energy": r["objective"], "coarse_dimension": r["coarse_dimension"]})
+            print(rows[-1], flush=True)
+    print("\n" + save("cluster_split_conditioning.json",
+                      {"command": "bench/cluster_split.py --conditioning", "case":
+                       "cube 24^3 hex8, 64 METIS parts, own weight, rtol 1e-10", "rows": rows}))
+    raise SystemExit(0)
 
 
 rows, runs = [], []

@@ -51,10 +51,7 @@ class CoarseSpace {
   void set_up(const std::vector<std::unique_ptr<Cluster>>& clusters, int first_cluster,
               std::vector<int> sub_first, bool threads_over_clusters, int coarse_ranks = 0);
   /// Assembles and factors G~ G~^T. Collective.
-  void factor() {
-    assemble(std::vector<double>(m_.n_owned(), 1.0), factor_);
-    factor_nonzeros_ = factor_.nonzeros;
-  }
+  void factor() { assemble(std::vector<double>(m_.n_owned(), 1.0), factor_); }
 
   int dimension() const { return first_.empty() ? 0 : first_.back(); }
   /// Cluster c's first coarse index (all clusters; c = num_clusters gives dimension()).
@@ -81,11 +78,9 @@ class CoarseSpace {
   int null_dimension() const { return factor_.null_dimension(); }
   const Eigen::MatrixXd& null_space() const { return factor_.null; }
   /// Of one copy of the factor (the same on every rank, also where none is held).
-  long factor_nonzeros() const { return factor_nonzeros_; }
+  long factor_nonzeros() const { return factor_.nonzeros; }
   /// How many ranks hold the coarse factor (every rank, or one per group: coarse_ranks).
   int factor_ranks() const { return factor_ranks_; }
-  /// Whether this rank holds it.
-  bool holds_factor() const { return leader_ || factor_.use_dense; }
   /// "k rigid motion(s) of cluster(s) ..." for the null directions Z (columns).
   std::string describe_null(const Eigen::MatrixXd& Z) const;
   /// Why the contact problem with coarse right-hand side e has no solution, or "" (Farkas'
@@ -188,7 +183,6 @@ class CoarseSpace {
   Vec pairs_;                    // work: one value per (cluster, multiplier) pair
   Vec work_;                     // work: one coarse vector
   Factor factor_;
-  long factor_nonzeros_ = 0;
   // The ranks that hold the coarse factor (FetiOptions::coarse_ranks): every rank (subset_
   // false), or the first rank of each group of consecutive ranks (leader_): group_comm_ is the
   // group (its first rank is rank 0 in it), leader_comm_ the groups' first ranks

@@ -1267,9 +1267,10 @@ TEST_F(Cli, AddressSpaceLimitEndsEveryRankWithoutHanging) {
 
 // PCG asked for more than round-off allows (issue 28): on a coefficient jump of 1e4 with the
 // Dirichlet preconditioner its residual reaches about 3e-11 of ||P d|| and then grows again. It
-// stops when the residual has grown a thousandfold (exit 3, stop_reason "diverged") and returns
-// the iterate with the smallest residual, instead of running to the iteration limit and returning
-// the last, 1e-6 off.
+// stops when the residual has grown a thousandfold (exit 3, stop_reason "diverged"), or, where
+// round-off holds it on a plateau (3e-11 to 5e-11 on an AMD EPYC), after 200 iterations without a
+// new smallest residual ("stagnated"), and returns the iterate with the smallest residual,
+// instead of running to the iteration limit and returning the last, 1e-6 off.
 TEST_F(Cli, PcgReturnsItsBestIterateWhenRoundOffTakesOver) {
   ASSERT_EQ(run(bin + " solve " + std::string(HTFETI_SOURCE_DIR) +
                 "/examples/heterogeneous.toml --rtol 1e-13 --no-vtu --report r.json"),
@@ -1277,7 +1278,8 @@ TEST_F(Cli, PcgReturnsItsBestIterateWhenRoundOffTakesOver) {
       << stderr_text();
   std::ifstream f("r.json");
   const auto r = nlohmann::json::parse(f);
-  EXPECT_EQ(r["stop_reason"], "diverged");
+  EXPECT_TRUE(r["stop_reason"] == "diverged" || r["stop_reason"] == "stagnated")
+      << r["stop_reason"];
   EXPECT_LT(r["outer_iterations"].get<int>(), 1000);
   const auto& s = r["solver"];
   EXPECT_LT(s["projected_residual"].get<double>(), 1e-9 * s["projected_rhs"].get<double>());

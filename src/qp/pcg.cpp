@@ -19,6 +19,7 @@ PcgResult projected_cg(const QuadraticProgram& qp, Vec& x, const Reducer& red,
   Vec r(n), w(n), p(n), q(n), z(Z ? n : 0);
   Vec best(n);  // the iterate with the smallest projected residual so far
   double best_residual = std::numeric_limits<double>::infinity();
+  int best_iteration = 0;
   // Ends a run that cannot improve: the iterate with the smallest residual, and that residual.
   const auto take_best = [&](StopReason why) {
     res.reason = why;
@@ -51,8 +52,11 @@ PcgResult projected_cg(const QuadraticProgram& qp, Vec& x, const Reducer& red,
     if (res.projected_residual < best_residual) {
       best_residual = res.projected_residual;
       best = x;
+      best_iteration = it;
     } else if (res.projected_residual > kDivergence * best_residual) {
       return take_best(StopReason::diverged);
+    } else if (it - best_iteration >= kStagnation) {
+      return take_best(StopReason::stagnated);
     }
     if (it >= opt.max_iterations) return take_best(StopReason::max_iterations);
     if (!(wz > 0)) {  // a preconditioner that is not positive definite on Ker G

@@ -72,8 +72,10 @@ class SerialReducer final : public Reducer {
 
 /// Why a solver stopped. Non-convergence is a result, not an exception.
 /// diverged: PCG's residual grew a thousandfold above the smallest it had reached (round-off has
-/// taken over; the iterate with the smallest residual is returned).
-enum class StopReason { converged, max_iterations, breakdown, diverged };
+/// taken over; the iterate with the smallest residual is returned); stagnated: PCG's residual did
+/// not come below the smallest it had reached for kStagnation iterations (the same, when
+/// round-off holds the residual on a plateau instead of letting it grow).
+enum class StopReason { converged, max_iterations, breakdown, diverged, stagnated };
 inline std::string to_string(StopReason r) {
   switch (r) {
     case StopReason::converged:
@@ -84,6 +86,8 @@ inline std::string to_string(StopReason r) {
       return "breakdown";
     case StopReason::diverged:
       return "diverged";
+    case StopReason::stagnated:
+      return "stagnated";
   }
   return "?";
 }

@@ -12,7 +12,10 @@
 // the problem allows (a coefficient jump of 1e4 with the Dirichlet preconditioner: 3e-11 at
 // iteration 100, then 1e-6 at 1000). PCG keeps the iterate with the smallest projected residual
 // and returns it when the residual has grown kDivergence times above that smallest one
-// (StopReason::diverged) or at the iteration limit; either way it has not converged.
+// (StopReason::diverged), when it has not come below it for kStagnation iterations (the same
+// accuracy limit on a machine whose round-off holds the residual on a plateau, 3e-11 to 5e-11
+// from iteration 100 to 1000 on that problem: StopReason::stagnated), or at the iteration limit;
+// in every case it has not converged.
 //
 // Cost of one iteration: one application of A, one of P, three dot products, three axpys, one
 // copy of x while the residual decreases (and one of Z, one more dot product, when
@@ -25,6 +28,10 @@ namespace htfeti::qp {
 
 /// The growth of ||P r|| over its smallest value at which PCG stops (round-off has taken over).
 inline constexpr double kDivergence = 1e3;
+/// Iterations without a new smallest ||P r|| after which PCG stops (round-off has taken over:
+/// in exact arithmetic CG reaches the solution of n unknowns in at most n steps, and the
+/// converging runs measured here set a new smallest residual at least every 20 iterations).
+inline constexpr int kStagnation = 200;
 
 struct PcgOptions {
   double rtol = 1e-4;  ///< relative precision on the projected residual

@@ -9,6 +9,10 @@ Sections (--sections, default all but the slow ones):
   cube      the cube-obstacle (3D elastic contact, Table 4's ladder): k x k x k clusters of 4^3
             subdomains of 10^3 hex8, TFETI and H-TFETI-DP, k = 1 (--cube-k 1 2 adds the 2 x 2 x 2
             row: about 7 GB and several minutes per run);
+  clusters  H-TFETI-DP with contact on smaller clusters (the automatic choice for elasticity):
+            the cube-obstacle 40^3, 4^3 subdomains in clusters of 2^3 (box split), and the
+            same cube split by METIS into 64 parts in clusters of 8 (bench/cases,
+            cube40_metis64.toml --cluster-size 8);
   hetero    coefficient jumps between subdomains (1e3 and 1e6): Laplace on the unit square,
             8 x 8 subdomains, H_s/h = 16, the coefficient jumping across x = 0.5 (stripes) and in
             a checkerboard; plane-strain elasticity on the plate-with-hole Gmsh part (METIS, 16
@@ -16,7 +20,7 @@ Sections (--sections, default all but the slow ones):
             none / lumped / Dirichlet x multiplicity / stiffness scaling, eps = 1e-8.
 Wall times are medians of --repeat runs (3 by default; 1 for the cube).
 
-Usage: bench/preconditioners.py [--sections poisson membranes cube hetero] [--threads 2]
+Usage: bench/preconditioners.py [--sections poisson membranes cube clusters hetero] [--threads 2]
        [--precs none lumped dirichlet] [--cube-k 1 2] [--cube-key cube]
        [--membranes-hh 16 99] [--membranes-key membranes] [--dirichlet-storage dense]
 Writes bench/results/preconditioners.json (sections merged into the existing file) and prints
@@ -30,7 +34,8 @@ import tempfile
 from common import RESULTS, ROOT, save, solve
 
 p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-p.add_argument("--sections", nargs="+", default=["poisson", "membranes", "hetero", "cube"])
+p.add_argument("--sections", nargs="+",
+               default=["poisson", "membranes", "hetero", "cube", "clusters"])
 p.add_argument("--threads", type=int, default=2)
 p.add_argument("--repeat", type=int, default=3)
 p.add_argument("--cube-k", type=int, nargs="+", default=[1])
@@ -199,5 +204,20 @@ if "cube" in a.sections:
                 save("preconditioners.json", out)  # a row at a time: these runs are long
     table("cube-obstacle (Table 4), eps = 1e-4", rows, ["clusters", "method"])
     out[a.cube_key] = [dict(r, clusters=k[0], method=k[1]) for k, r in rows]
+
+if "clusters" in a.sections:
+    rows = []
+    metis = os.path.join(ROOT, "bench", "cases", "cube40_metis64.toml")
+    for name, args in [
+        ("box 40^3, 4^3 subdomains, clusters of 2^3",
+         ["--problem", "cube-obstacle", "--elements", "40,40,40", "--subdomains", "4,4,4",
+          "-m", 2]),
+        ("METIS 40^3, 64 parts, clusters of 8", [metis, "--cluster-size", 8]),
+    ]:
+        for pc in PRECS:
+            r = run(args + ["--preconditioner", pc] + storage(pc), a.repeat)
+            rows.append(((name,), r))
+    table("H-TFETI-DP with contact, smaller clusters, eps = 1e-4", rows, ["case"])
+    out["clusters"] = [dict(r, case=k[0]) for k, r in rows]
 
 print("\nwritten:", save("preconditioners.json", out))

@@ -284,7 +284,7 @@ void add_feti_options(std::vector<OptionSpec>& t) {
       "solver", "preconditioner", "--preconditioner",
       "FETI preconditioner: none | lumped (B_D K B_D^T) | dirichlet (B_D S B_D^T, S the "
       "subdomain Schur complement on the interface) | auto (Dirichlet with a coefficient field; "
-      "elasticity: lumped, but Dirichlet for H-TFETI-DP with contact; otherwise none); used by "
+      "elasticity: lumped; otherwise none); used by "
       "PCG and, in face, by MPRGP inside SMALBE-M",
       kPreconditionerNames,
       +[](RunOptions& r) -> PreconditionerKind& { return r.solve.feti.preconditioner; }));

@@ -77,9 +77,9 @@ SolveOutput solve(const SolveOptions& options, const Comm& comm);
 
 /// The preconditioner and scaling that `auto` stands for, chosen by measurement
 /// (docs/results.md, "Preconditioners"): a model with a coefficient field gets Dirichlet with
-/// stiffness scaling; elasticity gets lumped, except H-TFETI-DP with contact: Dirichlet; Laplace
-/// without a coefficient field none (on the measured 2D cases its setup costs more than the
-/// iterations it saves). A Dirichlet choice of auto is taken only where the dense S_i fit the
+/// stiffness scaling; elasticity gets lumped (TFETI and H-TFETI-DP, with or without contact);
+/// Laplace without a coefficient field none (on the measured 2D cases its setup costs more than
+/// the iterations it saves). A Dirichlet choice of auto is taken only where the dense S_i fit the
 /// budget (else none). Explicit choices are kept. Returns the reason ("requested" or the rule
 /// that chose), which the report repeats as preconditioner_reason.
 std::string resolve_preconditioner(const Model& model, FetiOptions& options);

@@ -16,6 +16,7 @@
 #include <numeric>
 #include <stdexcept>
 #include <string>
+#include <unordered_map>
 
 #include "htfeti/errors.hpp"
 #include "htfeti/linalg/nnls.hpp"
@@ -284,7 +285,8 @@ std::vector<CoarseSpace::CoarseTriplet> CoarseSpace::owner_cluster_sums(
       groups.push_back({m_.owner_cluster[m_.layout.ext_index(gcol[i].k)], i});
   std::stable_sort(groups.begin(), groups.end(),
                    [](const auto& x, const auto& y) { return x.first < y.first; });
-  std::vector<CoarseTriplet> mine, products;
+  std::vector<CoarseTriplet> mine, products, sums;
+  std::unordered_map<unsigned long long, size_t> slot;  // entry (a, b) -> its place in sums
   for (size_t g0 = 0; g0 < groups.size();) {
     size_t g1 = g0;
     while (g1 < groups.size() && groups[g1].first == groups[g0].first) ++g1;
@@ -295,20 +297,23 @@ std::vector<CoarseSpace::CoarseTriplet> CoarseSpace::owner_cluster_sums(
       while (j < gcol.size() && gcol[j].k == gcol[i].k) ++j;
       products_of(i, j, products);
     }
-    std::stable_sort(products.begin(), products.end(),
-                     [](const CoarseTriplet& x, const CoarseTriplet& y) {
-                       return x.a != y.a ? x.a < y.a : x.b < y.b;  // stable: multiplier order
-                     });
-    for (size_t p = 0; p < products.size();) {
-      size_t q = p;
-      double v = 0;
-      for (;
-           q < products.size() && products[q].a == products[p].a && products[q].b == products[p].b;
-           ++q)
-        v += products[q].v;
-      mine.push_back({groups[g0].first, products[p].a, products[p].b, v});
-      p = q;
+    // Each entry (a, b) sums its products in the order they were formed (multiplier order), as
+    // a stable sort by (a, b) followed by a running sum would, without sorting the products
+    // (78 per multiplier in 3D elasticity; the sort was 7% of a METIS H-TFETI-DP run): a slot
+    // per distinct entry, then the few distinct entries sorted.
+    slot.clear();
+    sums.clear();
+    for (const CoarseTriplet& t : products) {
+      const auto key = (static_cast<unsigned long long>(static_cast<unsigned>(t.a)) << 32) |
+                       static_cast<unsigned>(t.b);
+      const auto [it, added] = slot.try_emplace(key, sums.size());
+      if (added) sums.push_back({groups[g0].first, t.a, t.b, 0.0});
+      sums[it->second].v += t.v;
     }
+    std::sort(sums.begin(), sums.end(), [](const CoarseTriplet& x, const CoarseTriplet& y) {
+      return x.a != y.a ? x.a < y.a : x.b < y.b;  // distinct entries: any sort is the same
+    });
+    mine.insert(mine.end(), sums.begin(), sums.end());
     g0 = g1;
   }
   return mine;

@@ -3,7 +3,8 @@
 // (Eigen's sparse LU, independent of FETI and CHOLMOD), against the same solve on one rank (bit
 // for bit), for what each rank holds, and for the refusals of bad part files. The parts are
 // written at build time by the gmsh program (tests/CMakeLists.txt): the plate with a hole (tri3)
-// in 6 parts, the bracket (tet4) in 8. Runs under mpiexec -n 1, 2, 3, 4.
+// in 6 parts, the bracket (tet4) in 8, the sphere on its block (contact between two bodies) in 6.
+// Runs under mpiexec -n 1, 2, 3, 4.
 #include <gtest/gtest.h>
 
 #include <filesystem>
@@ -13,6 +14,7 @@
 #include "helpers.hpp"
 #include "htfeti/mesh/mesh.hpp"
 #include "htfeti/model/problem_spec.hpp"
+#include "htfeti/problem_file.hpp"
 #include "htfeti/solver.hpp"
 
 using namespace htfeti;
@@ -171,6 +173,81 @@ void expect_parts_refused(const std::string& dir, const std::string& name,
   ProblemSpec s = bracket_laplace(true);
   s.mesh_parts = dir + name;
   expect_refused(s, what);
+}
+
+// Contact between bodies on a mesh partitioned in advance: examples/sphere-on-block.toml (a
+// sphere pressed on a block, mortar rows) on Gmsh's 6 parts. The contact surfaces are gathered
+// from the parts; rows, bodies and solution must be those of the same mesh read whole and split
+// by METIS into 6 (another decomposition of the same discrete problem).
+ProblemSpec sphere_on_block(bool parts, SolveOptions& opt) {
+  RunOptions run;
+  ProblemSpec s = read_problem_file(HTFETI_SOURCE_DIR "/examples/sphere-on-block.toml", run);
+  opt = run.solve;
+  opt.rtol = 1e-10;
+  opt.max_iterations = 20000;
+  if (parts) {
+    s.mesh_file.clear();
+    s.mesh_parts = kParts + "sphere-on-block-parts.msh";
+    s.subdomains.clear();
+  } else {
+    s.subdomains = {6};
+  }
+  return s;
+}
+
+TEST(PartitionedContact, SameRowsBodiesAndSolutionAsTheWholeMesh) {
+  Comm comm;
+  // Gmsh puts cells of both bodies into one of the parts: a part's pieces are joined to bodies.
+  int crossing = 0;
+  for (int k = 1; k <= 6; ++k) {
+    const Mesh p = read_gmsh(kParts + "sphere-on-block-parts_" + std::to_string(k) + ".msh");
+    const std::vector<int> comp = node_components(p.cells, cell_nodes(p.type), p.num_nodes());
+    int pieces = 0;
+    for (int v = 0; v < p.num_nodes(); ++v) pieces += comp[v] == v;
+    crossing += pieces > 1;
+  }
+  EXPECT_GE(crossing, 1) << "no part of both bodies: the case below would not cover it";
+  SolveOptions opt;
+  const auto parts = solve(make_model(sphere_on_block(true, opt), &comm), opt, comm);
+  ASSERT_TRUE(parts.converged) << parts.report["stop_reason"];
+  const auto whole = solve(make_model(sphere_on_block(false, opt), &comm), opt, comm);
+  ASSERT_TRUE(whole.converged) << whole.report["stop_reason"];
+  EXPECT_EQ(parts.report["partitioner"], "gmsh parts");
+  EXPECT_EQ(parts.report["bodies"], 2);
+  const auto &cp = parts.report["conditions"]["contact"][0],
+             &cw = whole.report["conditions"]["contact"][0];
+  for (const char* key : {"rows", "slave_bodies", "master_bodies", "search_distance"})
+    EXPECT_EQ(cp[key], cw[key]) << key;
+  const double e = parts.report["objective"], ew = whole.report["objective"];
+  EXPECT_NEAR(e, ew, 1e-8 * std::abs(ew));
+  const auto &sp = parts.report["contact_summary"][0], &sw = whole.report["contact_summary"][0];
+  EXPECT_EQ(sp["active_rows"], sw["active_rows"]);
+  const double load = -parts.report["load_resultant"][2].get<double>();
+  EXPECT_NEAR(sp["resultant"][2].get<double>(), load, 1e-3 * load);
+  EXPECT_LT(sp["max_penetration"].get<double>(), 1e-6);
+}
+
+TEST(PartitionedContact, SameBitsOnEveryRankCount) {
+  Comm comm, self(MPI_COMM_SELF);
+  SolveOptions opt;
+  const ProblemSpec spec = sphere_on_block(true, opt);
+  opt.rtol = 1e-8;
+  const auto all = solve(make_model(spec, &comm), opt, comm);
+  const auto one = solve(make_model(spec, &self), opt, self);
+  const double a = all.report["objective"], b = one.report["objective"];
+  EXPECT_EQ(a, b);
+  EXPECT_EQ(all.report["F_applications"], one.report["F_applications"]);
+  EXPECT_EQ(all.report["displacement"], one.report["displacement"]);
+  EXPECT_EQ(all.report["contact_summary"], one.report["contact_summary"]);
+}
+
+// Slave and master on one body, known only once the parts' pieces are joined into bodies: refused
+// on every rank, as for a whole mesh.
+TEST(PartitionedContact, SlaveAndMasterOnOneBodyAreRefused) {
+  SolveOptions opt;
+  ProblemSpec s = sphere_on_block(true, opt);
+  s.contact[0].master = "sphere_top";
+  expect_refused(s, "lie on the same body");
 }
 
 TEST(PartitionedInputErrors, MissingPartFile) {

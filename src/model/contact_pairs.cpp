@@ -2,6 +2,7 @@
 #include "htfeti/model/contact_pairs.hpp"
 
 #include <algorithm>
+#include <climits>
 #include <cmath>
 #include <set>
 #include <stdexcept>
@@ -14,65 +15,121 @@ namespace htfeti {
 
 namespace {
 
-// The facets of a boundary group with their outward normals (away from the one cell each
-// bounds) and the bodies they lie on.
-ContactSurface surface_of(const Mesh& mesh, const MeshPartition& part, const std::string& group,
-                          const std::string& what, std::vector<int>& bodies) {
+// The facets of a boundary group of the whole mesh with their outward normals (away from the
+// one cell each bounds) and the bodies they lie on; or why the group cannot be a surface.
+ContactSurfaces::Group surface_of(const Mesh& mesh, const MeshPartition& part,
+                                  const std::string& group) {
+  ContactSurfaces::Group g;
   auto it = mesh.facet_groups.find(group);
-  if (it == mesh.facet_groups.end() || it->second.nodes.empty())
-    throw std::invalid_argument(what + ": group '" + group +
-                                "' has no boundary facets (a contact surface is a physical group "
-                                "of dimension " +
-                                std::to_string(mesh.dim - 1) + ")");
+  if (it == mesh.facet_groups.end() || it->second.nodes.empty()) {
+    g.error = no_facets_error(group, mesh.dim);
+    return g;
+  }
   const int fn = it->second.facet_nodes, nc = cell_nodes(mesh.type);
-  ContactSurface s;
+  ContactSurface& s = g.surface;
   s.facet_nodes = fn;
   s.nodes = it->second.nodes;
   std::set<int> body_set;
-  auto x = [&](int node, int d) { return mesh.coords[3 * static_cast<size_t>(node) + d]; };
   for (int f = 0; f < s.num_facets(); ++f) {
     const int* v = s.nodes.data() + static_cast<size_t>(f) * fn;
     int cell = -1, cells = 0;
     for (int c = part.node_cell_offset[v[0]]; c < part.node_cell_offset[v[0] + 1]; ++c) {
       const int e = part.node_cell_list[c];
-      int hits = 0;
-      for (int a = 0; a < nc; ++a)
-        for (int b = 0; b < fn; ++b) hits += mesh.cells[static_cast<size_t>(e) * nc + a] == v[b];
-      if (hits == fn) cell = e, ++cells;
+      if (cell_holds_facet(mesh.cells.data() + static_cast<size_t>(e) * nc, nc, v, fn))
+        cell = e, ++cells;
     }
-    if (cells != 1)
-      throw std::invalid_argument(what + ": group '" + group + "' has a facet that is not on " +
-                                  "the boundary of a body (nodes " + std::to_string(v[0] + 1) +
-                                  ", " + std::to_string(v[1] + 1) + ", ...)");
+    if (cells != 1) {
+      g.error = not_boundary_error(group, v[0] + 1, v[1] + 1);
+      return g;
+    }
     body_set.insert(part.cell_body[cell]);
-    std::array<double, 3> n{0, 0, 0}, fc{0, 0, 0}, cc{0, 0, 0};
-    if (mesh.dim == 2) {
-      n = {x(v[1], 1) - x(v[0], 1), x(v[0], 0) - x(v[1], 0), 0};
-    } else {
-      const int p = fn == 4 ? 2 : 1, q = fn == 4 ? 3 : 2;  // quad: the diagonals
-      const double a[3] = {x(v[p], 0) - x(v[0], 0), x(v[p], 1) - x(v[0], 1),
-                           x(v[p], 2) - x(v[0], 2)};
-      const int r = fn == 4 ? 1 : 0;
-      const double b[3] = {x(v[q], 0) - x(v[r], 0), x(v[q], 1) - x(v[r], 1),
-                           x(v[q], 2) - x(v[r], 2)};
-      n = {a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]};
-    }
-    for (int d = 0; d < 3; ++d) {
-      for (int b = 0; b < fn; ++b) fc[d] += x(v[b], d) / fn;
-      for (int a = 0; a < nc; ++a)
-        cc[d] += x(mesh.cells[static_cast<size_t>(cell) * nc + a], d) / nc;
-    }
-    double len = 0, side = 0;
-    for (int d = 0; d < 3; ++d) len += n[d] * n[d], side += n[d] * (fc[d] - cc[d]);
-    len = std::sqrt(len) * (side < 0 ? -1.0 : 1.0);
-    for (double& c : n) c /= len;
-    s.normals.push_back(n);
+    s.normals.push_back(outward_normal(mesh.dim, mesh.coords.data(), v, fn,
+                                       mesh.cells.data() + static_cast<size_t>(cell) * nc, nc));
   }
-  bodies.assign(body_set.begin(), body_set.end());
-  return s;
+  g.bodies.assign(body_set.begin(), body_set.end());
+  return g;
 }
 
 }  // namespace
+
+std::string no_facets_error(const std::string& group, int dim) {
+  return "group '" + group +
+         "' has no boundary facets (a contact surface is a physical group of dimension " +
+         std::to_string(dim - 1) + ")";
+}
+
+std::string not_boundary_error(const std::string& group, long long tag0, long long tag1) {
+  return "group '" + group + "' has a facet that is not on the boundary of a body (nodes " +
+         std::to_string(tag0) + ", " + std::to_string(tag1) + ", ...)";
+}
+
+bool cell_holds_facet(const int* cell, int nc, const int* facet, int fn) {
+  int hits = 0;
+  for (int a = 0; a < nc; ++a)
+    for (int b = 0; b < fn; ++b) hits += cell[a] == facet[b];
+  return hits == fn;
+}
+
+std::array<double, 3> outward_normal(int dim, const double* coords, const int* v, int fn,
+                                     const int* cell, int nc) {
+  auto x = [&](int node, int d) { return coords[3 * static_cast<size_t>(node) + d]; };
+  std::array<double, 3> n{0, 0, 0}, fc{0, 0, 0}, cc{0, 0, 0};
+  if (dim == 2) {
+    n = {x(v[1], 1) - x(v[0], 1), x(v[0], 0) - x(v[1], 0), 0};
+  } else {
+    const int p = fn == 4 ? 2 : 1, q = fn == 4 ? 3 : 2;  // quad: the diagonals
+    const double a[3] = {x(v[p], 0) - x(v[0], 0), x(v[p], 1) - x(v[0], 1), x(v[p], 2) - x(v[0], 2)};
+    const int r = fn == 4 ? 1 : 0;
+    const double b[3] = {x(v[q], 0) - x(v[r], 0), x(v[q], 1) - x(v[r], 1), x(v[q], 2) - x(v[r], 2)};
+    n = {a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]};
+  }
+  for (int d = 0; d < 3; ++d) {
+    for (int b = 0; b < fn; ++b) fc[d] += x(v[b], d) / fn;
+    for (int a = 0; a < nc; ++a) cc[d] += x(cell[a], d) / nc;
+  }
+  double len = 0, side = 0;
+  for (int d = 0; d < 3; ++d) len += n[d] * n[d], side += n[d] * (fc[d] - cc[d]);
+  len = std::sqrt(len) * (side < 0 ? -1.0 : 1.0);
+  for (double& c : n) c /= len;
+  return n;
+}
+
+std::vector<unsigned char> fixed_components(
+    const ProblemSpec& spec, int dofs_per_node,
+    const std::map<std::string, std::vector<int>>& node_groups, int nodes) {
+  std::vector<unsigned char> fixed(nodes, 0);
+  for (const auto& d : spec.dirichlet) {
+    auto it = node_groups.find(d.group);
+    if (it == node_groups.end()) continue;
+    for (int k : it->second)
+      for (int c = 0; c < dofs_per_node; ++c)
+        if (d.components.empty() ||
+            std::find(d.components.begin(), d.components.end(), c) != d.components.end())
+          fixed[k] |= static_cast<unsigned char>(1u << c);
+  }
+  return fixed;
+}
+
+ContactSurfaces contact_surfaces(const ProblemSpec& spec, const Physics& physics, const Mesh& mesh,
+                                 const MeshPartition& part) {
+  ContactSurfaces cs;
+  cs.dim = mesh.dim;
+  cs.num_bodies = part.num_bodies;
+  cs.coords = mesh.coords;
+  const int nn = mesh.num_nodes();
+  cs.copies.resize(nn);
+  cs.owner.resize(nn);
+  for (int k = 0; k < nn; ++k) {
+    cs.copies[k] = part.copy_offset[k + 1] - part.copy_offset[k];
+    cs.owner[k] = cs.copies[k] > 0 ? part.copy_list[part.copy_offset[k]] : 0;
+  }
+  cs.fixed = fixed_components(spec, physics.dofs_per_node(), mesh.node_groups, nn);
+  for (const auto& c : spec.contact)
+    if (!c.master.empty())
+      for (const std::string* g : {&c.group, &c.master})
+        if (!cs.groups.count(*g)) cs.groups[*g] = surface_of(mesh, part, *g);
+  return cs;
+}
 
 std::array<double, 3> reference_axis(const std::array<double, 3>& n) {
   int d = 0;
@@ -112,20 +169,11 @@ FrictionRows friction_rows_at(const std::array<double, 3>& n, const std::array<d
   return {1, t};
 }
 
-ContactPairs::ContactPairs(const ProblemSpec& spec, const Physics& physics, const Mesh& mesh,
-                           const MeshPartition& part) {
+ContactPairs::ContactPairs(const ProblemSpec& spec, const Physics& physics,
+                           const ContactSurfaces& cs) {
   const int dpn = physics.dofs_per_node();
   info_.resize(spec.contact.size());
-  std::set<std::pair<int, int>> fixed;  // (node, component) held by a Dirichlet condition
-  for (const auto& d : spec.dirichlet) {
-    auto it = mesh.node_groups.find(d.group);
-    if (it == mesh.node_groups.end()) continue;
-    for (int k : it->second)
-      for (int c = 0; c < dpn; ++c)
-        if (d.components.empty() ||
-            std::find(d.components.begin(), d.components.end(), c) != d.components.end())
-          fixed.insert({k, c});
-  }
+  auto fixed = [&](int k, int c) { return (cs.fixed[k] >> c & 1) != 0; };
   std::set<std::pair<std::string, std::string>> seen;
   for (size_t ci = 0; ci < spec.contact.size(); ++ci) {
     const auto& c = spec.contact[ci];
@@ -135,22 +183,27 @@ ContactPairs::ContactPairs(const ProblemSpec& spec, const Physics& physics, cons
       throw std::invalid_argument(what + ": the pair group = '" + c.group + "', master = '" +
                                   c.master + "' is given twice");
     Info& info = info_[ci];
-    const ContactSurface slave = surface_of(mesh, part, c.group, what, info.slave_bodies);
-    const ContactSurface master = surface_of(mesh, part, c.master, what, info.master_bodies);
+    const ContactSurfaces::Group& sg = cs.groups.at(c.group);
+    if (!sg.error.empty()) throw std::invalid_argument(what + ": " + sg.error);
+    const ContactSurfaces::Group& mg = cs.groups.at(c.master);
+    if (!mg.error.empty()) throw std::invalid_argument(what + ": " + mg.error);
+    const ContactSurface &slave = sg.surface, &master = mg.surface;
+    info.slave_bodies = sg.bodies;
+    info.master_bodies = mg.bodies;
     for (int b : info.slave_bodies)
       if (std::binary_search(info.master_bodies.begin(), info.master_bodies.end(), b))
         throw std::invalid_argument(
             what + ": group '" + c.group + "' and master '" + c.master +
             "' lie on the same body (body " + std::to_string(b + 1) + " of " +
-            std::to_string(part.num_bodies) +
+            std::to_string(cs.num_bodies) +
             "; contact is between bodies that share no node: mesh them apart)");
     info.search_distance = c.search_distance > 0
                                ? c.search_distance
-                               : 2.0 * std::max(largest_facet_diameter(mesh.coords, slave),
-                                                largest_facet_diameter(mesh.coords, master));
+                               : 2.0 * std::max(largest_facet_diameter(cs.coords, slave),
+                                                largest_facet_diameter(cs.coords, master));
     info.multipliers = c.multipliers;
     const auto rows =
-        mortar_rows(mesh.dim, mesh.coords, slave, master, info.search_distance, c.multipliers);
+        mortar_rows(cs.dim, cs.coords, slave, master, info.search_distance, c.multipliers);
     info.slip_bound = c.slip_bound;
     info.friction_coefficient = c.friction_coefficient;
     // Friction in 3D: one reference axis for the condition, from the slave surface's mean normal.
@@ -164,21 +217,20 @@ ContactPairs::ContactPairs(const ProblemSpec& spec, const Physics& physics, cons
     for (const MortarRow& mr : rows) {
       Row r;
       r.condition = static_cast<int>(ci);
-      r.slave = mr.slave_node;
+      r.slave = cs.global_node(mr.slave_node);
       r.weight = mr.weight;
-      const std::array<double, 3> p{mesh.coords[3 * static_cast<size_t>(mr.slave_node)],
-                                    mesh.coords[3 * static_cast<size_t>(mr.slave_node) + 1],
-                                    mesh.coords[3 * static_cast<size_t>(mr.slave_node) + 2]};
+      const std::array<double, 3> p{cs.coords[3 * static_cast<size_t>(mr.slave_node)],
+                                    cs.coords[3 * static_cast<size_t>(mr.slave_node) + 1],
+                                    cs.coords[3 * static_cast<size_t>(mr.slave_node) + 2]};
       if (physics.kind == PhysicsKind::laplace) {
         r.normal = {c.direction[0] < 0 ? -1.0 : 1.0, 0, 0};
         r.gap = gap(p);
       } else {
         r.normal = mr.normal;
         r.gap = mr.gap;
-        if (mesh.dim == 3) {
-          const std::array<bool, 3> held{fixed.count({mr.slave_node, 0}) > 0,
-                                         fixed.count({mr.slave_node, 1}) > 0,
-                                         fixed.count({mr.slave_node, 2}) > 0};
+        if (cs.dim == 3) {
+          const std::array<bool, 3> held{fixed(mr.slave_node, 0), fixed(mr.slave_node, 1),
+                                         fixed(mr.slave_node, 2)};
           const FrictionRows f = friction_rows_at(r.normal, friction_tangent(r.normal, axis), held);
           r.tangent = f.tangent;
           r.tangent_rows = f.rows;
@@ -188,17 +240,17 @@ ContactPairs::ContactPairs(const ProblemSpec& spec, const Physics& physics, cons
       bool all_fixed = true;
       for (const auto& [node, cj] : mr.entries)
         for (int d = 0; d < dpn; ++d)
-          if (r.normal[d] != 0 && !fixed.count({node, d})) all_fixed = false;
+          if (r.normal[d] != 0 && !fixed(node, d)) all_fixed = false;
       if (all_fixed) continue;
-      r.owner = part.num_subdomains;
+      r.owner = INT_MAX;
       for (const auto& [node, cj] : mr.entries) {
-        const int k = part.copy_offset[node + 1] - part.copy_offset[node];
-        r.norm_sq += cj * cj / k;
-        r.owner = std::min(r.owner, part.copy_list[part.copy_offset[node]]);
+        r.norm_sq += cj * cj / cs.copies[node];
+        r.owner = std::min(r.owner, cs.owner[node]);
       }
       const int row = static_cast<int>(rows_.size());
       for (const auto& [node, cj] : mr.entries) {
-        by_node_.push_back({node, row, cj, std::binary_search(snodes.begin(), snodes.end(), node)});
+        by_node_.push_back({cs.global_node(node), row, cj,
+                            std::binary_search(snodes.begin(), snodes.end(), node)});
       }
       rows_.push_back(r);
       coords_.insert(coords_.end(), p.begin(), p.end());

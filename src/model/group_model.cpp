@@ -147,8 +147,11 @@ class MetisSplit final : public MeshSource {
     for (const auto& [n, v] : mesh_->facet_groups) facets.insert(n);
     for (const auto& [n, v] : mesh_->cell_groups) cells.insert(n);
   }
-  const Mesh* whole_mesh() const override { return mesh_.get(); }
-  const MeshPartition* partition() const override { return part_.get(); }
+  bool contact_surfaces(const ProblemSpec& spec, const Physics& physics,
+                        ContactSurfaces& out) const override {
+    out = htfeti::contact_surfaces(spec, physics, *mesh_, *part_);
+    return true;
+  }
   Model::MeshCounts held() const override {
     return {mesh_->num_nodes(), mesh_->num_cells(), static_cast<long long>(mesh_->cells.size())};
   }
@@ -206,15 +209,17 @@ class GroupModel final : public Model {
       mesh_source_ = std::move(metis);
     }
     check_groups();
-    for (size_t ci = 0; ci < spec.contact.size(); ++ci)
-      if (!spec.contact[ci].master.empty() && !mesh_source_->whole_mesh())
+    const auto pair = std::find_if(spec.contact.begin(), spec.contact.end(),
+                                   [](const auto& c) { return !c.master.empty(); });
+    if (pair != spec.contact.end()) {
+      ContactSurfaces surfaces;
+      if (!mesh_source_->contact_surfaces(spec, physics_, surfaces))
         throw std::invalid_argument(
-            "problem file: contact #" + std::to_string(ci + 1) +
+            "problem file: contact #" + std::to_string(pair - spec.contact.begin() + 1) +
             ": contact between bodies needs a mesh of several bodies (a Gmsh file; a generated "
             "box is one body)");
-    if (mesh_source_->whole_mesh())
-      pairs_ =
-          ContactPairs(spec, physics_, *mesh_source_->whole_mesh(), *mesh_source_->partition());
+      pairs_ = ContactPairs(spec, physics_, surfaces);
+    }
   }
 
   int num_subdomains() const override { return mesh_source_->num_subdomains(); }

@@ -7,6 +7,7 @@
 #include <string>
 
 #include "htfeti/mesh/mesh.hpp"
+#include "htfeti/model/contact_pairs.hpp"
 #include "htfeti/model/problem_spec.hpp"
 #include "htfeti/parallel/comm.hpp"
 #include "htfeti/partition/partition.hpp"
@@ -39,10 +40,12 @@ class MeshSource {
   virtual Model::MeshCounts held() const = 0;
   /// The report's description of the mesh and of its split.
   virtual void describe(const ProblemSpec& spec, nlohmann::json& j) const = 0;
-  /// The whole mesh and its partition, where the source holds them (contact between bodies
-  /// needs them); null for a box split into boxes of subdomains (one body).
-  virtual const Mesh* whole_mesh() const { return nullptr; }
-  virtual const MeshPartition* partition() const { return nullptr; }
+  /// The surfaces of the contact conditions with a master group (contact between bodies), the
+  /// same on every rank; false for a source of one body (a box split into boxes). Collective
+  /// over the source's communicator for a partitioned mesh.
+  virtual bool contact_surfaces(const ProblemSpec&, const Physics&, ContactSurfaces&) const {
+    return false;
+  }
 };
 
 /// Every cell of the mesh valid (fem/element.hpp: cell_is_valid): an inverted, self-intersecting

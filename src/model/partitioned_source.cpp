@@ -30,6 +30,7 @@
 #include <filesystem>
 #include <map>
 #include <numeric>
+#include <set>
 #include <stdexcept>
 
 #include "htfeti/feti/input.hpp"
@@ -195,7 +196,10 @@ class PartitionedSource final : public MeshSource {
                  {"nodes", nodes_},
                  {"cells", cells_}};
     j["partitioner"] = "gmsh parts";
+    if (bodies_ > 0) j["bodies"] = bodies_;  // counted where contact between bodies needs them
   }
+  bool contact_surfaces(const ProblemSpec& spec, const Physics& physics,
+                        ContactSurfaces& out) const override;
   Model::MeshCounts held() const override {
     Model::MeshCounts h;
     for (const auto& [s, m] : meshes_)
@@ -611,7 +615,268 @@ class PartitionedSource final : public MeshSource {
   std::vector<std::string> node_group_names_, facet_group_names_, cell_group_names_;
   std::vector<Model::MeshCounts> counts_;
   long long nodes_ = 0, subdomain_nodes_ = 0, cells_ = 0;
+  mutable int bodies_ = 0;  // set by contact_surfaces
 };
+
+// Contact between bodies (step 5, only for conditions with a master group): the surfaces
+// gathered on every rank. The bodies are the connected pieces of the parts joined wherever
+// they share a node (a part that Gmsh cut across two bodies has a piece in each); the facets of
+// the contact groups are listed by every part that has them and kept once, in part order; the
+// part holding the one cell a facet bounds gives its outward normal and body (a facet bounded
+// by no cell or by two is refused, as on the whole mesh); and the parts holding a surface node
+// give its coordinates, copies and Dirichlet components. Per rank: the surfaces (a few records
+// per facet and node), the pieces' summary and the interface nodes' records in the rendezvous.
+bool PartitionedSource::contact_surfaces(const ProblemSpec& spec, const Physics& physics,
+                                         ContactSurfaces& out) const {
+  const int P = comm_.size(), dpn = physics.dofs_per_node();
+  out = ContactSurfaces{};
+  out.dim = dim_;
+  std::vector<std::string> names;
+  for (const auto& c : spec.contact)
+    if (!c.master.empty()) names.insert(names.end(), {c.group, c.master});
+  std::sort(names.begin(), names.end());
+  names.erase(std::unique(names.begin(), names.end()), names.end());
+  std::vector<int> part_of(parts_);
+  for (int k = 0; k < parts_; ++k) part_of[subdomain_of_part_[k]] = k;
+  const int nc = cell_nodes(type_);
+
+  // Pieces of the held parts (connected through cells), numbered in each part by first node.
+  std::map<int, std::vector<int>> piece_of_node;  // subdomain -> local node -> piece
+  std::vector<long long> mine;                    // (part, pieces)
+  for (const auto& [sd, sm] : meshes_) {
+    const std::vector<int> comp = node_components(sm.cells, nc, sm.num_nodes());
+    std::vector<int> piece(sm.num_nodes()), of_root(sm.num_nodes(), -1);
+    int n = 0;
+    for (int k = 0; k < sm.num_nodes(); ++k) {
+      if (of_root[comp[k]] < 0) of_root[comp[k]] = n++;
+      piece[k] = of_root[comp[k]];
+    }
+    piece_of_node[sd] = std::move(piece);
+    mine.insert(mine.end(), {part_of[sd], n});
+  }
+  std::vector<long long> first_piece(parts_ + 1, 0);
+  for (const auto& l : all_gather(comm_, mine))
+    for (size_t i = 0; i < l.size(); i += 2) first_piece[l[i] + 1] = l[i + 1];
+  for (int k = 0; k < parts_; ++k) first_piece[k + 1] += first_piece[k];
+  const long long pieces = first_piece[parts_];
+  auto global_piece = [&](int sd, int k) {
+    return first_piece[part_of[sd]] + piece_of_node[sd][k];
+  };
+
+  // Bodies: pieces joined through the interface nodes (at the nodes' home ranks), numbered by
+  // their lowest global node, as the whole mesh's bodies are by their first cell.
+  std::vector<long long> lowest(pieces, LLONG_MAX);
+  {
+    std::vector<std::vector<long long>> send(P);
+    std::vector<long long> low;
+    for (const auto& [sd, sm] : meshes_)
+      for (int k = 0; k < sm.num_nodes(); ++k) {
+        const long long gp = global_piece(sd, k);
+        low.insert(low.end(), {gp, sm.global_node[k]});
+        if (sm.num_copies(k) > 1)
+          send[home(sm.global_node[k])].insert(send[home(sm.global_node[k])].end(),
+                                               {sm.global_node[k], gp});
+      }
+    std::vector<long long> local_low;
+    {
+      std::map<long long, long long> m;
+      for (size_t i = 0; i < low.size(); i += 2) {
+        auto it = m.find(low[i]);
+        if (it == m.end() || low[i + 1] < it->second) m[low[i]] = low[i + 1];
+      }
+      for (const auto& [gp, g] : m) local_low.insert(local_low.end(), {gp, g});
+    }
+    for (const auto& l : all_gather(comm_, local_low))
+      for (size_t i = 0; i < l.size(); i += 2) lowest[l[i]] = std::min(lowest[l[i]], l[i + 1]);
+    std::vector<std::pair<long long, long long>> at;
+    for (const auto& l : exchange_lists(comm_, send))
+      for (size_t i = 0; i < l.size(); i += 2) at.push_back({l[i], l[i + 1]});
+    std::sort(at.begin(), at.end());
+    std::vector<long long> edges;
+    for (size_t i = 0; i < at.size();) {
+      size_t j = i + 1;
+      for (; j < at.size() && at[j].first == at[i].first; ++j)
+        if (at[j].second != at[i].second) edges.insert(edges.end(), {at[i].second, at[j].second});
+      i = j;
+    }
+    std::vector<long long> parent(pieces);
+    std::iota(parent.begin(), parent.end(), 0LL);
+    auto root = [&](long long a) {
+      while (parent[a] != a) a = parent[a] = parent[parent[a]];
+      return a;
+    };
+    for (const auto& l : all_gather(comm_, edges))
+      for (size_t i = 0; i < l.size(); i += 2) {
+        const long long a = root(l[i]), b = root(l[i + 1]);
+        if (a != b) parent[std::max(a, b)] = std::min(a, b);
+      }
+    std::map<long long, long long> body_low;  // root -> lowest node of the body
+    for (long long p = 0; p < pieces; ++p) {
+      auto it = body_low.find(root(p));
+      if (it == body_low.end() || lowest[p] < it->second) body_low[root(p)] = lowest[p];
+    }
+    std::vector<std::pair<long long, long long>> by_low;
+    for (const auto& [r, g] : body_low) by_low.push_back({g, r});
+    std::sort(by_low.begin(), by_low.end());
+    std::map<long long, int> body_of_root;
+    for (size_t b = 0; b < by_low.size(); ++b) body_of_root[by_low[b].second] = static_cast<int>(b);
+    for (long long p = 0; p < pieces; ++p) lowest[p] = body_of_root[root(p)];  // now: the body
+    out.num_bodies = bodies_ = static_cast<int>(by_low.size());
+  }
+  const std::vector<long long>& body_of_piece = lowest;
+
+  // The facets of the contact groups, from every part that lists them, kept once (the first in
+  // part order, then in the part's order).
+  std::vector<int> facet_nodes(names.size(), 0);
+  std::vector<std::vector<long long>> facets(names.size());  // global nodes, cyclic
+  {
+    std::vector<long long> list;  // part, group, fn, nodes...
+    for (const auto& [sd, sm] : meshes_)
+      for (size_t g = 0; g < names.size(); ++g) {
+        auto it = sm.facet_groups.find(names[g]);
+        if (it == sm.facet_groups.end()) continue;
+        const int fn = it->second.facet_nodes;
+        for (size_t f = 0; f < it->second.nodes.size(); f += fn) {
+          list.insert(list.end(), {part_of[sd], static_cast<long long>(g), fn});
+          for (int b = 0; b < fn; ++b) list.push_back(sm.global_node[it->second.nodes[f + b]]);
+        }
+      }
+    std::vector<std::vector<long long>> all;  // by part
+    std::vector<std::pair<long long, std::vector<long long>>> records;
+    for (const auto& l : all_gather(comm_, list))
+      for (size_t i = 0; i < l.size();) {
+        const int fn = static_cast<int>(l[i + 2]);
+        records.push_back(
+            {l[i], std::vector<long long>(l.begin() + i + 1, l.begin() + i + 3 + fn)});
+        i += 3 + fn;
+      }
+    std::stable_sort(records.begin(), records.end(),
+                     [](const auto& a, const auto& b) { return a.first < b.first; });
+    std::set<std::vector<long long>> seen;
+    for (const auto& [part, r] : records) {
+      const int g = static_cast<int>(r[0]), fn = static_cast<int>(r[1]);
+      std::vector<long long> key(r.begin() + 2, r.end());
+      std::sort(key.begin(), key.end());
+      key.push_back(g);
+      if (!seen.insert(key).second) continue;
+      facet_nodes[g] = fn;
+      facets[g].insert(facets[g].end(), r.begin() + 2, r.end());
+    }
+  }
+
+  // The surface nodes: the facets' nodes in global order.
+  std::vector<long long>& nodes = out.global;
+  for (const auto& f : facets) nodes.insert(nodes.end(), f.begin(), f.end());
+  std::sort(nodes.begin(), nodes.end());
+  nodes.erase(std::unique(nodes.begin(), nodes.end()), nodes.end());
+  const int ns = static_cast<int>(nodes.size());
+  auto index = [&](long long g) {
+    return static_cast<int>(std::lower_bound(nodes.begin(), nodes.end(), g) - nodes.begin());
+  };
+  long long nf_total = 0;
+  std::vector<long long> facet_first(names.size() + 1, 0);
+  for (size_t g = 0; g < names.size(); ++g)
+    facet_first[g + 1] = facet_first[g] + (facet_nodes[g] ? facets[g].size() / facet_nodes[g] : 0);
+  nf_total = facet_first[names.size()];
+
+  // Per facet: the cells that hold it, the normal and body from the part holding the one cell;
+  // per surface node: the holder of lowest rank gives the coordinates.
+  std::vector<long long> cells_at(nf_total, 0), body(nf_total, -1);
+  std::vector<double> normal(3 * static_cast<size_t>(nf_total), 0.0), coords(3 * ns, 0.0);
+  std::vector<int> holder(ns, P);
+  std::vector<long long> copies(ns, 0), owner(ns, LLONG_MAX), fixed(ns, 0);
+  for (const auto& [sd, sm] : meshes_) {
+    std::vector<int> local(ns, -1);
+    for (int k = 0; k < sm.num_nodes(); ++k) {
+      const int i = index(sm.global_node[k]);
+      if (i < ns && nodes[i] == sm.global_node[k]) local[i] = k;
+    }
+    const std::vector<unsigned char> fx =
+        fixed_components(spec, dpn, sm.node_groups, sm.num_nodes());
+    for (int i = 0; i < ns; ++i) {
+      const int k = local[i];
+      if (k < 0) continue;
+      holder[i] = std::min(holder[i], comm_.rank());
+      copies[i] = sm.num_copies(k);
+      owner[i] = std::min<long long>(owner[i], sm.copies(k)[0]);
+      fixed[i] |= fx[k];
+    }
+    std::vector<int> first(sm.num_nodes() + 1, 0), list(sm.cells.size());
+    for (int v : sm.cells) ++first[v + 1];
+    for (int k = 0; k < sm.num_nodes(); ++k) first[k + 1] += first[k];
+    {
+      std::vector<int> at(first.begin(), first.end() - 1);
+      for (int e = 0; e < sm.num_cells(); ++e)
+        for (int a = 0; a < nc; ++a) list[at[sm.cells[static_cast<size_t>(e) * nc + a]]++] = e;
+    }
+    for (size_t g = 0; g < names.size(); ++g) {
+      const int fn = facet_nodes[g];
+      for (long long f = 0; fn > 0 && f < facet_first[g + 1] - facet_first[g]; ++f) {
+        int v[4];
+        bool held = true;
+        for (int b = 0; b < fn && held; ++b) {
+          v[b] = local[index(facets[g][f * fn + b])];
+          held = v[b] >= 0;
+        }
+        if (!held) continue;
+        for (int c = first[v[0]]; c < first[v[0] + 1]; ++c) {
+          const int* cell = sm.cells.data() + static_cast<size_t>(list[c]) * nc;
+          if (!cell_holds_facet(cell, nc, v, fn)) continue;
+          const long long id = facet_first[g] + f;
+          ++cells_at[id];
+          const auto n = outward_normal(dim_, sm.coords.data(), v, fn, cell, nc);
+          for (int d = 0; d < 3; ++d) normal[3 * id + d] = n[d];
+          body[id] = body_of_piece[global_piece(sd, cell[0])];
+        }
+      }
+    }
+  }
+  MPI_Allreduce(MPI_IN_PLACE, holder.data(), ns, MPI_INT, MPI_MIN, comm_.raw());
+  for (const auto& [sd, sm] : meshes_)
+    for (int k = 0; k < sm.num_nodes(); ++k) {
+      const int i = index(sm.global_node[k]);
+      if (i < ns && nodes[i] == sm.global_node[k] && holder[i] == comm_.rank())
+        for (int d = 0; d < 3; ++d) coords[3 * i + d] = sm.coords[3 * static_cast<size_t>(k) + d];
+    }
+  const MPI_Comm c = comm_.raw();
+  MPI_Allreduce(MPI_IN_PLACE, coords.data(), 3 * ns, MPI_DOUBLE, MPI_SUM, c);
+  MPI_Allreduce(MPI_IN_PLACE, copies.data(), ns, MPI_LONG_LONG, MPI_MAX, c);
+  MPI_Allreduce(MPI_IN_PLACE, owner.data(), ns, MPI_LONG_LONG, MPI_MIN, c);
+  MPI_Allreduce(MPI_IN_PLACE, fixed.data(), ns, MPI_LONG_LONG, MPI_BOR, c);
+  MPI_Allreduce(MPI_IN_PLACE, cells_at.data(), static_cast<int>(nf_total), MPI_LONG_LONG, MPI_SUM,
+                c);
+  MPI_Allreduce(MPI_IN_PLACE, normal.data(), static_cast<int>(3 * nf_total), MPI_DOUBLE, MPI_SUM,
+                c);
+  MPI_Allreduce(MPI_IN_PLACE, body.data(), static_cast<int>(nf_total), MPI_LONG_LONG, MPI_MAX, c);
+
+  out.coords = std::move(coords);
+  out.copies.assign(copies.begin(), copies.end());
+  out.owner.assign(owner.begin(), owner.end());
+  out.fixed.assign(fixed.begin(), fixed.end());
+  for (size_t g = 0; g < names.size(); ++g) {
+    ContactSurfaces::Group& grp = out.groups[names[g]];
+    const int fn = facet_nodes[g];
+    if (fn == 0) {
+      grp.error = no_facets_error(names[g], dim_);
+      continue;
+    }
+    ContactSurface& s = grp.surface;
+    s.facet_nodes = fn;
+    std::set<int> bodies;
+    for (long long f = 0; f < facet_first[g + 1] - facet_first[g]; ++f) {
+      const long long id = facet_first[g] + f;
+      if (cells_at[id] != 1) {
+        grp.error = not_boundary_error(names[g], facets[g][f * fn] + 1, facets[g][f * fn + 1] + 1);
+        break;
+      }
+      for (int b = 0; b < fn; ++b) s.nodes.push_back(index(facets[g][f * fn + b]));
+      s.normals.push_back({normal[3 * id], normal[3 * id + 1], normal[3 * id + 2]});
+      bodies.insert(static_cast<int>(body[id]));
+    }
+    grp.bodies.assign(bodies.begin(), bodies.end());
+  }
+  return true;
+}
 
 }  // namespace
 

@@ -1,8 +1,11 @@
 // Contact between bodies (the [[contact]] conditions with a master group): the checks of the
 // pairs, the mortar rows of each (mortar.hpp) and their hand-over to the subdomains.
 //
-// Built once from the whole mesh and its partition (every rank builds the same rows: the
-// contact search and the integrals run on the surfaces only). A row of slave node i is
+// Built once from the contact surfaces (ContactSurfaces: the facets of the groups, and of the
+// nodes they touch the coordinates, copies and Dirichlet components), which a whole mesh gives
+// directly (contact_surfaces below) and a mesh partitioned in advance gathers from its parts
+// (model/partitioned_source.cpp). Every rank builds the same rows from the same surfaces: the
+// contact search and the integrals run on the surfaces only. A row of slave node i is
 //     n_i . (sum_j D_ij avg u_j - sum_k M_ik avg u_k) <= W_i gap_i
 // (feti/input.hpp: ContactRow); each subdomain gets the part of every row on its nodes, with
 // the row's norm over all its nodes' copies (which no subdomain alone could compute).
@@ -13,7 +16,9 @@
 #pragma once
 
 #include <array>
+#include <map>
 #include <nlohmann/json.hpp>
+#include <string>
 #include <vector>
 
 #include "htfeti/fem/physics.hpp"
@@ -49,14 +54,55 @@ struct FrictionRows {
 FrictionRows friction_rows_at(const std::array<double, 3>& n, const std::array<double, 3>& t1,
                               const std::array<bool, 3>& fixed);
 
+/// What the contact rows need of the mesh, indexed by "surface node": the facets of the groups
+/// that contact conditions with a master name, with their outward normals and the bodies they
+/// lie on; and for every node those facets touch, its coordinates, global id, the number of
+/// subdomains holding a copy, the first of them (the copies' canonical order) and the
+/// components that Dirichlet conditions hold.
+struct ContactSurfaces {
+  int dim = 3;
+  int num_bodies = 1;
+  std::vector<double> coords;        ///< 3 per surface node
+  std::vector<long long> global;     ///< surface node -> global node; empty: the same number
+  std::vector<int> copies, owner;    ///< per surface node
+  std::vector<unsigned char> fixed;  ///< per surface node: bit c when component c is held
+  struct Group {
+    ContactSurface surface;   ///< facets in surface nodes, normals out of their bodies
+    std::vector<int> bodies;  ///< the bodies its facets lie on, sorted
+    std::string error;        ///< why it is no contact surface ("group 'a' has ..."), or empty
+  };
+  std::map<std::string, Group> groups;
+  long long global_node(int k) const { return global.empty() ? k : global[k]; }
+};
+
+/// The pieces from which contact_surfaces builds a group, shared with the gathering of the
+/// surfaces of a partitioned mesh. The errors name the group and the facet by node tags.
+std::string no_facets_error(const std::string& group, int dim);
+std::string not_boundary_error(const std::string& group, long long tag0, long long tag1);
+/// True when the cell's nc nodes include the facet's fn nodes.
+bool cell_holds_facet(const int* cell, int nc, const int* facet, int fn);
+/// The unit normal of facet v (fn node numbers into coords, 3 per node, cyclic) pointing away
+/// from the centroid of the cell it bounds (nc node numbers).
+std::array<double, 3> outward_normal(int dim, const double* coords, const int* v, int fn,
+                                     const int* cell, int nc);
+/// Per node, bit c set where a Dirichlet condition of spec holds component c (its group looked
+/// up among node_groups; groups not there hold nothing).
+std::vector<unsigned char> fixed_components(
+    const ProblemSpec& spec, int dofs_per_node,
+    const std::map<std::string, std::vector<int>>& node_groups, int nodes);
+
+/// The contact surfaces of every condition with a master group, from a whole mesh and its
+/// partition (surface nodes are the mesh's nodes).
+ContactSurfaces contact_surfaces(const ProblemSpec& spec, const Physics& physics, const Mesh& mesh,
+                                 const MeshPartition& part);
+
 class ContactPairs {
  public:
   ContactPairs() = default;
   /// The rows of every contact condition with a master group. Throws std::invalid_argument
   /// naming the condition: a group without boundary facets, slave and master on one body, a
   /// pair given twice, no slave facet facing the master within the search distance.
-  ContactPairs(const ProblemSpec& spec, const Physics& physics, const Mesh& mesh,
-               const MeshPartition& part);
+  ContactPairs(const ProblemSpec& spec, const Physics& physics, const ContactSurfaces& surfaces);
   bool empty() const { return rows_.empty(); }
   /// Appends to in.contact the parts of the rows on the nodes of subdomain mesh m.
   void add_rows(const SubdomainMesh& m, SubdomainInput& in) const;
@@ -67,14 +113,14 @@ class ContactPairs {
  private:
   struct Row {
     int condition = 0;
-    int slave = 0;  ///< the slave node (global)
+    long long slave = 0;  ///< the slave node (global)
     std::array<double, 3> normal{0, 0, 0}, tangent{0, 0, 0};
     int tangent_rows = 2;  ///< 3D friction: FrictionRows::rows
     double weight = 0, gap = 0, norm_sq = 0;
     int owner = 0;
   };
   struct Entry {
-    int node;  ///< global node
+    long long node;  ///< global node
     int row;
     double coefficient;
     bool slave;

@@ -19,7 +19,7 @@ Ranks beyond the 2 cores are oversubscribed (one thread each): memory is what th
 the wall times of oversubscribed runs are not speed-ups.
 
 Usage: bench/distributed_input.py [--h 0.0215] [--parts 64] [--ranks 1 2 4 8]
-                                  [--solve-h 0.05] [--solve-ranks 1 2 4 8 16]
+                                  [--solve-h 0.05] [--solve-ranks 1 2 4 8 16] [--no-solves]
                                   [--out distributed_input.json]"""
 import argparse
 import os
@@ -101,6 +101,7 @@ def main():
     ap.add_argument("--ranks", type=int, nargs="+", default=[1, 2, 4, 8])
     ap.add_argument("--solve-h", type=float, default=0.05)
     ap.add_argument("--solve-ranks", type=int, nargs="+", default=[1, 2, 4, 8, 16])
+    ap.add_argument("--no-solves", action="store_true", help="the dry runs only (part 1)")
     ap.add_argument("--out", default="distributed_input.json")
     a = ap.parse_args()
     result = {"h": a.h, "parts": a.parts}
@@ -112,7 +113,8 @@ def main():
                 r = dict(dry_run(problems[kind], p), input=kind)
                 rows.append(r)
                 print(f"dry run {kind:5s} {p:2d} ranks: fullest rank {r['peak_mb_max']} MB, "
-                      f"holds {r['cells_held_max']} of {r['mesh_cells']} cells", flush=True)
+                      f"emptiest {r['peak_mb_min']} MB; holds {r['cells_held_max']} of "
+                      f"{r['mesh_cells']} cells, {r['wall_seconds']:.1f} s", flush=True)
         result["dry_run"] = rows
         one = [r for r in rows if r["input"] == "parts" and r["ranks"] == 1]
         eight = [r for r in rows if r["input"] == "parts" and r["ranks"] == 8]
@@ -123,6 +125,9 @@ def main():
             print(f"8 ranks: {eight[0]['peak_mb_max']} MB against 1.5 x "
                   f"{one[0]['peak_mb_max']} / 8 + 120 = {bound:.0f} MB", flush=True)
     with tempfile.TemporaryDirectory(dir=os.environ.get("HTFETI_BENCH_TMP")) as d:
+        if a.no_solves:
+            save(a.out, result)
+            return
         problems, gen = make_meshes(d, a.solve_h, a.parts)
         result["solve_h"] = a.solve_h
         solves = []

@@ -250,6 +250,96 @@ TEST(PartitionedContact, SlaveAndMasterOnOneBodyAreRefused) {
   expect_refused(s, "lie on the same body");
 }
 
+// A whole mesh (mesh.file, or a generated box split by METIS) on several ranks: rank 0 reads or
+// generates it, splits it, and sends every rank the subdomains of its clusters. The other ranks
+// never hold the whole mesh; the results are those of one rank, bit for bit.
+ProblemSpec box_by_metis(bool) {
+  ProblemSpec s = cube_obstacle_spec({8, 8, 8}, {1, 1, 1}, 1);
+  s.subdomains = {12};
+  return s;
+}
+ProblemSpec box_by_metis_clusters(bool) {
+  ProblemSpec s = box_by_metis(false);
+  s.cluster_size = 3;
+  return s;
+}
+ProblemSpec plate_by_metis(bool) {
+  ProblemSpec s = plate_strain(false);
+  s.subdomains = {6};
+  return s;
+}
+ProblemSpec bracket_by_metis(bool) {
+  ProblemSpec s = bracket_laplace(false);
+  s.subdomains = {8};
+  return s;
+}
+ProblemSpec sphere_whole(bool) {
+  SolveOptions opt;
+  return sphere_on_block(false, opt);
+}
+
+class WholeMeshSplitOnRankZero : public ::testing::TestWithParam<Case> {};
+
+TEST_P(WholeMeshSplitOnRankZero, SameBitsAsOneRank) {
+  Comm comm, self(MPI_COMM_SELF);
+  const ProblemSpec spec = GetParam().spec(false);
+  SolveOptions opt;
+  opt.rtol = 1e-8;
+  opt.max_iterations = 5000;
+  const auto all = solve(make_model(spec, &comm), opt, comm);
+  const auto one = solve(make_model(spec, &self), opt, self);
+  ASSERT_TRUE(one.converged) << one.report["stop_reason"];
+  const double a = all.report["objective"], b = one.report["objective"];
+  EXPECT_EQ(a, b);
+  EXPECT_EQ(all.report["F_applications"], one.report["F_applications"]);
+  EXPECT_EQ(all.report["displacement"], one.report["displacement"]);
+  EXPECT_EQ(all.report["partitioner"], "metis");
+}
+
+TEST_P(WholeMeshSplitOnRankZero, EachRankHoldsOnlyItsOwnSubdomains) {
+  Comm comm;
+  const ProblemSpec spec = GetParam().spec(false);
+  const auto model = make_model(spec, &comm);
+  const auto whole = make_model(spec);  // this rank alone: every subdomain
+  const Model::MeshCounts held = model->held();
+  long long cells = held.cells;
+  MPI_Allreduce(MPI_IN_PLACE, &cells, 1, MPI_LONG_LONG, MPI_SUM, MPI_COMM_WORLD);
+  long long total = 0;
+  for (int s = 0; s < whole->num_subdomains(); ++s) total += whole->mesh(s).num_cells();
+  EXPECT_EQ(cells, total);
+  const FetiLayout L = model->layout();
+  const auto [c0, c1] = L.cluster_range(comm.rank(), comm.size());
+  for (int s = 0; s < model->num_subdomains(); ++s) {
+    EXPECT_EQ(model->mesh_counts(s).cells, whole->mesh(s).num_cells()) << s;
+    if (comm.size() == 1 || (s >= L.cluster_first[c0] && s < L.cluster_first[c1])) {
+      const SubdomainMesh a = model->mesh(s), b = whole->mesh(s);
+      EXPECT_EQ(a.global_node, b.global_node);
+      EXPECT_EQ(a.coords, b.coords);
+      EXPECT_EQ(a.cells, b.cells);
+      EXPECT_EQ(a.copy_list, b.copy_list);
+      EXPECT_EQ(a.node_groups, b.node_groups);
+    } else {
+      EXPECT_THROW(model->mesh(s), std::logic_error) << "subdomain " << s;
+    }
+  }
+  if (comm.size() > 1) EXPECT_LT(held.cells, total);
+}
+
+INSTANTIATE_TEST_SUITE_P(Meshes, WholeMeshSplitOnRankZero,
+                         ::testing::Values(Case{"plane_strain_tri3", plate_by_metis, 1},
+                                           Case{"laplace_tet4", bracket_by_metis, 1},
+                                           Case{"box_hex8", box_by_metis, 1},
+                                           Case{"box_hex8_clusters", box_by_metis_clusters, 3},
+                                           Case{"sphere_on_block_pairs", sphere_whole, 1}),
+                         [](const auto& info) { return std::string(info.param.name); });
+
+// Bad input found on rank 0 alone (a missing mesh file) is refused on every rank.
+TEST(WholeMeshSplitOnRankZeroErrors, AMissingMeshFileIsRefusedEverywhere) {
+  ProblemSpec s = bracket_by_metis(false);
+  s.mesh_file = kMeshes + "no-such-mesh.msh";
+  expect_refused(s, "no-such-mesh.msh");
+}
+
 TEST(PartitionedInputErrors, MissingPartFile) {
   const std::string dir = copy_parts("parts-missing");
   Comm comm;

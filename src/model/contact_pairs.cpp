@@ -115,19 +115,28 @@ ContactSurfaces contact_surfaces(const ProblemSpec& spec, const Physics& physics
   ContactSurfaces cs;
   cs.dim = mesh.dim;
   cs.num_bodies = part.num_bodies;
-  cs.coords = mesh.coords;
-  const int nn = mesh.num_nodes();
-  cs.copies.resize(nn);
-  cs.owner.resize(nn);
-  for (int k = 0; k < nn; ++k) {
-    cs.copies[k] = part.copy_offset[k + 1] - part.copy_offset[k];
-    cs.owner[k] = cs.copies[k] > 0 ? part.copy_list[part.copy_offset[k]] : 0;
-  }
-  cs.fixed = fixed_components(spec, physics.dofs_per_node(), mesh.node_groups, nn);
   for (const auto& c : spec.contact)
     if (!c.master.empty())
       for (const std::string* g : {&c.group, &c.master})
         if (!cs.groups.count(*g)) cs.groups[*g] = surface_of(mesh, part, *g);
+  // The surface nodes: the groups' nodes in global order (the rows come out in the same order
+  // as over all the mesh's nodes).
+  std::vector<long long>& nodes = cs.global;
+  for (const auto& [name, g] : cs.groups)
+    nodes.insert(nodes.end(), g.surface.nodes.begin(), g.surface.nodes.end());
+  std::sort(nodes.begin(), nodes.end());
+  nodes.erase(std::unique(nodes.begin(), nodes.end()), nodes.end());
+  for (auto& [name, g] : cs.groups)
+    for (int& v : g.surface.nodes)
+      v = static_cast<int>(std::lower_bound(nodes.begin(), nodes.end(), v) - nodes.begin());
+  const std::vector<unsigned char> fixed =
+      fixed_components(spec, physics.dofs_per_node(), mesh.node_groups, mesh.num_nodes());
+  for (const long long k : nodes) {
+    for (int d = 0; d < 3; ++d) cs.coords.push_back(mesh.coords[3 * static_cast<size_t>(k) + d]);
+    cs.copies.push_back(part.copy_offset[k + 1] - part.copy_offset[k]);
+    cs.owner.push_back(part.copy_list[part.copy_offset[k]]);
+    cs.fixed.push_back(fixed[k]);
+  }
   return cs;
 }
 

@@ -6,11 +6,13 @@
 #include <stdexcept>
 
 #include "htfeti/expression.hpp"
+#include "htfeti/feti/input.hpp"
 #include "htfeti/mesh/mesh.hpp"
 #include "htfeti/model/contact_pairs.hpp"
 #include "htfeti/model/problem_spec.hpp"
 #include "htfeti/partition/partition.hpp"
 #include "mesh_source.hpp"
+#include "pack.hpp"
 
 namespace htfeti {
 
@@ -174,6 +176,158 @@ class MetisSplit final : public MeshSource {
   std::unique_ptr<MeshPartition> part_;
 };
 
+// A whole mesh split by METIS on rank 0 alone, which then sends every rank the subdomains of its
+// clusters (FetiLayout::cluster_range) and frees the whole mesh: the other ranks never hold it,
+// and METIS runs once instead of on every rank. Used for mesh.file and a generated box split by
+// METIS when the model is made over a communicator of several ranks. The subdomain meshes are
+// extract_subdomain's on rank 0, sent as their bytes, so the results are those of MetisSplit on
+// every rank, bit for bit. Also sent: 3 counts per subdomain, the group names, the report's
+// description and, for contact between bodies, the contact surfaces (only their facets and
+// nodes). Cost on rank 0: the whole mesh and its partition (as MetisSplit on every rank before)
+// plus the packed subdomains of one rank at a time.
+class ScatteredSplit final : public HeldSubdomains {
+ public:
+  ScatteredSplit(const ProblemSpec& spec, const Comm& comm, const Physics& physics)
+      : HeldSubdomains(comm) {
+    const int P = comm.size(), rank = comm.rank();
+    std::unique_ptr<MetisSplit> whole;
+    Packer head;  // what every rank gets
+    std::vector<Packer> to(P);
+    agreed(comm, [&] {
+      if (rank != 0) return;
+      Physics ph = physics;
+      if (spec.mesh_file.empty()) {  // checked before the box is generated whole
+        ph.dim = spec.box.dim;
+        ph.validate();
+      }
+      whole = std::make_unique<MetisSplit>(spec);
+      ph.dim = whole->dim();
+      ph.validate();
+      whole->split(spec);
+      const int ns = whole->num_subdomains(), nk = whole->num_clusters();
+      head.pod(whole->dim()), head.pod(ns), head.pod(whole->num_nodes());
+      head.pod(whole->subdomain_nodes());
+      std::vector<int> first(nk + 1);
+      for (int c = 0; c <= nk; ++c) first[c] = whole->cluster_first(c);
+      head.vec(first);
+      std::set<std::string> names[3];
+      whole->groups(names[0], names[1], names[2]);
+      for (const auto& set : names) {
+        head.pod(static_cast<long long>(set.size()));
+        for (const auto& n : set) head.str(n);
+      }
+      nlohmann::json j;
+      whole->describe(spec, j);
+      head.str(j.dump());
+      const bool pairs = std::any_of(spec.contact.begin(), spec.contact.end(),
+                                     [](const auto& c) { return !c.master.empty(); });
+      head.pod(static_cast<char>(pairs));
+      if (pairs) {
+        ContactSurfaces cs;
+        whole->contact_surfaces(spec, ph, cs);
+        pack(head, cs);
+      }
+    });
+    broadcast(head.bytes());
+    Unpacker h(head.bytes().data(), head.bytes().size());
+    h.pod(dim_), h.pod(subdomains_), h.pod(nodes_), h.pod(subdomain_nodes_);
+    h.vec(cluster_first_);
+    for (auto* names : {&node_names_, &facet_names_, &cell_names_}) {
+      long long n = 0;
+      h.pod(n);
+      names->resize(n);
+      for (auto& name : *names) h.str(name);
+    }
+    std::string description;
+    h.str(description);
+    description_ = nlohmann::json::parse(description);
+    char pairs = 0;
+    h.pod(pairs);
+    if (pairs) unpack(h, surfaces_), has_surfaces_ = true;
+
+    // The subdomains, rank by rank; rank 0 keeps its own.
+    FetiLayout L;
+    L.num_clusters = num_clusters();
+    std::vector<long long> counts(3 * static_cast<size_t>(subdomains_), 0);
+    for (int r = 0; r < P; ++r) {
+      const auto [c0, c1] = L.cluster_range(r, P);
+      const int s0 = cluster_first_[c0], s1 = cluster_first_[c1];
+      if (rank == 0) {
+        Packer out;
+        for (int s = s0; s < s1; ++s) {
+          SubdomainMesh m = whole->mesh(s);
+          counts[3 * s] = m.num_nodes(), counts[3 * s + 1] = m.num_cells();
+          counts[3 * s + 2] = static_cast<long long>(m.cells.size());
+          if (r == 0)
+            meshes_[s] = std::move(m);
+          else
+            pack(out, m);
+        }
+        if (r > 0) send(out.bytes(), r);
+      } else if (rank == r) {
+        std::vector<char> in = receive(0);
+        Unpacker u(in.data(), in.size());
+        for (int s = s0; s < s1; ++s) unpack(u, meshes_[s]);
+      }
+    }
+    whole.reset();
+    MPI_Bcast(counts.data(), static_cast<int>(counts.size()), MPI_LONG_LONG, 0, comm.raw());
+    counts_.resize(subdomains_);
+    for (int s = 0; s < subdomains_; ++s)
+      counts_[s] = {counts[3 * s], counts[3 * s + 1], counts[3 * s + 2]};
+  }
+  int dim() const override { return dim_; }
+  int num_subdomains() const override { return subdomains_; }
+  int num_clusters() const override { return static_cast<int>(cluster_first_.size()) - 1; }
+  int cluster_first(int c) const override { return cluster_first_[c]; }
+  long long num_nodes() const override { return nodes_; }
+  long long subdomain_nodes() const override { return subdomain_nodes_; }
+  void describe(const ProblemSpec&, nlohmann::json& j) const override {
+    for (const auto& [k, v] : description_.items()) j[k] = v;
+  }
+  bool contact_surfaces(const ProblemSpec&, const Physics&, ContactSurfaces& out) const override {
+    if (!has_surfaces_) return false;
+    out = surfaces_;
+    return true;
+  }
+
+ private:
+  static constexpr long long kChunk = 1LL << 30;  // bytes per MPI message
+  void broadcast(std::vector<char>& b) const {
+    long long n = static_cast<long long>(b.size());
+    MPI_Bcast(&n, 1, MPI_LONG_LONG, 0, comm_.raw());
+    b.resize(static_cast<size_t>(n));
+    for (long long at = 0; at < n; at += kChunk)
+      MPI_Bcast(b.data() + at, static_cast<int>(std::min(kChunk, n - at)), MPI_BYTE, 0,
+                comm_.raw());
+  }
+  void send(const std::vector<char>& b, int r) const {
+    long long n = static_cast<long long>(b.size());
+    MPI_Send(&n, 1, MPI_LONG_LONG, r, 0, comm_.raw());
+    for (long long at = 0; at < n; at += kChunk)
+      MPI_Send(b.data() + at, static_cast<int>(std::min(kChunk, n - at)), MPI_BYTE, r, 0,
+               comm_.raw());
+  }
+  std::vector<char> receive(int from) const {
+    long long n = 0;
+    MPI_Recv(&n, 1, MPI_LONG_LONG, from, 0, comm_.raw(), MPI_STATUS_IGNORE);
+    std::vector<char> b(static_cast<size_t>(n));
+    for (long long at = 0; at < n; at += kChunk)
+      MPI_Recv(b.data() + at, static_cast<int>(std::min(kChunk, n - at)), MPI_BYTE, from, 0,
+               comm_.raw(), MPI_STATUS_IGNORE);
+    return b;
+  }
+
+  std::string where() const override { return "rank 0 split the mesh"; }
+
+  int dim_ = 3, subdomains_ = 0;
+  long long nodes_ = 0, subdomain_nodes_ = 0;
+  std::vector<int> cluster_first_;
+  nlohmann::json description_;
+  ContactSurfaces surfaces_;
+  bool has_surfaces_ = false;
+};
+
 // Laplace or elasticity with conditions on named groups, on a mesh source.
 class GroupModel final : public Model {
  public:
@@ -195,6 +349,10 @@ class GroupModel final : public Model {
       physics_.dim = spec.box.dim;
       physics_.validate();
       mesh_source_ = std::make_unique<BoxSplit>(spec);
+    } else if (comm && comm->size() > 1) {
+      mesh_source_ = std::make_unique<ScatteredSplit>(spec, *comm, physics_);
+      physics_.dim = mesh_source_->dim();
+      physics_.validate();
     } else {
       if (spec.mesh_file.empty()) {  // checked before the box is generated whole
         physics_.dim = spec.box.dim;

@@ -1,6 +1,7 @@
 // The mesh sources of GroupModel (group_model.cpp), private to model/.
 #pragma once
 
+#include <map>
 #include <memory>
 #include <nlohmann/json.hpp>
 #include <set>
@@ -17,8 +18,9 @@ namespace htfeti {
 // Where a GroupModel's subdomain meshes come from. GroupModel asks its source alone and never
 // branches on the kind: a generated box split into boxes of subdomains (every rank generates its
 // own, and equal subdomains are equal bit for bit), a whole mesh (read from a file, or a
-// generated box made whole) split by METIS, or a mesh partitioned in advance, one file per part,
-// of which every rank reads only its own (partitioned_source.cpp).
+// generated box made whole) split by METIS (on one rank: MetisSplit; on several: ScatteredSplit,
+// rank 0 splits and sends each rank its subdomains), or a mesh partitioned in advance, one file
+// per part, of which every rank reads only its own (partitioned_source.cpp).
 class MeshSource {
  public:
   virtual ~MeshSource() = default;
@@ -47,6 +49,62 @@ class MeshSource {
     return false;
   }
 };
+
+/// A source whose rank holds only the subdomains of its own clusters (a partitioned mesh, or a
+/// whole mesh split on rank 0): their meshes, and of every subdomain its counts, and the names of
+/// the groups over the whole mesh.
+class HeldSubdomains : public MeshSource {
+ public:
+  explicit HeldSubdomains(const Comm& comm) : comm_(comm) {}
+  SubdomainMesh mesh(int s) const override {
+    auto it = meshes_.find(s);
+    if (it == meshes_.end())
+      throw std::logic_error("subdomain " + std::to_string(s) + " is not held by rank " +
+                             std::to_string(comm_.rank()) + " (" + where() + ")");
+    return it->second;
+  }
+  bool mesh_counts(int s, Model::MeshCounts& counts) const override {
+    counts = counts_.at(s);
+    return true;
+  }
+  void groups(std::set<std::string>& nodes, std::set<std::string>& facets,
+              std::set<std::string>& cells) const override {
+    nodes.insert(node_names_.begin(), node_names_.end());
+    facets.insert(facet_names_.begin(), facet_names_.end());
+    cells.insert(cell_names_.begin(), cell_names_.end());
+  }
+  Model::MeshCounts held() const override {
+    Model::MeshCounts h;
+    for (const auto& [s, m] : meshes_)
+      h.points += m.num_nodes(), h.cells += m.num_cells(), h.corners += m.cells.size();
+    return h;
+  }
+
+ protected:
+  /// Where the meshes came from, for the error of asking for another rank's subdomain.
+  virtual std::string where() const = 0;
+  Comm comm_;
+  std::map<int, SubdomainMesh> meshes_;
+  std::vector<Model::MeshCounts> counts_;                           ///< per subdomain
+  std::vector<std::string> node_names_, facet_names_, cell_names_;  ///< sorted
+};
+
+/// Runs a step of this rank's own work and agrees on its failure with every rank of comm: bad
+/// input (std::invalid_argument) is thrown as bad input everywhere, anything else as a runtime
+/// error.
+template <class F>
+void agreed(const Comm& comm, F&& step) {
+  std::string error;
+  bool input = false;
+  try {
+    step();
+  } catch (const std::invalid_argument& e) {
+    error = e.what(), input = true;
+  } catch (const std::exception& e) {
+    error = e.what();
+  }
+  comm.agree(error, input);
+}
 
 /// Every cell of the mesh valid (fem/element.hpp: cell_is_valid): an inverted, self-intersecting
 /// or degenerate element is refused with its tag, not solved with a wrong stiffness.

@@ -42,22 +42,6 @@ namespace htfeti {
 
 namespace {
 
-// Runs a step of this rank's own work and agrees on its failure with every rank: bad input
-// (std::invalid_argument) is thrown as bad input everywhere, anything else as a runtime error.
-template <class F>
-void agreed(const Comm& comm, F&& step) {
-  std::string error;
-  bool input = false;
-  try {
-    step();
-  } catch (const std::invalid_argument& e) {
-    error = e.what(), input = true;
-  } catch (const std::exception& e) {
-    error = e.what();
-  }
-  comm.agree(error, input);
-}
-
 std::string part_path(const std::string& base, int k) {
   const std::filesystem::path b(base);
   return (b.parent_path() / (b.stem().string() + "_" + std::to_string(k) + b.extension().string()))
@@ -139,10 +123,10 @@ std::pair<int, int> piece_counts(const Mesh& m) {
   return {by_facet, by_node};
 }
 
-class PartitionedSource final : public MeshSource {
+class PartitionedSource final : public HeldSubdomains {
  public:
   PartitionedSource(const ProblemSpec& spec, const Comm& comm)
-      : comm_(comm), base_(spec.mesh_parts), cluster_size_(spec.cluster_size) {
+      : HeldSubdomains(comm), base_(spec.mesh_parts), cluster_size_(spec.cluster_size) {
     count_parts(spec);
     const int P = comm_.size();
     if (cluster_size_ == 1) {
@@ -172,23 +156,6 @@ class PartitionedSource final : public MeshSource {
   int cluster_first(int c) const override { return cluster_first_[c]; }
   long long num_nodes() const override { return nodes_; }
   long long subdomain_nodes() const override { return subdomain_nodes_; }
-  SubdomainMesh mesh(int s) const override {
-    auto it = meshes_.find(s);
-    if (it == meshes_.end())
-      throw std::logic_error("subdomain " + std::to_string(s) + " of the partitioned mesh '" +
-                             base_ + "' is not held by rank " + std::to_string(comm_.rank()));
-    return it->second;
-  }
-  bool mesh_counts(int s, Model::MeshCounts& counts) const override {
-    counts = counts_.at(s);
-    return true;
-  }
-  void groups(std::set<std::string>& nodes, std::set<std::string>& facets,
-              std::set<std::string>& cells) const override {
-    nodes.insert(node_group_names_.begin(), node_group_names_.end());
-    facets.insert(facet_group_names_.begin(), facet_group_names_.end());
-    cells.insert(cell_group_names_.begin(), cell_group_names_.end());
-  }
   void describe(const ProblemSpec&, nlohmann::json& j) const override {
     j["mesh"] = {{"parts", base_},
                  {"files", part_path(base_, 1) + " ... " + part_path(base_, parts_)},
@@ -200,12 +167,6 @@ class PartitionedSource final : public MeshSource {
   }
   bool contact_surfaces(const ProblemSpec& spec, const Physics& physics,
                         ContactSurfaces& out) const override;
-  Model::MeshCounts held() const override {
-    Model::MeshCounts h;
-    for (const auto& [s, m] : meshes_)
-      h.points += m.num_nodes(), h.cells += m.num_cells(), h.corners += m.cells.size();
-    return h;
-  }
 
  private:
   // The number of parts: from part 1 (read by rank 0, which holds it first in every layout),
@@ -397,15 +358,15 @@ class PartitionedSource final : public MeshSource {
   void node_copies(const std::map<int, std::vector<long long>>& gid,
                    std::map<int, std::vector<char>>& boundary) {
     const int P = comm_.size();
-    const int G = static_cast<int>(node_group_names_.size() + 63) / 64;
+    const int G = static_cast<int>(node_names_.size() + 63) / 64;
     const int W = 7 + G;  // id, tag, part, x, y, z, boundary, group words
     std::vector<std::vector<long long>> send(P);
     std::vector<std::vector<std::pair<int, int>>> sent(P);  // (part, local node)
     for (const auto& [k, m] : read_) {
       std::vector<std::vector<long long>> words(m.num_nodes(), std::vector<long long>(G, 0));
       for (const auto& [name, nodes] : m.node_groups) {
-        const auto at = std::lower_bound(node_group_names_.begin(), node_group_names_.end(), name);
-        const int bit = static_cast<int>(at - node_group_names_.begin());
+        const auto at = std::lower_bound(node_names_.begin(), node_names_.end(), name);
+        const int bit = static_cast<int>(at - node_names_.begin());
         for (int v : nodes) words[v][bit / 64] |= 1LL << (bit % 64);
       }
       const auto& g = gid.at(k);
@@ -483,9 +444,9 @@ class PartitionedSource final : public MeshSource {
         for (size_t c = 0; c < n; ++c)
           copies.push_back(subdomain_of_part_[static_cast<int>(back[r][i + 1 + c])]);
         sm.on_boundary[v] = static_cast<char>(back[r][i + 1 + n]);
-        for (int b = 0; b < static_cast<int>(node_group_names_.size()); ++b)
+        for (int b = 0; b < static_cast<int>(node_names_.size()); ++b)
           if (back[r][i + 2 + n + b / 64] >> (b % 64) & 1)
-            sm.node_groups[node_group_names_[b]].push_back(v);
+            sm.node_groups[node_names_[b]].push_back(v);
         i += 2 + n + G;
       }
     }
@@ -527,14 +488,14 @@ class PartitionedSource final : public MeshSource {
 
   // The union of the group names over all parts (every rank the same sorted lists).
   void gather_group_names() {
-    for (auto* names : {&node_group_names_, &facet_group_names_, &cell_group_names_}) {
+    for (auto* names : {&node_names_, &facet_names_, &cell_names_}) {
       std::vector<long long> mine;
       for (const auto& [k, m] : read_) {
-        if (names == &node_group_names_)
+        if (names == &node_names_)
           for (const auto& [n, v] : m.node_groups) pack(n, mine);
-        if (names == &facet_group_names_)
+        if (names == &facet_names_)
           for (const auto& [n, v] : m.facet_groups) pack(n, mine);
-        if (names == &cell_group_names_)
+        if (names == &cell_names_)
           for (const auto& [n, v] : m.cell_groups) pack(n, mine);
       }
       std::vector<std::string> all = unpack_all(all_gather(comm_, mine));
@@ -602,18 +563,16 @@ class PartitionedSource final : public MeshSource {
     read_.clear();
   }
 
-  Comm comm_;
+  std::string where() const override { return "the partitioned mesh '" + base_ + "'"; }
+
   std::string base_;
   int cluster_size_ = 1, parts_ = 0, dim_ = 3;
   CellType type_ = CellType::tet4;
   bool formed_ = false;
   std::vector<int> subdomain_of_part_, cluster_first_;
   std::map<int, Mesh> read_;  // part (0-based) -> its mesh, while building
-  std::map<int, SubdomainMesh> meshes_;
   std::map<int, std::vector<std::vector<int>>> pending_copies_;
   std::map<std::pair<int, int>, long long> shared_;
-  std::vector<std::string> node_group_names_, facet_group_names_, cell_group_names_;
-  std::vector<Model::MeshCounts> counts_;
   long long nodes_ = 0, subdomain_nodes_ = 0, cells_ = 0;
   mutable int bodies_ = 0;  // set by contact_surfaces
 };

@@ -92,7 +92,7 @@ std::vector<unsigned char> fixed_components(
     const std::map<std::string, std::vector<int>>& node_groups, int nodes);
 
 /// The contact surfaces of every condition with a master group, from a whole mesh and its
-/// partition (surface nodes are the mesh's nodes).
+/// partition (the surface nodes: the groups' nodes, in the mesh's order).
 ContactSurfaces contact_surfaces(const ProblemSpec& spec, const Physics& physics, const Mesh& mesh,
                                  const MeshPartition& part);
 

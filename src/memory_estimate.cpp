@@ -231,7 +231,7 @@ void check_memory_before_model(const ProblemSpec& spec, const FetiOptions& optio
   ph.dim = b.dim;
   // The decomposed problem has at least one copy of every node; its matrices (all alive at the
   // end of the assembly, whatever the operator) and vectors at least the lower bound of
-  // estimate_memory. A box split by METIS is also held whole on every rank (coordinates, cells)
+  // estimate_memory. A box split by METIS is also held whole on rank 0 (coordinates, cells)
   // while it is partitioned.
   const double unknowns = nodes * ph.dofs_per_node();
   const double lower_nnz = unknowns * lower_nonzeros_per_row(ph);
@@ -240,16 +240,17 @@ void check_memory_before_model(const ProblemSpec& spec, const FetiOptions& optio
       metis ? (24.0 * nodes + 4.0 * cell_nodes(b.cell) * cells) / kMiB : 0.0;
   MPI_Comm node;
   MPI_Comm_split_type(comm.raw(), MPI_COMM_TYPE_SHARED, comm.rank(), MPI_INFO_NULL, &node);
-  int node_ranks = 1;
+  int node_ranks = 1, first_rank = comm.rank();
   MPI_Comm_size(node, &node_ranks);
+  MPI_Allreduce(MPI_IN_PLACE, &first_rank, 1, MPI_INT, MPI_MIN, node);
   const double available = machine_available_mb(options, node);
   MPI_Comm_free(&node);
-  // The ranks of this machine share the problem (their shares add up to the whole), and each
-  // holds the whole box while it is split by METIS.
+  // The ranks of this machine share the problem (their shares add up to the whole), and rank 0
+  // holds the whole box while it splits it by METIS.
   const double problem_mb = (lower_nnz * 12.0 + unknowns * 8.0 * (ph.kernel_dimension() + 4)) /
                                 kMiB *
                                 std::min(1.0, static_cast<double>(node_ranks) / comm.size()) +
-                            node_ranks * whole_mesh_mb;
+                            (first_rank == 0 ? whole_mesh_mb : 0.0);
   std::string error;
   if (available > 0 && problem_mb > available)
     error = "the problem does not fit in memory: at least " + gb(problem_mb) + " on " +

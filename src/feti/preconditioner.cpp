@@ -31,22 +31,28 @@ LocalPreconditioner::LocalPreconditioner(const Eigen::SparseMatrix<double>& K,
     if (pos[d] < 0) pos[d] = -(ni++) - 2;
   std::vector<Eigen::Triplet<double>> tbb, tib, tii;
   double sigma = 0;
-  for (int col = 0; col < n; ++col)
+  // Lumped needs K_bb only: the interface columns (the interior ones, most of K, are skipped).
+  const bool lumped = kind == PreconditionerKind::lumped || nb == 0;
+  for (int col = 0; col < n; ++col) {
+    if (lumped && pos[col] < 0) continue;
     for (Eigen::SparseMatrix<double>::InnerIterator it(K, col); it; ++it) {
       const int row = static_cast<int>(it.row());
       const int pr = pos[row], pc = pos[col];
       if (pr >= 0 && pc >= 0) {
         tbb.emplace_back(pr, pc, it.value());
         if (pr == pc) sigma = std::max(sigma, it.value());
+      } else if (lumped) {
+        continue;
       } else if (pr < 0 && pc >= 0) {
         tib.emplace_back(-pr - 2, pc, it.value());
       } else if (pr < 0 && pc < 0 && row <= col) {
         tii.emplace_back(-pr - 2, -pc - 2, it.value());  // upper triangle (CHOLMOD reads it)
       }
     }
+  }
   Kbb_.resize(nb, nb);
   Kbb_.setFromTriplets(tbb.begin(), tbb.end());
-  if (kind == PreconditionerKind::lumped || nb == 0) return;
+  if (lumped) return;
   if (kernel && kernel->cols() > 0) {  // Q: orthonormal basis of R restricted to the interface
     Eigen::MatrixXd Rb(nb, kernel->cols());
     for (int i = 0; i < nb; ++i) Rb.row(i) = kernel->row(interface_[i]);

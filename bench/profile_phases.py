@@ -4,7 +4,9 @@ linux-perf) samples the whole run with CLOCK_MONOTONIC timestamps, the solve pri
 progress lines (timed here on the same clock) and its report gives the phase lengths; the
 samples inside the chosen phase's window are counted by symbol.
 
-Windows: factorization = from "setup done" back by timings.factorization, output = after
+Windows: coarse = the timings.coarse_problem seconds before "setup done" (the coarse space,
+its factor, lambda~ and the preconditioner's weights end the setup); factorization = the
+timings.factorization seconds before those; output = after
 "reconstruction done", timings.checks later, for timings.output seconds; checks = the
 timings.checks seconds after "reconstruction done".
 
@@ -13,7 +15,7 @@ With --kernel-callers the samples carry call chains (perf -g) and those taken in
 first function of ours (or of a library) above them: who makes the kernel work. --phase all
 takes the whole run.
 
-Usage: bench/profile_phases.py [--phase output|checks|factorization|all] [--kernel-callers]
+Usage: bench/profile_phases.py [--phase output|checks|factorization|coarse|all] [--kernel-callers]
                                [--threads 2] [--top 12] [-- htfeti solve arguments]
 Default case: Table 3 at full size, m = 1, with the VTU written. Prints the shares of the top
 symbols (perf's sampling: about +-1 percentage point at the default case's sample counts)."""
@@ -29,7 +31,7 @@ import time
 from common import BIN, env
 
 p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-p.add_argument("--phase", choices=["output", "checks", "factorization", "all"], default="output")
+p.add_argument("--phase", choices=["output", "checks", "factorization", "coarse", "all"], default="output")
 p.add_argument("--kernel-callers", action="store_true",
                help="count kernel samples by the first user-space function above them")
 p.add_argument("--threads", type=int, default=2)
@@ -56,8 +58,11 @@ with tempfile.TemporaryDirectory(dir=os.environ.get("HTFETI_BENCH_TMP")) as d:
         t = json.load(f)["timings"]
     if a.phase == "all":
         lo, hi = 0.0, float("inf")
-    elif a.phase == "factorization":
+    elif a.phase == "coarse":  # the last part of the setup
         hi = marks["setup done"]
+        lo = hi - t["coarse_problem"]
+    elif a.phase == "factorization":
+        hi = marks["setup done"] - t["coarse_problem"]
         lo = hi - t["factorization"]
     else:
         lo = marks["reconstruction done"] + (t["checks"] if a.phase == "output" else 0.0)

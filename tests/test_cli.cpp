@@ -1233,6 +1233,18 @@ TEST_F(Cli, AllocationFailureOnOneRankEndsEveryRank) {
     }
 }
 
+// Rank 0 failing while it sends the other ranks their subdomains of a whole mesh (mesh.file
+// split on rank 0) ends every rank with "out of memory", exit 2, nothing written: the ranks
+// still waiting for their meshes are told, none hangs.
+TEST_F(Cli, AllocationFailureWhileRankZeroSendsTheMeshEndsEveryRank) {
+  const std::string cmd = "HTFETI_INJECT_FAILURE=scatter:0 timeout 120 " + mpiexec + " -n 3 " +
+                          bin + " solve " + std::string(HTFETI_SOURCE_DIR) +
+                          "/examples/bracket.toml --report r.json --vtu u.vtu";
+  EXPECT_EQ(run(cmd), 2) << stderr_text();
+  EXPECT_NE(stderr_text().find("out of memory"), std::string::npos) << stderr_text();
+  EXPECT_FALSE(fs::exists("r.json") || fs::exists("u.pvtu") || fs::exists("u.vtu"));
+}
+
 // An address-space limit (ulimit -v) on every rank (issue 29, #2): OpenBLAS retried its work
 // buffer's mapping forever once the limit was reached, and both ranks hung at any problem size.
 // Over a sweep of limits from below what the program maps at its start to enough for the

@@ -25,8 +25,8 @@ class IoError : public std::runtime_error {
 };
 
 /// A test hook: with HTFETI_INJECT_FAILURE="<stage>:<rank>" in the environment, the named rank
-/// throws std::bad_alloc at that stage of the setup (assembly, factorization, coarse) or in the
-/// reconstruction, as if an allocation had failed there on that rank alone; the tests check that
+/// throws std::bad_alloc at that stage of the setup (scatter: rank 0 sending a whole mesh's
+/// subdomains; assembly, factorization, coarse) or in the reconstruction, as if an allocation had failed there on that rank alone; the tests check that
 /// every rank then ends with "out of memory" (exit 2) and none waits for the others
 /// (Cli.AllocationFailureOnOneRankEndsEveryRank). Not for users; read once per call.
 inline void inject_failure(const char* stage, int rank) {

@@ -5,6 +5,7 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "htfeti/errors.hpp"
 #include "htfeti/expression.hpp"
 #include "htfeti/feti/input.hpp"
 #include "htfeti/mesh/mesh.hpp"
@@ -245,31 +246,47 @@ class ScatteredSplit final : public HeldSubdomains {
     h.pod(pairs);
     if (pairs) unpack(h, surfaces_), has_surfaces_ = true;
 
-    // The subdomains, rank by rank; rank 0 keeps its own.
+    // The subdomains, rank by rank; rank 0 keeps its own. A failure on rank 0 (out of memory)
+    // is sent to the ranks still waiting as a message of length -1, then agreed on by all.
     FetiLayout L;
     L.num_clusters = num_clusters();
     std::vector<long long> counts(3 * static_cast<size_t>(subdomains_), 0);
+    std::string error;
+    bool oom = false;  // bad input's exit code, as every out-of-memory path
     for (int r = 0; r < P; ++r) {
       const auto [c0, c1] = L.cluster_range(r, P);
       const int s0 = cluster_first_[c0], s1 = cluster_first_[c1];
       if (rank == 0) {
         Packer out;
-        for (int s = s0; s < s1; ++s) {
-          SubdomainMesh m = whole->mesh(s);
-          counts[3 * s] = m.num_nodes(), counts[3 * s + 1] = m.num_cells();
-          counts[3 * s + 2] = static_cast<long long>(m.cells.size());
-          if (r == 0)
-            meshes_[s] = std::move(m);
-          else
-            pack(out, m);
+        try {
+          if (!error.empty()) throw std::runtime_error(error);
+          if (r > 0) inject_failure("scatter", 0);
+          for (int s = s0; s < s1; ++s) {
+            SubdomainMesh m = whole->mesh(s);
+            counts[3 * s] = m.num_nodes(), counts[3 * s + 1] = m.num_cells();
+            counts[3 * s + 2] = static_cast<long long>(m.cells.size());
+            if (r == 0)
+              meshes_[s] = std::move(m);
+            else
+              pack(out, m);
+          }
+        } catch (const std::bad_alloc&) {
+          if (error.empty()) error = "out of memory while splitting the mesh", oom = true;
+        } catch (const std::exception& e) {
+          if (error.empty()) error = e.what();
         }
-        if (r > 0) send(out.bytes(), r);
+        if (r > 0) send(out.bytes(), r, !error.empty());
       } else if (rank == r) {
-        std::vector<char> in = receive(0);
-        Unpacker u(in.data(), in.size());
-        for (int s = s0; s < s1; ++s) unpack(u, meshes_[s]);
+        std::vector<char> in;
+        if (receive(0, in)) {
+          Unpacker u(in.data(), in.size());
+          for (int s = s0; s < s1; ++s) unpack(u, meshes_[s]);
+        } else {
+          error = "rank 0 failed to send the subdomain meshes";
+        }
       }
     }
+    comm.agree(error, oom);
     whole.reset();
     MPI_Bcast(counts.data(), static_cast<int>(counts.size()), MPI_LONG_LONG, 0, comm.raw());
     counts_.resize(subdomains_);
@@ -301,21 +318,25 @@ class ScatteredSplit final : public HeldSubdomains {
       MPI_Bcast(b.data() + at, static_cast<int>(std::min(kChunk, n - at)), MPI_BYTE, 0,
                 comm_.raw());
   }
-  void send(const std::vector<char>& b, int r) const {
-    long long n = static_cast<long long>(b.size());
+  // Sends b to rank r, or only the length -1 when failed.
+  void send(const std::vector<char>& b, int r, bool failed) const {
+    long long n = failed ? -1 : static_cast<long long>(b.size());
     MPI_Send(&n, 1, MPI_LONG_LONG, r, 0, comm_.raw());
+    if (failed) return;
     for (long long at = 0; at < n; at += kChunk)
       MPI_Send(b.data() + at, static_cast<int>(std::min(kChunk, n - at)), MPI_BYTE, r, 0,
                comm_.raw());
   }
-  std::vector<char> receive(int from) const {
+  // Receives into b what send sent; false when the sender failed.
+  bool receive(int from, std::vector<char>& b) const {
     long long n = 0;
     MPI_Recv(&n, 1, MPI_LONG_LONG, from, 0, comm_.raw(), MPI_STATUS_IGNORE);
-    std::vector<char> b(static_cast<size_t>(n));
+    if (n < 0) return false;
+    b.resize(static_cast<size_t>(n));
     for (long long at = 0; at < n; at += kChunk)
       MPI_Recv(b.data() + at, static_cast<int>(std::min(kChunk, n - at)), MPI_BYTE, from, 0,
                comm_.raw(), MPI_STATUS_IGNORE);
-    return b;
+    return true;
   }
 
   std::string where() const override { return "rank 0 split the mesh"; }

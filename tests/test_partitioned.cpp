@@ -58,6 +58,23 @@ std::pair<Eigen::VectorXd, double> solve_whole(ProblemSpec spec) {
   return {d.u, d.energy};
 }
 
+// The solve over every rank and the same solve on this rank alone (MPI_COMM_SELF: a partitioned
+// mesh reads every part, a whole mesh is split here) give the same bits.
+void expect_same_bits_as_one_rank(const ProblemSpec& spec, const SolveOptions& opt) {
+  Comm comm, self(MPI_COMM_SELF);
+  const auto all = solve(make_model(spec, &comm), opt, comm);
+  const auto one = solve(make_model(spec, &self), opt, self);
+  ASSERT_TRUE(one.converged) << one.report["stop_reason"];
+  const double a = all.report["objective"], b = one.report["objective"];
+  EXPECT_EQ(a, b);
+  EXPECT_EQ(all.report["F_applications"], one.report["F_applications"]);
+  EXPECT_EQ(all.report["displacement"], one.report["displacement"]);
+  for (const char* key : {"contact_summary", "partitioner"}) {  // const: look up, never insert
+    ASSERT_EQ(all.report.contains(key), one.report.contains(key)) << key;
+    if (all.report.contains(key)) EXPECT_EQ(all.report.at(key), one.report.at(key)) << key;
+  }
+}
+
 struct Case {
   const char* name;
   ProblemSpec (*spec)(bool parts);
@@ -88,17 +105,11 @@ TEST_P(PartitionedInput, SameSolutionAsTheWholeMeshUndecomposed) {
 // The same solve on this rank alone (MPI_COMM_SELF, reading every part) gives the same bits.
 TEST_P(PartitionedInput, SameBitsOnEveryRankCount) {
   const Case c = GetParam();
-  Comm comm, self(MPI_COMM_SELF);
   ProblemSpec spec = c.spec(true);
   spec.cluster_size = c.cluster_size;
   SolveOptions opt;
   opt.rtol = 1e-10;
-  const auto all = solve(make_model(spec, &comm), opt, comm);
-  const auto one = solve(make_model(spec, &self), opt, self);
-  const double a = all.report["objective"], b = one.report["objective"];
-  EXPECT_EQ(a, b);
-  EXPECT_EQ(all.report["F_applications"], one.report["F_applications"]);
-  EXPECT_EQ(all.report["displacement"], one.report["displacement"]);
+  expect_same_bits_as_one_rank(spec, opt);
 }
 
 // Every rank holds the parts of its own clusters and nothing else; together they hold every
@@ -228,17 +239,10 @@ TEST(PartitionedContact, SameRowsBodiesAndSolutionAsTheWholeMesh) {
 }
 
 TEST(PartitionedContact, SameBitsOnEveryRankCount) {
-  Comm comm, self(MPI_COMM_SELF);
   SolveOptions opt;
   const ProblemSpec spec = sphere_on_block(true, opt);
   opt.rtol = 1e-8;
-  const auto all = solve(make_model(spec, &comm), opt, comm);
-  const auto one = solve(make_model(spec, &self), opt, self);
-  const double a = all.report["objective"], b = one.report["objective"];
-  EXPECT_EQ(a, b);
-  EXPECT_EQ(all.report["F_applications"], one.report["F_applications"]);
-  EXPECT_EQ(all.report["displacement"], one.report["displacement"]);
-  EXPECT_EQ(all.report["contact_summary"], one.report["contact_summary"]);
+  expect_same_bits_as_one_rank(spec, opt);
 }
 
 // Slave and master on one body, known only once the parts' pieces are joined into bodies: refused
@@ -281,19 +285,10 @@ ProblemSpec sphere_whole(bool) {
 class WholeMeshSplitOnRankZero : public ::testing::TestWithParam<Case> {};
 
 TEST_P(WholeMeshSplitOnRankZero, SameBitsAsOneRank) {
-  Comm comm, self(MPI_COMM_SELF);
-  const ProblemSpec spec = GetParam().spec(false);
   SolveOptions opt;
   opt.rtol = 1e-8;
   opt.max_iterations = 5000;
-  const auto all = solve(make_model(spec, &comm), opt, comm);
-  const auto one = solve(make_model(spec, &self), opt, self);
-  ASSERT_TRUE(one.converged) << one.report["stop_reason"];
-  const double a = all.report["objective"], b = one.report["objective"];
-  EXPECT_EQ(a, b);
-  EXPECT_EQ(all.report["F_applications"], one.report["F_applications"]);
-  EXPECT_EQ(all.report["displacement"], one.report["displacement"]);
-  EXPECT_EQ(all.report["partitioner"], "metis");
+  expect_same_bits_as_one_rank(GetParam().spec(false), opt);
 }
 
 TEST_P(WholeMeshSplitOnRankZero, EachRankHoldsOnlyItsOwnSubdomains) {

@@ -1,11 +1,13 @@
 #!/usr/bin/env python3
-"""MPRGP's expansion step, gradient (the default) against preconditioned (--mprgp-expansion):
-Hessian products, expansion steps and the steps that raised the cost, on the contact examples,
+"""MPRGP's expansion steps (--mprgp-expansion gradient, preconditioned, projected-cg) side by side:
+Hessian products, expansion steps and the steps that raised the cost (undone for projected-cg),
+on the contact examples,
 the sphere-on-block meshed finer (h = 0.01, needs the gmsh program) and the cube-obstacle split
 by METIS with A = 20 at 20^3 (8 parts) and 30^3 (27 parts). Counts only (1 rank x 2 threads);
 the 40^3 and 80^3 cubes are in bench/cube_obstacle_peer.py.
 
-Usage: bench/mprgp_expansion.py [--out mprgp_expansion.json]
+Usage: bench/mprgp_expansion.py [--out mprgp_expansion.json] [--variants gradient preconditioned
+                                  projected-cg] [--large (adds the 40^3 cube, 64 parts, A = 20)]
 Writes bench/results/OUT and prints a markdown table."""
 import argparse
 import os
@@ -16,6 +18,8 @@ from common import ROOT, save, solve
 
 p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
 p.add_argument("--out", default="mprgp_expansion.json")
+p.add_argument("--variants", nargs="+", default=["gradient", "preconditioned", "projected-cg"])
+p.add_argument("--large", action="store_true")
 a = p.parse_args()
 
 EX = os.path.join(ROOT, "examples")
@@ -48,9 +52,9 @@ def sphere(tmp, h):
 
 
 rows = []
-print("| case | gradient: products (expansion steps) | preconditioned: products (expansion "
-      "steps, cost increases) |")
-print("|---|---|---|")
+print("| case | " + " | ".join(f"{e}: products (expansion steps, cost increases)"
+                             for e in a.variants) + " |")
+print("|---|" + "---|" * len(a.variants))
 with tempfile.TemporaryDirectory() as tmp:
     cases = [(name, os.path.join(EX, name + ".toml")) for name in (
         "cube-obstacle", "sphere-on-block", "punch-on-block", "cylinder-on-block",
@@ -58,9 +62,11 @@ with tempfile.TemporaryDirectory() as tmp:
     cases += [("sphere-on-block, h = 0.01", sphere(tmp, 0.01)),
               ("cube-obstacle 20^3, METIS 8, A = 20", cube(tmp, 20, 8)),
               ("cube-obstacle 30^3, METIS 27, A = 20", cube(tmp, 30, 27))]
+    if a.large:
+        cases += [("cube-obstacle 40^3, METIS 64, A = 20", cube(tmp, 40, 64))]
     for name, path in cases:
         row = {"case": name}
-        for e in ("gradient", "preconditioned"):
+        for e in a.variants:
             r = solve([path, "--mprgp-expansion", e], threads=2)
             s = r["solver"]
             row[e] = {"products": r["matvecs"], "outer": r["outer_iterations"],
@@ -68,7 +74,7 @@ with tempfile.TemporaryDirectory() as tmp:
                       "expansion_cost_increases": s["expansion_cost_increases"],
                       "energy": r["objective"], "converged": r["converged"]}
         rows.append(row)
-        g, q = row["gradient"], row["preconditioned"]
-        print(f"| {name} | {g['products']} ({g['expansion_steps']}) | {q['products']} "
-              f"({q['expansion_steps']}, {q['expansion_cost_increases']}) |", flush=True)
+        print(f"| {name} | " + " | ".join(
+            f"{row[e]['products']} ({row[e]['expansion_steps']}, "
+            f"{row[e]['expansion_cost_increases']})" for e in a.variants) + " |", flush=True)
 print("written:", save(a.out, {"rows": rows}))

@@ -197,7 +197,8 @@ void add_qp_options(std::vector<OptionSpec>& t) {
       "MPRGP's expansion step: gradient (fixed length 2 / ||H|| along the free gradient) | "
       "preconditioned (along the preconditioned free gradient with its optimal length, one "
       "more product; fewer products on large METIS-split contact problems, more on some small "
-      "ones: docs/performance.md)",
+      "ones: docs/performance.md) | projected-cg (the whole CG step, projected; undone, at one "
+      "more product, where it would cost more than the feasible half step)",
       qp::kExpansionNames,
       +[](RunOptions& r) -> qp::Expansion& { return r.solve.smalbe.expansion; }));
   t.push_back(choice(

@@ -180,6 +180,9 @@ QpSolve solve_with_contact(DualProblem& dual, DualOperators& ops, Vec& lambda,
   out.matvecs = r.hessian_applications;
   out.converged = r.reason == qp::StopReason::converged;
   out.reason = to_string(r.reason);
+  // The MPRGP steps of every solve (the report's counts add up to the inner iterations).
+  int cg_steps = r.cg_steps, expansion_steps = r.expansion_steps,
+      cost_increases = r.expansion_cost_increases, proportioning_steps = r.proportioning_steps;
   // SMALBE-M once more from x and nu (warm), its counts added to the first solve's.
   const auto solve_again = [&]() {
     r = qp::smalbe(qp, normA, x, red, so, hooks, progress, &nu);
@@ -187,6 +190,10 @@ QpSolve solve_with_contact(DualProblem& dual, DualOperators& ops, Vec& lambda,
     out.outer += r.outer_iterations;
     out.inner += r.inner_iterations;
     out.matvecs += r.hessian_applications;
+    cg_steps += r.cg_steps;
+    expansion_steps += r.expansion_steps;
+    cost_increases += r.expansion_cost_increases;
+    proportioning_steps += r.proportioning_steps;
     out.converged = r.reason == qp::StopReason::converged;
     out.reason = to_string(r.reason);
   };
@@ -238,10 +245,10 @@ QpSolve solve_with_contact(DualProblem& dual, DualOperators& ops, Vec& lambda,
                 {"rho_updates", r.rho_updates},
                 {"M_final", r.M},
                 {"alpha", r.alpha},
-                {"cg_steps", r.cg_steps},
-                {"expansion_steps", r.expansion_steps},
-                {"expansion_cost_increases", r.expansion_cost_increases},
-                {"proportioning_steps", r.proportioning_steps}};
+                {"cg_steps", cg_steps},
+                {"expansion_steps", expansion_steps},
+                {"expansion_cost_increases", cost_increases},
+                {"proportioning_steps", proportioning_steps}};
   if (steps.size() > 1) out.solver["accuracy_refinements"] = steps;
   // The fixed point's history: per step the relative change of the slip bounds.
   if (dual.has_coulomb())

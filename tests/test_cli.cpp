@@ -392,17 +392,29 @@ TEST_F(Cli, MultibodyResultsAreIdenticalOnOneToFourRanks) {
 }
 
 // Every problem file in examples/ runs as it is (its paths relative to the file) and converges.
+// The report's MPRGP steps add up to its inner iterations, over every solve (accuracy
+// refinements, Coulomb's fixed point); sphere-on-block is refined at its rtol 1e-6.
 TEST_F(Cli, EveryExampleRuns) {
-  int n = 0;
+  int n = 0, refined = 0;
   for (const auto& e : fs::directory_iterator(std::string(HTFETI_SOURCE_DIR) + "/examples")) {
     if (e.path().extension() != ".toml") continue;
     ++n;
     ASSERT_EQ(run(bin + " solve " + e.path().string() + " --no-vtu --report ex.json"), 0)
         << e.path() << ": " << stderr_text();
     std::ifstream f("ex.json");
-    EXPECT_TRUE(nlohmann::json::parse(f)["converged"].get<bool>()) << e.path();
+    const auto j = nlohmann::json::parse(f);
+    EXPECT_TRUE(j["converged"].get<bool>()) << e.path();
+    const auto& sv = j["solver"];
+    if (sv.contains("cg_steps")) {
+      EXPECT_EQ(sv["cg_steps"].get<int>() + sv["expansion_steps"].get<int>() +
+                    sv["proportioning_steps"].get<int>(),
+                j["inner_iterations"].get<int>())
+          << e.path() << ": " << sv.dump();
+      refined += sv.contains("accuracy_refinements");
+    }
   }
   EXPECT_GE(n, 13);
+  EXPECT_GT(refined, 0);
 }
 
 // Bad contact pairs through the program: exit 2, one line naming the condition, nothing written.

@@ -181,21 +181,99 @@ TEST_P(MprgpConformance, MatchesEnumeratedActiveSets) {
   EXPECT_LT((xp - exact_solution(q, bounded)).norm(), 1e-8);
   expect_kkt(q, xp, 1e-9);
   EXPECT_GT(Z.count(), 0);
-  // The preconditioned expansion step, with Z and without: the same solution.
-  for (Operator* z : {static_cast<Operator*>(&Z), static_cast<Operator*>(nullptr)}) {
-    opt.preconditioner = z;
-    opt.expansion = Expansion::preconditioned;
-    Vec xe = Vec::Zero(n), ge(n);
-    const auto re = mprgp(A, q.b, q.l, xe, ge, red, opt,
-                          [&](const Vec&, const Vec&, double gpn) { return gpn <= tol; });
-    ASSERT_EQ(re.reason, StopReason::converged);
-    EXPECT_LT((xe - exact_solution(q, bounded)).norm(), 1e-8);
-    expect_kkt(q, xe, 1e-9);
-    EXPECT_LE(re.expansion_cost_increases, re.expansion_steps);
-  }
+  // The preconditioned and the projected CG expansion steps, with Z and without: the same
+  // solution.
+  for (Expansion e : {Expansion::preconditioned, Expansion::projected_cg})
+    for (Operator* z : {static_cast<Operator*>(&Z), static_cast<Operator*>(nullptr)}) {
+      opt.preconditioner = z;
+      opt.expansion = e;
+      Vec xe = Vec::Zero(n), ge(n);
+      const auto re = mprgp(A, q.b, q.l, xe, ge, red, opt,
+                            [&](const Vec&, const Vec&, double gpn) { return gpn <= tol; });
+      ASSERT_EQ(re.reason, StopReason::converged);
+      EXPECT_LT((xe - exact_solution(q, bounded)).norm(), 1e-8);
+      expect_kkt(q, xe, 1e-9);
+      EXPECT_LE(re.expansion_cost_increases, re.expansion_steps);
+    }
 }
 
 INSTANTIATE_TEST_SUITE_P(Random, MprgpConformance, ::testing::Range(1u, 9u));
+
+// The projected CG expansion step (the whole CG step, projected) is kept when it lowers the cost
+// below the feasible half step's and undone otherwise: the cost never rises from one stop test
+// to the next, kept steps occur in these random cases, every run ends at the enumerated
+// solution, and an expansion step costs one product more than a CG step (two when undone).
+TEST(Mprgp, ProjectedCgExpansionKeepsOrUndoesTheStepAndTheCostNeverRises) {
+  const int n = 10, bounded = 7;
+  int kept = 0;
+  for (unsigned seed = 1; seed < 17; ++seed) {
+    Qp q = random_qp(n, bounded, 0, seed, false);
+    q.b *= 2.0;
+    DenseOperator A(q.A);
+    SerialReducer red;
+    MprgpOptions opt;
+    opt.alpha = 1.9 / estimate_norm(A, Vec::Ones(n), red, 200, 1e-10);
+    opt.expansion = Expansion::projected_cg;
+    DenseOperator Z(Eigen::MatrixXd(q.A.diagonal().cwiseInverse().asDiagonal()));
+    if (seed % 2) opt.preconditioner = &Z;
+    Vec x = Vec::Zero(n), g(n);
+    double last = std::numeric_limits<double>::infinity(), rise = 0;
+    const long before = A.count();
+    const auto r = mprgp(A, q.b, q.l, x, g, red, opt, [&](const Vec& xx, const Vec& gg, double gp) {
+      const double f = 0.5 * xx.dot(gg - q.b);
+      rise = std::max(rise, f - last);
+      last = f;
+      return gp <= 1e-11 * q.b.norm();
+    });
+    ASSERT_EQ(r.reason, StopReason::converged);
+    EXPECT_LT((x - exact_solution(q, bounded)).norm(), 1e-8) << "seed " << seed;
+    EXPECT_LE(rise, 1e-12 * std::abs(last)) << "seed " << seed;
+    EXPECT_EQ(A.count() - before, 1 + r.iterations + r.expansion_steps + r.expansion_cost_increases)
+        << "seed " << seed;
+    kept += r.expansion_steps - r.expansion_cost_increases;
+  }
+  EXPECT_GT(kept, 0);
+}
+
+// By hand: min 1/2 x'Ax - b'x, x_1 >= 0, A = [1 -0.92; -0.92 1], b = (0, -0.8), from (1.2, 0.9).
+// The first CG step (along g = (2.028, -0.504) in this form) leaves the bound after 3.23 of its
+// 5.76 length; projected, the whole step costs 1.18, the half step -0.30, so it is undone and the
+// fixed-length step is taken from the half step. The solution is (0, -0.8) (g_1 = 0.736 >= 0). The
+// tracked image T x follows through the undone step.
+TEST(Mprgp, ProjectedCgExpansionIsUndoneWhereItRaisesTheCost) {
+  Eigen::MatrixXd Am(2, 2);
+  Am << 1.0, -0.92, -0.92, 1.0;
+  const Vec b = (Vec(2) << 0.0, -0.8).finished();
+  const Vec l = (Vec(2) << 0.0, -inf).finished();
+  const Eigen::MatrixXd Tm = (Eigen::MatrixXd(1, 2) << 0.3, -1.7).finished();
+  Vec last(1);
+  FunctionOperator A([&](const Vec& v, Vec& y) {
+    y = Am * v;
+    last = Tm * v;
+  });
+  SerialReducer red;
+  MprgpOptions opt;
+  opt.alpha = 1.9 / 1.92;  // ||A|| = 1.92
+  opt.expansion = Expansion::projected_cg;
+  TrackedImage image;
+  image.last = &last;
+  opt.image = &image;
+  Vec x = (Vec(2) << 1.2, 0.9).finished(), g(2);
+  double worst = 0, first_f = 0;
+  int tests = 0;
+  const auto r = mprgp(A, b, l, x, g, red, opt, [&](const Vec& xx, const Vec& gg, double gp) {
+    worst = std::max(worst, (image.tx - Tm * xx).norm());
+    if (tests++ == 1) first_f = 0.5 * xx.dot(gg - b);
+    return gp <= 1e-12;
+  });
+  ASSERT_EQ(r.reason, StopReason::converged);
+  EXPECT_GE(r.expansion_cost_increases, 1);
+  EXPECT_LT((x - (Vec(2) << 0.0, -0.8).finished()).norm(), 1e-10);
+  EXPECT_LT(worst, 1e-12);
+  // After the first iteration the cost is below the half step's -0.2952 (the undone step's 1.18
+  // would be above it).
+  EXPECT_LT(first_f, -0.2952);
+}
 
 // The preconditioned expansion step is taken in these random cases, and the runs end at the
 // enumerated solution; a step that raised the cost is counted, at most one per expansion step.
@@ -399,12 +477,14 @@ TEST_P(MprgpBoxConformance, MatchesEnumeratedActiveSets) {
   Vec xp = Vec::Zero(n), gp(n);
   ASSERT_EQ(mprgp(A, q.b, q.l, u, xp, gp, red, opt, stop).reason, StopReason::converged);
   EXPECT_LT((xp - exact).norm(), 1e-8);
-  // With the preconditioned expansion step: the same solution.
-  opt.expansion = Expansion::preconditioned;
-  Vec xe = Vec::Zero(n), ge(n);
-  ASSERT_EQ(mprgp(A, q.b, q.l, u, xe, ge, red, opt, stop).reason, StopReason::converged);
-  EXPECT_LT((xe - exact).norm(), 1e-8);
-  for (int i = 0; i < n; ++i) EXPECT_TRUE(xe[i] >= q.l[i] && xe[i] <= u[i]);
+  // With the preconditioned and the projected CG expansion steps: the same solution.
+  for (Expansion e : {Expansion::preconditioned, Expansion::projected_cg}) {
+    opt.expansion = e;
+    Vec xe = Vec::Zero(n), ge(n);
+    ASSERT_EQ(mprgp(A, q.b, q.l, u, xe, ge, red, opt, stop).reason, StopReason::converged);
+    EXPECT_LT((xe - exact).norm(), 1e-8) << to_string(e);
+    for (int i = 0; i < n; ++i) EXPECT_TRUE(xe[i] >= q.l[i] && xe[i] <= u[i]);
+  }
 }
 
 INSTANTIATE_TEST_SUITE_P(Random, MprgpBoxConformance, ::testing::Range(1u, 13u));
@@ -847,6 +927,16 @@ TEST(Mprgp, TrackedImageEqualsAppliedImage) {
     mprgp(A0, q.b, q.l, x2, g2, red, plain,
           [&](const Vec&, const Vec&, double gp) { return gp <= tol; });
     EXPECT_EQ(x2, x);
+    // The projected CG expansion step, kept or undone: the image follows too.
+    opt.expansion = Expansion::projected_cg;
+    worst = 0;
+    x.setZero();
+    const auto rc = mprgp(A, q.b, q.l, x, g, red, opt, [&](const Vec& xx, const Vec&, double gp) {
+      worst = std::max(worst, (image.tx - Tm * xx).norm() / std::max(1.0, (Tm * xx).norm()));
+      return gp <= tol;
+    });
+    ASSERT_EQ(rc.reason, StopReason::converged);
+    EXPECT_LT(worst, 1e-12) << "seed " << seed << ", projected CG expansion";
   }
   EXPECT_GT(expansions, 0);
   EXPECT_GT(proportionings, 0);

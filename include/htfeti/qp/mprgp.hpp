@@ -31,8 +31,16 @@
 // of the run are the fixed-length gradient steps, so every run ends as MPRGP does and keeps its
 // convergence. Counted in expansion_cost_increases.
 // Without a preconditioner d = phi. Measured in docs/performance.md.
+// Expansion::projected_cg (an option) takes the whole CG step instead and projects it,
+// x' = P(x - a_cg p) (Kruzik et al., "Active set expansion strategies in MPRGP algorithm",
+// 2020; PERMON's "projcg"): the step length comes from the curvature along p, not from ||A||.
+// It is kept when its cost is below that of the feasible half step x - a_f p (known without a
+// product: f(x) - a_f g'p + a_f^2 p'Ap / 2); otherwise it is undone and the fixed-length step is
+// taken from the half step, so the cost never rises and the theory's decrease holds. Undone
+// steps are counted in expansion_cost_increases.
 // Cost of one iteration: one application of A (two for an expansion step, three for a
-// preconditioned one) and a few vector ops (and one of Z when preconditioned).
+// preconditioned one or an undone projected CG one) and a few vector ops (and one of Z when
+// preconditioned).
 // A tracked linear image t = T x (MprgpOptions::image): x changes by x -= a v after A v was formed,
 // or is reset where A x itself is formed, so T x follows from the images T v that A's
 // application leaves behind, at the cost of one axpy. SMALBE-M uses it for ||G x|| = ||Q x|| at
@@ -48,11 +56,13 @@
 
 namespace htfeti::qp {
 
-/// The expansion step (see above): the fixed-length step along the free gradient, or the step
-/// along the preconditioned free gradient with its optimal length.
-enum class Expansion { gradient, preconditioned };
-inline constexpr std::array<EnumName<Expansion>, 2> kExpansionNames{
-    {{Expansion::gradient, "gradient"}, {Expansion::preconditioned, "preconditioned"}}};
+/// The expansion step (see above): the fixed-length step along the free gradient, the step
+/// along the preconditioned free gradient with its optimal length, or the projected CG step.
+enum class Expansion { gradient, preconditioned, projected_cg };
+inline constexpr std::array<EnumName<Expansion>, 3> kExpansionNames{
+    {{Expansion::gradient, "gradient"},
+     {Expansion::preconditioned, "preconditioned"},
+     {Expansion::projected_cg, "projected-cg"}}};
 Expansion parse_expansion(const std::string& name);  // throws std::invalid_argument
 std::string to_string(Expansion kind);
 
@@ -78,15 +88,18 @@ struct MprgpResult {
   StopReason reason = StopReason::max_iterations;
   int iterations = 0;
   int cg_steps = 0, expansion_steps = 0, proportioning_steps = 0;
-  int expansion_cost_increases = 0;  ///< preconditioned expansion steps that raised the cost
-  double projected_gradient = 0;     ///< ||g^P|| at exit
+  /// Preconditioned expansion steps that raised the cost (kept), or projected CG expansion steps
+  /// that would have raised it above the half step's (undone).
+  int expansion_cost_increases = 0;
+  double projected_gradient = 0;  ///< ||g^P|| at exit
 };
 
 /// Work vectors of one MPRGP run; pass the same one to repeated runs (SMALBE-M's inner solves)
 /// so that nothing is allocated after the first.
 struct MprgpWorkspace {
   Vec phi, beta, p, Ap, z;
-  std::vector<int> disc_of;  ///< MPGP: the disc of each entry
+  Vec x_old, g_old, tx_old, tp;  ///< Expansion::projected_cg: the step undone
+  std::vector<int> disc_of;      ///< MPGP: the disc of each entry
 };
 
 /// stop(x, g, ||g^P||) decides convergence. x: start in (projected onto the bounds), solution out;

@@ -11,7 +11,8 @@ nu = 0.3, own weight, clamped at x = 0, the obstacle u_z >= -A sin(pi x / 50) un
   - htfeti: TFETI (clusters of 1), defaults otherwise, stopping at relative precision --rtol;
     1 rank x --ranks threads. Box split: (n/10)^3 subdomains; METIS split: the same number;
     each also with --mprgp-expansion preconditioned (MPRGP's expansion step along the
-    preconditioned free gradient).
+    preconditioned free gradient) and projected-cg (the projected CG step; splits
+    box_projected_cg and metis_projected_cg, not in the default list).
 The two stopping tests are not the same quantity; each row also gives its energy's distance
 from the reference energy (the peer's solve at rtol 1e-10), so the accuracy reached can be
 compared. --check-energy also solves each case with htfeti at rtol 1e-8 and asserts that its
@@ -46,7 +47,8 @@ p.add_argument("--rtol", type=float, default=1e-4)
 p.add_argument("--check-energy", action="store_true")
 p.add_argument("--splits", nargs="+", default=["box", "metis", "box_preconditioned",
                                                "metis_preconditioned"],
-               help="the htfeti rows to run (default: all four)")
+               help="the htfeti rows to run (default: these four; also box_projected_cg, "
+                    "metis_projected_cg)")
 p.add_argument("--out", default="cube_obstacle_peer.json")
 a = p.parse_args()
 
@@ -127,10 +129,13 @@ with tempfile.TemporaryDirectory() as tmp:
                 "peak_rss_gb": r["peak_rss_mb_sum"] / 1024, "energy": r["objective"],
                 "energy_error": err(r["objective"]), "contact_nodes": r["contact_nodes"]}}
             pre = ["--mprgp-expansion", "preconditioned"]
+            pcg = ["--mprgp-expansion", "projected-cg"]
             for split, sub, extra in (("box", f"[{ns}, {ns}, {ns}]", []),
                                       ("metis", str(ns ** 3), []),
                                       ("box_preconditioned", f"[{ns}, {ns}, {ns}]", pre),
-                                      ("metis_preconditioned", str(ns ** 3), pre)):
+                                      ("metis_preconditioned", str(ns ** 3), pre),
+                                      ("box_projected_cg", f"[{ns}, {ns}, {ns}]", pcg),
+                                      ("metis_projected_cg", str(ns ** 3), pcg)):
                 if split not in a.splits:
                     continue
                 path = os.path.join(tmp, f"c{n}_{split}_{amp}.toml")
@@ -139,6 +144,7 @@ with tempfile.TemporaryDirectory() as tmp:
                 hr = repeated(lambda: htfeti(path, extra))
                 h = hr[0]
                 what = split.replace("_preconditioned", " split, preconditioned expansion")
+                what = what.replace("_projected_cg", " split, projected CG expansion")
                 what = what if "expansion" in what else what + " split"
                 row[split] = {"code": f"htfeti TFETI, {what}, 1 rank x {a.ranks} threads",
                               "runs": len(hr), "wall_s": statistics.median(x["wall_s"] for x in hr),
@@ -160,7 +166,7 @@ with tempfile.TemporaryDirectory() as tmp:
                                  f"{tight!r} differs from the peer's {ref!r} by {err(tight):.2e}")
             for split in a.splits:
                 row[f"ratio_{split}_to_peer"] = row[split]["wall_s"] / row["peer"]["wall_s"]
-            for split in ("metis", "metis_preconditioned"):
+            for split in ("metis", "metis_preconditioned", "metis_projected_cg"):
                 if split in row and "box" in row:
                     row[f"products_{split}_to_box"] = (row[split]["products"] /
                                                        row["box"]["products"])

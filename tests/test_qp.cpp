@@ -199,42 +199,6 @@ TEST_P(MprgpConformance, MatchesEnumeratedActiveSets) {
 
 INSTANTIATE_TEST_SUITE_P(Random, MprgpConformance, ::testing::Range(1u, 9u));
 
-// The projected CG expansion step (the whole CG step, projected) is kept when it lowers the cost
-// below the feasible half step's and undone otherwise: the cost never rises from one stop test
-// to the next, kept steps occur in these random cases, every run ends at the enumerated
-// solution, and an expansion step costs one product more than a CG step (two when undone).
-TEST(Mprgp, ProjectedCgExpansionKeepsOrUndoesTheStepAndTheCostNeverRises) {
-  const int n = 10, bounded = 7;
-  int kept = 0;
-  for (unsigned seed = 1; seed < 17; ++seed) {
-    Qp q = random_qp(n, bounded, 0, seed, false);
-    q.b *= 2.0;
-    DenseOperator A(q.A);
-    SerialReducer red;
-    MprgpOptions opt;
-    opt.alpha = 1.9 / estimate_norm(A, Vec::Ones(n), red, 200, 1e-10);
-    opt.expansion = Expansion::projected_cg;
-    DenseOperator Z(Eigen::MatrixXd(q.A.diagonal().cwiseInverse().asDiagonal()));
-    if (seed % 2) opt.preconditioner = &Z;
-    Vec x = Vec::Zero(n), g(n);
-    double last = std::numeric_limits<double>::infinity(), rise = 0;
-    const long before = A.count();
-    const auto r = mprgp(A, q.b, q.l, x, g, red, opt, [&](const Vec& xx, const Vec& gg, double gp) {
-      const double f = 0.5 * xx.dot(gg - q.b);
-      rise = std::max(rise, f - last);
-      last = f;
-      return gp <= 1e-11 * q.b.norm();
-    });
-    ASSERT_EQ(r.reason, StopReason::converged);
-    EXPECT_LT((x - exact_solution(q, bounded)).norm(), 1e-8) << "seed " << seed;
-    EXPECT_LE(rise, 1e-12 * std::abs(last)) << "seed " << seed;
-    EXPECT_EQ(A.count() - before, 1 + r.iterations + r.expansion_steps + r.expansion_cost_increases)
-        << "seed " << seed;
-    kept += r.expansion_steps - r.expansion_cost_increases;
-  }
-  EXPECT_GT(kept, 0);
-}
-
 // By hand: min 1/2 x'Ax - b'x, x_1 >= 0, A = [1 -0.92; -0.92 1], b = (0, -0.8), from (1.2, 0.9).
 // The first CG step (along g = (2.028, -0.504) in this form) leaves the bound after 3.23 of its
 // 5.76 length; projected, the whole step costs 1.18, the half step -0.30, so it is undone and the
@@ -275,35 +239,55 @@ TEST(Mprgp, ProjectedCgExpansionIsUndoneWhereItRaisesTheCost) {
   EXPECT_LT(first_f, -0.2952);
 }
 
-// The preconditioned expansion step is taken in these random cases, and the runs end at the
-// enumerated solution; a step that raised the cost is counted, at most one per expansion step.
-TEST(Mprgp, PreconditionedExpansionStepsAreTakenAndReachTheSolution) {
+// The preconditioned and the projected CG expansion steps are taken in these random cases, and
+// the runs end at the enumerated solution.
+//  - preconditioned: a step that raised the cost is counted (kept), at most one per expansion
+//    step; one product per iteration, one more per expansion step and per preconditioned one.
+//  - projected CG (the whole CG step, projected): kept when it lowers the cost below the feasible
+//    half step's, undone otherwise, so the cost never rises from one stop test to the next; an
+//    expansion step costs one product more than a CG step, two when undone.
+TEST(Mprgp, ExpansionVariantsAreTakenAndReachTheSolution) {
   const int n = 10, bounded = 7;
-  int taken = 0;
-  for (unsigned seed = 1; seed < 9; ++seed) {
-    Qp q = random_qp(n, bounded, 0, seed, false);
-    q.b *= 2.0;
-    DenseOperator A(q.A);
-    SerialReducer red;
-    MprgpOptions opt;
-    opt.alpha = 1.9 / estimate_norm(A, Vec::Ones(n), red, 200, 1e-10);
-    DenseOperator Z(Eigen::MatrixXd(q.A.diagonal().cwiseInverse().asDiagonal()));
-    opt.preconditioner = &Z;
-    opt.expansion = Expansion::preconditioned;
-    Vec x = Vec::Zero(n), g(n);
-    const long before = A.count();
-    const auto r = mprgp(A, q.b, q.l, x, g, red, opt, [&](const Vec&, const Vec&, double gp) {
-      return gp <= 1e-11 * q.b.norm();
-    });
-    ASSERT_EQ(r.reason, StopReason::converged);
-    EXPECT_LT((x - exact_solution(q, bounded)).norm(), 1e-8) << "seed " << seed;
-    EXPECT_LE(r.expansion_cost_increases, r.expansion_steps);
-    // One product per iteration, one more per expansion step and per preconditioned one, and
-    // one for the start.
-    EXPECT_LE(A.count() - before, 1 + r.iterations + 2 * r.expansion_steps);
-    taken += r.expansion_steps;
+  for (Expansion e : {Expansion::preconditioned, Expansion::projected_cg}) {
+    int taken = 0, kept = 0;
+    for (unsigned seed = 1; seed < 17; ++seed) {
+      Qp q = random_qp(n, bounded, 0, seed, false);
+      q.b *= 2.0;
+      DenseOperator A(q.A);
+      SerialReducer red;
+      MprgpOptions opt;
+      opt.alpha = 1.9 / estimate_norm(A, Vec::Ones(n), red, 200, 1e-10);
+      DenseOperator Z(Eigen::MatrixXd(q.A.diagonal().cwiseInverse().asDiagonal()));
+      if (e == Expansion::preconditioned || seed % 2) opt.preconditioner = &Z;
+      opt.expansion = e;
+      Vec x = Vec::Zero(n), g(n);
+      double last = std::numeric_limits<double>::infinity(), rise = 0;
+      const long before = A.count();
+      const auto r =
+          mprgp(A, q.b, q.l, x, g, red, opt, [&](const Vec& xx, const Vec& gg, double gp) {
+            const double f = 0.5 * xx.dot(gg - q.b);
+            rise = std::max(rise, f - last);
+            last = f;
+            return gp <= 1e-11 * q.b.norm();
+          });
+      const std::string what = to_string(e) + ", seed " + std::to_string(seed);
+      ASSERT_EQ(r.reason, StopReason::converged) << what;
+      EXPECT_LT((x - exact_solution(q, bounded)).norm(), 1e-8) << what;
+      EXPECT_LE(r.expansion_cost_increases, r.expansion_steps) << what;
+      const long products = A.count() - before;
+      if (e == Expansion::preconditioned) {
+        EXPECT_LE(products, 1 + r.iterations + 2 * r.expansion_steps) << what;
+      } else {
+        EXPECT_LE(rise, 1e-12 * std::abs(last)) << what;
+        EXPECT_EQ(products, 1 + r.iterations + r.expansion_steps + r.expansion_cost_increases)
+            << what;
+      }
+      taken += r.expansion_steps;
+      kept += r.expansion_steps - r.expansion_cost_increases;
+    }
+    EXPECT_GT(taken, 0) << to_string(e);
+    EXPECT_GT(kept, 0) << to_string(e);
   }
-  EXPECT_GT(taken, 0);
 }
 
 class SmalbeConformance : public ::testing::TestWithParam<std::tuple<unsigned, bool>> {};

@@ -141,13 +141,13 @@ MprgpResult mprgp(Operator& A, const Vec& b, const Vec& l, const Vec& u, Vec& x,
         ++res.expansion_steps;
         if (opt.expansion == Expansion::projected_cg) {
           // The whole CG step, projected onto the bounds: kept when its cost is below that of
-          // the feasible half step x - a_f p (known without a product), else undone.
+          // the feasible half step x - a_f p (known without a product), else undone, and the
+          // fixed-length step below is taken from the half step (its product resets T x).
           const double g_p = red.dot(g, p);
           const double f_half =
               0.5 * (red.dot(x, g) - red.dot(x, b)) - a_f * g_p + 0.5 * a_f * a_f * pAp;
           w.x_old = x;
           w.g_old = g;
-          if (T) w.tx_old = T->tx, w.tp = *T->last;
           x -= a_cg * p;
           clamp(x, l, u);
           A.apply(x, g);
@@ -161,19 +161,6 @@ MprgpResult mprgp(Operator& A, const Vec& b, const Vec& l, const Vec& u, Vec& x,
           ++res.expansion_cost_increases;
           x = w.x_old;
           g = w.g_old;
-          if (T) T->tx = w.tx_old - a_f * w.tp;
-          x -= a_f * p;
-          clamp(x, l, u);
-          g -= a_f * Ap;
-          split_gradient(x, g, l, u, phi, beta);
-          x -= opt.alpha * phi;
-          clamp(x, l, u);
-          A.apply(x, g);
-          image_reset();
-          g -= b;
-          split_gradient(x, g, l, u, phi, beta);
-          p = precondition();
-          continue;
         }
         x -= a_f * p;
         clamp(x, l, u);

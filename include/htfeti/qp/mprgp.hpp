@@ -98,8 +98,8 @@ struct MprgpResult {
 /// so that nothing is allocated after the first.
 struct MprgpWorkspace {
   Vec phi, beta, p, Ap, z;
-  Vec x_old, g_old, tx_old, tp;  ///< Expansion::projected_cg: the step undone
-  std::vector<int> disc_of;      ///< MPGP: the disc of each entry
+  Vec x_old, g_old;          ///< Expansion::projected_cg: where an undone step started
+  std::vector<int> disc_of;  ///< MPGP: the disc of each entry
 };
 
 /// stop(x, g, ||g^P||) decides convergence. x: start in (projected onto the bounds), solution out;

@@ -18,6 +18,9 @@ if [ "${1:-}" = "--all" ]; then
 else
   cmake --build "$build" -j "$(nproc)" --target "${targets[@]}"
   select=(-R "^(test_fem|test_qp|test_options|test_tfeti_np2|test_dual_np2|test_contact_np2|test_friction_np2|test_multibody_np2|test_preconditioner_np2|test_partitioned_np3)$")
+  # The partitioned suite's two slowest cases repeat, on the sphere's mortar pairs, paths that its
+  # other cases take under the sanitizers too (73 of its 238 s here); the Release run has them.
+  export GTEST_FILTER="-*sphere_on_block_pairs:PartitionedContact.SameBitsOnEveryRankCount"
 fi
 export OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1
 # Open MPI unloads its components at exit; keep them loaded so that leak stacks through them can

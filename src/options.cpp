@@ -198,7 +198,8 @@ void add_qp_options(std::vector<OptionSpec>& t) {
       "preconditioned (along the preconditioned free gradient with its optimal length, one "
       "more product; fewer products on large METIS-split contact problems, more on some small "
       "ones: docs/performance.md) | projected-cg (the whole CG step, projected; undone, at one "
-      "more product, where it would cost more than the feasible half step)",
+      "more product, where it would cost more than the feasible half step). Friction in 3D runs "
+      "MPGP, which has none of these: a variant asked for there is not used, and a warning says so",
       qp::kExpansionNames,
       +[](RunOptions& r) -> qp::Expansion& { return r.solve.smalbe.expansion; }));
   t.push_back(choice(

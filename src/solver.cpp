@@ -414,6 +414,15 @@ SolveOutput solve(std::shared_ptr<const Model> model_ptr, const SolveOptions& op
   const double t_image = merged ? dual.coarse_image_stats().seconds : 0.0;
   double t_solve = seconds_now();
   const bool contact = dual.has_inequalities();
+  // Friction in 3D puts each node's tangential pair in a disc: SMALBE-M runs MPGP there, which
+  // has no expansion step of MPRGP's kinds. A variant asked for is then not used: say so.
+  const bool discs =
+      contact && dual.layout().dim == 3 && comm.max(dual.has_friction() ? 1.0 : 0.0) > 0;
+  if (discs && options.smalbe.expansion != qp::Expansion::gradient && comm.rank() == 0)
+    std::fprintf(stderr,
+                 "htfeti: warning: --mprgp-expansion %s is not used: friction in 3D is solved "
+                 "by MPGP, whose expansion step is the projected gradient step\n",
+                 name_of(qp::kExpansionNames, options.smalbe.expansion).c_str());
   auto progress = [&](int it, double gp, double gx) {
     if (!verbose) return;
     if (contact)

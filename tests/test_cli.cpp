@@ -565,6 +565,31 @@ TEST_F(Cli, FrictionResultsAreIdenticalOnOneToFourRanks) {
   EXPECT_GT(reports[0]["friction"]["slip_rows"].get<long long>(), 0);
 }
 
+TEST_F(Cli, ExpansionVariantUnusedByMpgpIsNoted) {
+  // Friction in 3D runs MPGP, which has no MPRGP expansion variant: a requested one is named in
+  // a warning and the results are those of the default; 2D friction (MPRGP on boxes) uses it.
+  const std::string p3 = std::string(HTFETI_SOURCE_DIR) + "/examples/friction-block-3d.toml";
+  nlohmann::json reports[2];
+  const char* args[2] = {"", " --mprgp-expansion projected-cg"};
+  for (int i = 0; i < 2; ++i) {
+    ASSERT_EQ(
+        run(bin + " solve " + p3 + " --no-vtu --report r" + std::to_string(i) + ".json" + args[i]),
+        0)
+        << stderr_text();
+    const bool warned = stderr_text().find("warning: --mprgp-expansion projected-cg is not used") !=
+                        std::string::npos;
+    EXPECT_EQ(warned, i == 1) << stderr_text();
+    std::ifstream f("r" + std::to_string(i) + ".json");
+    reports[i] = nlohmann::json::parse(f);
+  }
+  EXPECT_EQ(reports[0]["solver"]["algorithm"], "smalbe-m+mpgp");
+  for (const char* key : {"matvecs", "objective", "kkt"})
+    EXPECT_EQ(reports[0][key], reports[1][key]) << key;
+  const std::string p2 = std::string(HTFETI_SOURCE_DIR) + "/examples/friction-block.toml";
+  ASSERT_EQ(run(bin + " solve " + p2 + " --no-vtu --report r2.json" + args[1]), 0) << stderr_text();
+  EXPECT_EQ(stderr_text().find("warning"), std::string::npos) << stderr_text();
+}
+
 // The automatic operator's speed rule (explicit_for_speed, bench/operator_choice.py): explicit in
 // 2D, implicit in 3D, where forming the F_i cost 2-4 times the whole run with the implicit one.
 TEST_F(Cli, AutomaticOperatorIsExplicitIn2DAndImplicitIn3D) {

@@ -375,8 +375,13 @@ void check_outputs(const OutputOptions& out, const Comm& comm) {
 int dry_run(const Model& model, RunOptions run, const Comm& comm) {
   FetiOptions feti = run.solve.feti;
   const std::string why = resolve_preconditioner(model, feti);
+  std::optional<OperatorCost> cost;
+  auto resolve_cost = [&](FetiOptions& o) { cost = resolve_operator_cost(model, o, comm); };
   MemoryEstimate estimate;
-  if (run.solve.check_memory) estimate = check_memory(model, feti, comm);
+  if (run.solve.check_memory)
+    estimate = check_memory(model, feti, comm, resolve_cost);
+  else
+    resolve_cost(feti);
   // What each rank holds after reading and partitioning: the mesh and its peak memory so far.
   const Model::MeshCounts held = model.held();
   const double mine[3] = {static_cast<double>(held.cells), static_cast<double>(held.points),
@@ -410,11 +415,15 @@ int dry_run(const Model& model, RunOptions run, const Comm& comm) {
                      : feti.dual_operator == DualOperator::checked  ? "checked"
                      : estimate.explicit_operator                   ? "explicit"
                                                                     : "implicit";
-    std::printf("  dual operator: %s (%s)\n", op,
-                estimate.explicit_for_memory ? "the implicit operator would not fit in memory"
-                : run.solve.feti.dual_operator == DualOperator::automatic
-                    ? "automatic: explicit from 25 nodes per subdomain within explicit_budget_gb"
-                    : "requested");
+    std::printf(
+        "  dual operator: %s (%s)\n", op,
+        estimate.explicit_for_memory ? "the implicit operator would not fit in memory"
+        : run.solve.feti.dual_operator == DualOperator::automatic
+            ? (cost ? "automatic, " + describe_operator_cost(*cost) +
+                          (cost->explicit_cheaper() ? ", where its F_i fit explicit_budget_gb" : "")
+                    : std::string("automatic"))
+                  .c_str()
+            : "requested");
     std::printf("memory estimate: %.0f MB at the peak on the fullest machine, %.0f MB available\n",
                 estimate.machine_peak_mb, estimate.available_mb);
   } else {
@@ -422,6 +431,7 @@ int dry_run(const Model& model, RunOptions run, const Comm& comm) {
         "  dual operator: %s (decided in setup; no memory estimate with memory_check "
         "off)\n",
         to_string(feti.dual_operator).c_str());
+    if (cost) std::printf("  %s\n", describe_operator_cost(*cost).c_str());
   }
   std::printf("options in effect (as a problem file's tables):\n%s", options_toml(run).c_str());
   return 0;

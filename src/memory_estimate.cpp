@@ -82,11 +82,11 @@ MemoryEstimate estimate_memory(const Model& model, const FetiOptions& options, c
   const double subdomains = s1 - s0;
   const double value_bytes = options.explicit_precision == Precision::single ? 4.0 : 8.0;
   const double explicit_bytes = subdomains * value_bytes * nmult * (nmult + 1) / 2;
-  const bool is_explicit =
-      options.dual_operator == DualOperator::explicit_ ||
-      options.dual_operator == DualOperator::checked ||
-      (options.dual_operator == DualOperator::automatic && explicit_for_speed(layout.dim, nodes) &&
-       explicit_bytes <= options.explicit_budget_bytes);
+  const bool is_explicit = options.dual_operator == DualOperator::explicit_ ||
+                           options.dual_operator == DualOperator::checked ||
+                           (options.dual_operator == DualOperator::automatic &&
+                            automatic_prefers_explicit(options, layout.dim, nodes) &&
+                            explicit_bytes <= options.explicit_budget_bytes);
   const Ordering ordering = options.ordering == Ordering::automatic
                                 ? (layout.dim == 3 || is_explicit ? Ordering::metis : Ordering::amd)
                                 : options.ordering;
@@ -139,7 +139,8 @@ MemoryEstimate estimate_memory(const Model& model, const FetiOptions& options, c
   return e;
 }
 
-MemoryEstimate check_memory(const Model& model, FetiOptions& options, const Comm& comm) {
+MemoryEstimate check_memory(const Model& model, FetiOptions& options, const Comm& comm,
+                            const std::function<void(FetiOptions&)>& before_sample) {
   // The lower bound first, everywhere (nothing is assembled); then the sample where the bound
   // fits. Both are summed over the ranks of each machine.
   MPI_Comm node;
@@ -180,6 +181,7 @@ MemoryEstimate check_memory(const Model& model, FetiOptions& options, const Comm
       comm.max(over_any || (options.dual_operator != DualOperator::automatic && !s.fits(available))
                    ? 1.0
                    : 0.0) > 0;
+  if (!refuse_early && before_sample) before_sample(options);
   if (!refuse_early) s = estimate(options, true);
   // The implicit operator keeps every factor; the explicit one can free them. When the automatic
   // choice (the explicit blocks' size budget) gives the implicit operator and it does not fit,

@@ -64,6 +64,27 @@ void report_problem_and_solve(nlohmann::json& rep, const Model& model, DualProbl
                                 : options.feti.dual_operator == DualOperator::automatic
                                     ? "automatic"
                                     : "requested";
+  if (r.cost) {
+    // The cost model behind the automatic choice (operator_cost.hpp): the mean sampled
+    // subdomain, and model seconds per subdomain on one thread.
+    const OperatorCost& c = *r.cost;
+    const SubdomainCostSample& m = c.mean;
+    rep["dual_operator_model"] = {
+        {"samples", c.samples},
+        {"sample_mean",
+         {{"unknowns", m.unknowns},
+          {"multipliers", m.multipliers},
+          {"interface_dofs", m.interface_dofs},
+          {"factor_values", m.factor_values},
+          {"factor_supernodes", m.factor_supernodes},
+          {"factor_flops", m.factor_flops}}},
+        {"implicit_s", {{"setup", c.implicit_setup}, {"F", c.implicit_per_F}}},
+        {"explicit_s", {{"setup", c.explicit_setup}, {"F", c.explicit_per_F}}},
+        {"expected_applications", c.expected_applications},
+        {"break_even_applications",
+         std::isfinite(c.break_even) ? nlohmann::json(c.break_even) : nlohmann::json(nullptr)},
+        {"prefers", c.explicit_cheaper() ? "explicit" : "implicit"}};
+  }
   if (dual.explicit_operator()) rep["explicit_precision"] = to_string(feti.explicit_precision);
   rep["factors_released"] = dual.factors_released();
   rep["clusters_released"] = comm.sum(static_cast<long long>(dual.clusters_released()));
@@ -152,6 +173,8 @@ void report_timings_and_memory(nlohmann::json& rep, DualProblem& dual, const Com
                                          ops.merged_seconds - ops.M.seconds())},
                     {"reconstruction", tmax(t_rec)},
                     {"checks", tmax(t_checks)},
+                    // the automatic operator's cost model, before the setup (not in "total")
+                    {"operator_model", tmax(r.cost ? r.cost->seconds : 0.0)},
                     {"total", tmax(t_setup + t_image + t_solve + t_rec + t_checks)}};
   // The subdomain factorizations in core-seconds (summed over subdomains and ranks): the
   // symbolic part (forming K_rr, ordering, analysis or its copy from the cache) and the numeric

@@ -5,10 +5,12 @@
 
 #include <functional>
 #include <nlohmann/json.hpp>
+#include <optional>
 #include <string>
 #include <vector>
 
 #include "htfeti/feti/dual_problem.hpp"
+#include "htfeti/feti/operator_cost.hpp"
 #include "htfeti/memory_estimate.hpp"
 #include "htfeti/model/model.hpp"
 #include "htfeti/qp/operator.hpp"
@@ -61,6 +63,7 @@ struct SolveRecord {
   const FetiOptions& feti;  // with the automatic choices resolved
   const MemoryEstimate& estimate;
   const std::string& preconditioner_reason;
+  const std::optional<OperatorCost>& cost;  // the automatic operator's model, where it ran
   const QpSolve& qs;
   const DualOperators& ops;
   bool merged;

@@ -14,6 +14,7 @@
 #include "htfeti/clock.hpp"
 #include "htfeti/errors.hpp"
 #include "htfeti/feti/dual_reducer.hpp"
+#include "htfeti/feti/operator_cost.hpp"
 #include "htfeti/memory_estimate.hpp"
 #include "htfeti/options.hpp"
 #include "htfeti/parallel/blas_buffers.hpp"
@@ -330,6 +331,30 @@ std::string resolve_preconditioner(const Model& model, FetiOptions& o) {
   return why;
 }
 
+std::optional<OperatorCost> resolve_operator_cost(const Model& model, FetiOptions& o,
+                                                  const Comm& comm) {
+  if (o.dual_operator != DualOperator::automatic) return std::nullopt;
+  std::optional<OperatorCost> cost = estimate_operator_cost(model, o, comm);
+  if (cost) o.explicit_by_cost = cost->explicit_cheaper();
+  return cost;
+}
+
+std::string describe_operator_cost(const OperatorCost& c) {
+  char buf[256];
+  if (std::isfinite(c.break_even))
+    std::snprintf(buf, sizeof buf,
+                  "cost model: the explicit F_i pay for their setup after %.3g applications of "
+                  "F; %.0f expected: %s",
+                  c.break_even, c.expected_applications,
+                  c.explicit_cheaper() ? "explicit" : "implicit");
+  else
+    std::snprintf(buf, sizeof buf,
+                  "cost model: the explicit F_i are no faster per F than the factor sweeps "
+                  "(%.3g against %.3g model s per subdomain): implicit",
+                  c.explicit_per_F, c.implicit_per_F);
+  return buf;
+}
+
 SolveOutput solve(const SolveOptions& options, const Comm& comm) {
   validate(options);
   return solve(std::shared_ptr<const Model>(make_builtin_model(options.decomposition)), options,
@@ -362,8 +387,15 @@ SolveOutput solve(std::shared_ptr<const Model> model_ptr, const SolveOptions& op
 
   FetiOptions feti = options.feti;
   const std::string preconditioner_reason = resolve_preconditioner(model, feti);
+  // The automatic operator's cost model (operator_cost.hpp): once the memory check's lower
+  // bound fits, before its sample is assembled (which counts the operator chosen).
+  std::optional<OperatorCost> cost;
+  auto resolve_cost = [&](FetiOptions& o) { cost = resolve_operator_cost(model, o, comm); };
   MemoryEstimate estimate;
-  if (options.check_memory) estimate = check_memory(model, feti, comm);
+  if (options.check_memory)
+    estimate = check_memory(model, feti, comm, resolve_cost);
+  else
+    resolve_cost(feti);
   if (verbose && estimate.explicit_for_memory)
     std::fprintf(stderr,
                  "  memory: the implicit operator would need %.0f MB on this machine, more than "
@@ -374,6 +406,7 @@ SolveOutput solve(std::shared_ptr<const Model> model_ptr, const SolveOptions& op
                      ? "of --memory-limit"
                      : "available",
                  estimate.machine_peak_mb);
+  if (verbose && cost) std::fprintf(stderr, "  %s\n", describe_operator_cost(*cost).c_str());
   double t0 = seconds_now();
   if (verbose)
     std::fprintf(stderr,
@@ -489,6 +522,7 @@ SolveOutput solve(std::shared_ptr<const Model> model_ptr, const SolveOptions& op
       feti,
       estimate,
       preconditioner_reason,
+      cost,
       qs,
       ops,
       merged,

@@ -4,7 +4,11 @@
 // during setup is thrown on every rank. Runs under mpiexec -n 1, 2, 4.
 #include <gtest/gtest.h>
 
+#include <optional>
+
 #include "helpers.hpp"
+#include "htfeti/feti/input.hpp"
+#include "htfeti/feti/operator_cost.hpp"
 
 using namespace htfeti;
 
@@ -201,6 +205,112 @@ INSTANTIATE_TEST_SUITE_P(SmallCases, DualOperators,
                                            Case{ProblemKind::poisson2d, 12, 4, 2, Glue::corners},
                                            Case{ProblemKind::membranes, 16, 4, 4,
                                                 Glue::corners_averages}));
+
+// The cost model of the automatic operator (operator_cost.hpp). Its arithmetic by hand: with
+// c_sweep 1, c_supernode 2, c_packed 0.5, c_factor 3, c_unknown 5, c_dense 4,
+// c_explicit_unknown 6, a subdomain of 10 unknowns whose factor has 100 values, 10 supernodes
+// and 1000 flops, n_b = 2 and m = 3: implicit setup 3000 + 50 and F 16 * 100 + 2 * 10 = 1620;
+// explicit setup 3050 + 4 * 2^3 + 6 * 10 = 3142 and F 0.5 * 8 * 3 * 4 / 2 = 24; break-even
+// 92 / 1596 applications.
+TEST(OperatorCost, ModelArithmetic) {
+  OperatorCostConstants c;
+  c.sweep_per_byte = 1, c.per_supernode = 2, c.packed_per_byte = 0.5, c.factor_per_flop = 3;
+  c.dense_per_flop = 4;
+  c.per_unknown = 5, c.explicit_per_unknown = 6;
+  SubdomainCostSample m;
+  m.factor_values = 100, m.factor_supernodes = 10, m.factor_flops = 1000, m.interface_dofs = 2;
+  m.multipliers = 3, m.unknowns = 10;
+  const OperatorCost o = operator_cost(m, 1, true, 8.0, c);
+  EXPECT_DOUBLE_EQ(o.implicit_setup, 3050);
+  EXPECT_DOUBLE_EQ(o.implicit_per_F, 1620);
+  EXPECT_DOUBLE_EQ(o.explicit_setup, 3142);
+  EXPECT_DOUBLE_EQ(o.explicit_per_F, 24);
+  EXPECT_DOUBLE_EQ(o.break_even, 92.0 / 1596.0);
+  EXPECT_EQ(o.expected_applications, kExpectedApplicationsContact);
+  EXPECT_TRUE(o.explicit_cheaper());
+  // Single precision halves the F_i's bytes; without contact the expected count is PCG's.
+  const OperatorCost single = operator_cost(m, 1, false, 4.0, c);
+  EXPECT_DOUBLE_EQ(single.explicit_per_F, 12);
+  EXPECT_EQ(single.expected_applications, kExpectedApplicationsLinear);
+  // F_i read slower than the factor: never worth forming.
+  m.multipliers = 30;  // 0.5 * 8 * 30 * 31 / 2 = 1860 > 1620
+  const OperatorCost never = operator_cost(m, 1, true, 8.0, c);
+  EXPECT_TRUE(std::isinf(never.break_even));
+  EXPECT_FALSE(never.explicit_cheaper());
+  // Setup paid back only after more applications than expected.
+  m.multipliers = 3, m.interface_dofs = 400;  // (4 * 400^3 + 60) / 1596 = 160,401 applications
+  EXPECT_FALSE(operator_cost(m, 1, true, 8.0, c).explicit_cheaper());
+}
+
+// A hand-made subdomain of 5 nodes with 2 dofs each (K tridiagonal): node 0 shared by 2
+// subdomains and node 4 by 3 (2 + 4 multipliers), a contact row with friction keyed by node 3 and
+// given to nodes 3 and 1 (one normal and one tangential row), a Dirichlet dof on node 2: m = 9;
+// the dofs touched are those of nodes 0, 1, 3 and 4 and the Dirichlet dof, n_b = 9.
+TEST(OperatorCost, CountsAHandMadeSubdomain) {
+  const int nodes = 5, n = 2 * nodes;
+  SubdomainInput in;
+  std::vector<Eigen::Triplet<double>> t;
+  for (int i = 0; i < n; ++i) {
+    t.emplace_back(i, i, 2.0);
+    if (i + 1 < n) t.emplace_back(i, i + 1, -1.0), t.emplace_back(i + 1, i, -1.0);
+  }
+  in.system.dofs_per_node = 2;
+  in.system.K.resize(n, n);
+  in.system.K.setFromTriplets(t.begin(), t.end());
+  in.system.f = Eigen::VectorXd::Zero(n);
+  in.system.R = Eigen::MatrixXd(n, 0);  // K is positive definite: no kernel
+  in.sharing.global_node = {0, 1, 2, 3, 4};
+  in.sharing.coords.assign(3 * nodes, 0.0);
+  in.sharing.copy_offset = {0, 2, 3, 4, 5, 8};
+  in.sharing.copy_list = {0, 1, 0, 0, 0, 0, 1, 2};
+  in.sharing.on_boundary.assign(nodes, 0);
+  in.dirichlet = {{2, 0, 0.0}};
+  for (int node : {3, 1}) {
+    ContactRow r;
+    r.node = node;
+    r.node_a = 3;
+    r.slip_bound = 1.0;
+    in.contact.push_back(r);
+  }
+  const SubdomainCostSample s = sample_subdomain_cost(std::move(in), 2, Ordering::amd);
+  EXPECT_EQ(s.unknowns, n);
+  EXPECT_EQ(s.multipliers, 9);
+  EXPECT_EQ(s.interface_dofs, 9);
+  EXPECT_GE(s.factor_values, 2 * n - 1);  // no fill: the diagonal and the subdiagonal, at least
+  EXPECT_GE(s.factor_supernodes, 1);
+  EXPECT_GT(s.factor_flops, 0);
+}
+
+// The sample is the same on any number of ranks: subdomains 0, S / 2 and S - 1 wherever they
+// are held, averaged in that order. Here every rank also counts them itself (a generated model
+// builds any subdomain) and must find the collective result bit for bit.
+TEST(OperatorCost, SameSampleOnEveryRankCount) {
+  Comm comm;
+  const auto model =
+      make_builtin_model({ProblemKind::membranes, ElementKind::q1, 24, 4, 2, Glue::averages});
+  FetiOptions options;
+  const std::optional<OperatorCost> cost = estimate_operator_cost(*model, options, comm);
+  ASSERT_TRUE(cost.has_value());
+  const int S = model->num_subdomains();
+  ASSERT_EQ(cost->samples, 3);
+  SubdomainCostSample mine;
+  for (int s : {0, S / 2, S - 1}) {
+    const SubdomainCostSample x =
+        sample_subdomain_cost(model->input(s), model->physics().dofs_per_node(), Ordering::amd);
+    mine.unknowns += x.unknowns, mine.multipliers += x.multipliers;
+    mine.interface_dofs += x.interface_dofs, mine.factor_values += x.factor_values;
+    mine.factor_supernodes += x.factor_supernodes, mine.factor_flops += x.factor_flops;
+  }
+  EXPECT_EQ(cost->mean.unknowns, mine.unknowns / 3);
+  EXPECT_EQ(cost->mean.multipliers, mine.multipliers / 3);
+  EXPECT_EQ(cost->mean.interface_dofs, mine.interface_dofs / 3);
+  EXPECT_EQ(cost->mean.factor_values, mine.factor_values / 3);
+  EXPECT_EQ(cost->mean.factor_supernodes, mine.factor_supernodes / 3);
+  EXPECT_EQ(cost->mean.factor_flops, mine.factor_flops / 3);
+  // Membranes: contact, a 2D subdomain of 6 x 6 elements with a small interface.
+  EXPECT_EQ(cost->expected_applications, kExpectedApplicationsContact);
+  EXPECT_TRUE(cost->explicit_cheaper());
+}
 
 // A failure on one rank only (the input of the last subdomain, which the last rank owns) is
 // agreed on: every rank throws the same exception type and message, nobody hangs.

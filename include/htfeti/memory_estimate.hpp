@@ -35,6 +35,7 @@
 // subdomain), so it errs low: what it refuses cannot fit.
 #pragma once
 
+#include <functional>
 #include <string>
 
 #include "htfeti/feti/dual_problem.hpp"
@@ -78,8 +79,11 @@ MemoryEstimate estimate_memory(const Model& model, const FetiOptions& options, c
 /// rank's estimate. With the automatic dual operator, when the operator DualProblem would pick
 /// is the implicit one, which keeps every factor, and it does not fit on some machine while the
 /// explicit one (its F_i, factors released as memory runs short) fits on all, it sets
-/// options.dual_operator to explicit (explicit_for_memory). Collective.
-MemoryEstimate check_memory(const Model& model, FetiOptions& options, const Comm& comm);
+/// options.dual_operator to explicit (explicit_for_memory). `before_sample` runs once the lower
+/// bound fits, before anything is assembled for the estimate: solve() resolves the automatic
+/// operator's cost model there (a problem refused by the bound costs nothing). Collective.
+MemoryEstimate check_memory(const Model& model, FetiOptions& options, const Comm& comm,
+                            const std::function<void(FetiOptions&)>& before_sample = {});
 
 struct ProblemSpec;
 /// Before the model is built (a generated box: the sizes are known from the problem file): the

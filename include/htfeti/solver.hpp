@@ -5,8 +5,11 @@
 
 #include <memory>
 #include <nlohmann/json.hpp>
+#include <optional>
+#include <string>
 
 #include "htfeti/feti/dual_problem.hpp"
+#include "htfeti/feti/operator_cost.hpp"
 #include "htfeti/model/model.hpp"
 #include "htfeti/qp/power_norm.hpp"
 #include "htfeti/qp/smalbe.hpp"
@@ -83,6 +86,14 @@ SolveOutput solve(const SolveOptions& options, const Comm& comm);
 /// budget (else none). Explicit choices are kept. Returns the reason ("requested" or the rule
 /// that chose), which the report repeats as preconditioner_reason.
 std::string resolve_preconditioner(const Model& model, FetiOptions& options);
+
+/// Where the dual operator is automatic: evaluates its cost model (operator_cost.hpp) and sets
+/// options.explicit_by_cost; the model, or nothing where the operator was requested or a sample
+/// could not be assembled (the setup then meets the same input). Collective.
+std::optional<OperatorCost> resolve_operator_cost(const Model& model, FetiOptions& options,
+                                                  const Comm& comm);
+/// One line for --progress and --dry-run: what the model found.
+std::string describe_operator_cost(const OperatorCost& cost);
 
 /// The last check of a converged solve: B~ has orthonormal rows, so the equality residual
 /// ||B_E u - c_E|| is at most ||u|| + ||c_E|| (kkt.equality_scale), and a solve that met its

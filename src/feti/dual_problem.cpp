@@ -208,7 +208,7 @@ void DualProblem::choose_operator(Setup& st) {
   checked_ = options.dual_operator == DualOperator::checked;
   explicit_ = options.dual_operator == DualOperator::explicit_ || checked_ ||
               (options.dual_operator == DualOperator::automatic &&
-               explicit_for_speed(layout_.dim, min_nodes) &&
+               automatic_prefers_explicit(options, layout_.dim, min_nodes) &&
                explicit_bytes <= options.explicit_budget_bytes);
 
   // automatic: METIS in 3D, and for the explicit operator's interface-last factors (nested

@@ -718,6 +718,11 @@ namespace htfeti {
 
 long SparseCholesky::symbolic_factor_bytes(const Eigen::SparseMatrix<double>& A,
                                            Ordering ordering) {
+  return static_cast<long>(symbolic_stats(A, ordering).bytes);
+}
+
+SparseCholesky::SymbolicStats SparseCholesky::symbolic_stats(const Eigen::SparseMatrix<double>& A,
+                                                             Ordering ordering) {
   SparseCholesky chol(ordering);
   auto& c = chol.impl_->common;
   Eigen::SparseMatrix<double> upper = A.triangularView<Eigen::Upper>();
@@ -727,7 +732,13 @@ long SparseCholesky::symbolic_factor_bytes(const Eigen::SparseMatrix<double>& A,
     chol.impl_->factor = cholmod_analyze(&view, &c);
   }
   if (!chol.impl_->factor) cholmod_failed(c, "CHOLMOD analysis failed");
-  return chol.factor_bytes();
+  const cholmod_factor* L = chol.impl_->factor;
+  SymbolicStats st;
+  st.values = static_cast<double>(L->is_super ? L->xsize : L->nzmax);
+  st.supernodes = static_cast<double>(L->is_super ? L->nsuper : L->n);
+  st.flops = c.fl;
+  st.bytes = static_cast<double>(chol.factor_bytes());
+  return st;
 }
 
 bool SparseCholesky::factor_shared() const { return impl_->shared != nullptr; }

@@ -36,6 +36,7 @@
 #include <cstdint>
 #include <functional>
 #include <memory>
+#include <optional>
 #include <vector>
 
 #include "htfeti/feti/cluster.hpp"
@@ -57,6 +58,9 @@ struct FetiOptions {
   /// the explicit operator compared with the implicit one at every product (a diagnostic; the
   /// factors are kept, keep_factors ignored).
   DualOperator dual_operator = DualOperator::automatic;
+  /// automatic: the cost model's verdict (operator_cost.hpp; set by solve() before the memory
+  /// check). Unset (a DualProblem made without solve()): explicit_for_speed().
+  std::optional<bool> explicit_by_cost;
   /// With the explicit operator the subdomain factors are needed only for d (setup) and the
   /// primal reconstruction. A cluster frees them right after its setup, and factors again for
   /// the reconstruction (a plain factor, without the interface last: u agrees to round-off), when
@@ -118,6 +122,11 @@ constexpr int kExplicitMinNodes = 25;
 /// fit in memory (check_memory: its factors can be freed after setup).
 inline bool explicit_for_speed(int dim, double min_nodes) {
   return dim == 2 && min_nodes >= kExplicitMinNodes;
+}
+/// The automatic operator, as far as speed goes: the cost model's verdict where solve() ran it,
+/// else the rule above. (The explicit blocks must still fit explicit_budget_bytes.)
+inline bool automatic_prefers_explicit(const FetiOptions& o, int dim, double min_nodes) {
+  return o.explicit_by_cost.value_or(explicit_for_speed(dim, min_nodes));
 }
 /// Automatic factor release: clusters keep their factors while the available memory stays above
 /// this fraction of what was available at the start of the setup (FetiOptions::keep_factors).

@@ -147,6 +147,14 @@ class SparseCholesky {
   /// The bytes factor_bytes() would report after factorize(A), from the symbolic analysis
   /// alone (ordering and supernodes; no numeric work).
   static long symbolic_factor_bytes(const Eigen::SparseMatrix<double>& A, Ordering ordering);
+  /// What CHOLMOD's symbolic analysis of A says of its factor, before any numeric work: the
+  /// values stored (supernodal: the dense supernode blocks), the supernodes, the flops of the
+  /// numeric factorization (cholmod_common::fl) and the bytes of symbolic_factor_bytes(). The
+  /// dual operator's cost model reads them.
+  struct SymbolicStats {
+    double values = 0, supernodes = 0, flops = 0, bytes = 0;
+  };
+  static SymbolicStats symbolic_stats(const Eigen::SparseMatrix<double>& A, Ordering ordering);
 
  private:
   void factorize_impl(const Eigen::SparseMatrix<double>& A, const std::vector<int>* last,

@@ -98,6 +98,11 @@ class Subdomain {
   long symbolic_factor_bytes(Ordering ordering) {
     return SparseCholesky::symbolic_factor_bytes(reduced_matrix(), ordering);
   }
+  /// CHOLMOD's symbolic analysis of factorize(ordering) (no numeric work): values, supernodes,
+  /// flops.
+  SparseCholesky::SymbolicStats symbolic_stats(Ordering ordering) {
+    return SparseCholesky::symbolic_stats(reduced_matrix(), ordering);
+  }
   /// Bytes of the current factorization (0 after release_factor()).
   long factor_bytes() const { return chol_.factor_bytes(); }
   bool factor_shared() const { return chol_.factor_shared(); }

@@ -98,20 +98,25 @@ std::optional<OperatorCost> estimate_operator_cost(const Model& model, const Fet
   // nonzero per slot, so every rank gets the same values whatever the number of ranks.
   constexpr int kFields = 6;
   std::vector<double> slots(kCostSamples * kFields, 0.0);
-  bool failed = false;
-  try {
-    for (size_t k = 0; k < ids.size(); ++k) {
-      if (layout.rank_of_subdomain(ids[k], comm.size()) != comm.rank()) continue;
+  // The samples of a rank side by side on its threads (assembly and analysis; METIS itself is
+  // serialized, see metis_mutex): 0.15-0.17 -> 0.09-0.13 s on the METIS-split 40^3 cube, two
+  // threads.
+  int failed = 0;
+  const int count = static_cast<int>(ids.size());
+#pragma omp parallel for schedule(dynamic) reduction(max : failed)
+  for (int k = 0; k < count; ++k) {
+    if (layout.rank_of_subdomain(ids[k], comm.size()) != comm.rank()) continue;
+    try {
       const SubdomainCostSample s =
           sample_subdomain_cost(model.input(ids[k]), layout.dofs_per_node, ordering);
       const double v[kFields] = {s.unknowns,      s.multipliers,       s.interface_dofs,
                                  s.factor_values, s.factor_supernodes, s.factor_flops};
       std::copy(v, v + kFields, slots.begin() + static_cast<long>(k) * kFields);
+    } catch (...) {
+      failed = 1;
     }
-  } catch (...) {
-    failed = true;
   }
-  if (comm.max(failed ? 1.0 : 0.0) > 0) return std::nullopt;
+  if (comm.max(static_cast<double>(failed)) > 0) return std::nullopt;
   comm.sum_in_place(slots.data(), static_cast<int>(slots.size()));
   SubdomainCostSample mean;
   double* fields[kFields] = {&mean.unknowns,      &mean.multipliers,       &mean.interface_dofs,

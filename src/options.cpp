@@ -265,9 +265,10 @@ void add_feti_options(std::vector<OptionSpec>& t) {
       "solver", "dual_operator", "--dual-operator",
       "how F is applied: implicit (sparse solves), explicit (dense local blocks from Schur "
       "complements), checked (explicit, compared with implicit at every product: the report's "
-      "dual_operator_check; about twice the cost, factors kept), auto (explicit from 25 nodes "
-      "per subdomain, when the blocks fit explicit_budget_gb, or when the implicit operator "
-      "would not fit in memory)",
+      "dual_operator_check; about twice the cost, factors kept), auto (explicit where a cost "
+      "model of both operators' setup and F, counted on sampled subdomains, says it pays back "
+      "within the expected applications of F and the blocks fit explicit_budget_gb, or when the "
+      "implicit operator would not fit in memory; the report's dual_operator_model)",
       kDualOperatorNames,
       +[](RunOptions& r) -> DualOperator& { return r.solve.feti.dual_operator; }));
   t.push_back(choice(

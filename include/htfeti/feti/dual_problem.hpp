@@ -53,7 +53,7 @@ namespace htfeti {
 
 struct FetiOptions {
   Ordering ordering = Ordering::automatic;  ///< fill-reducing ordering of the subdomain factors
-  /// implicit, explicit, or automatic: explicit_for_speed() when its blocks fit
+  /// implicit, explicit, or automatic: automatic_prefers_explicit() when its blocks fit
   /// explicit_budget_bytes, and explicit when only it fits in memory (check_memory). checked:
   /// the explicit operator compared with the implicit one at every product (a diagnostic; the
   /// factors are kept, keep_factors ignored).

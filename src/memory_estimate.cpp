@@ -8,6 +8,7 @@
 #include <cstdio>
 #include <stdexcept>
 
+#include "htfeti/feti/operator_cost.hpp"
 #include "htfeti/feti/subdomain.hpp"
 #include "htfeti/model/problem_spec.hpp"
 #include "htfeti/parallel/memory.hpp"
@@ -72,11 +73,8 @@ MemoryEstimate estimate_memory(const Model& model, const FetiOptions& options, c
   const double n = static_cast<double>(in.system.f.size());
   if (n == 0) return e;
   const double k_bytes = 12.0 * static_cast<double>(in.system.K.nonZeros());
-  // Its multipliers: one row of B~ per further copy of each shared dof, per Dirichlet dof and per
-  // contact row.
-  double nmult = static_cast<double>(in.dirichlet.size() + in.contact.size());
-  for (int k = 0; k < in.sharing.num_nodes(); ++k)
-    nmult += static_cast<double>(in.sharing.num_copies(k) - 1) * ph.dofs_per_node();
+  // Its multipliers (the order of its F_i), counted as the operator's cost model counts them.
+  const double nmult = count_multipliers(in, ph.dofs_per_node()).multipliers;
   const double nodes = n / ph.dofs_per_node();
   // The explicit operator (DualProblem's rule, with every subdomain like the sample).
   const double subdomains = s1 - s0;

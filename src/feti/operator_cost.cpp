@@ -31,9 +31,7 @@ OperatorCostConstants OperatorCostConstants::fitted() {
   return c;
 }
 
-SubdomainCostSample sample_subdomain_cost(SubdomainInput in, int dofs_per_node, Ordering ordering) {
-  SubdomainCostSample s;
-  s.unknowns = static_cast<double>(in.system.f.size());
+MultiplierCount count_multipliers(const SubdomainInput& in, int dofs_per_node) {
   const int nodes = in.sharing.num_nodes();
   // The dofs B~ touches: every dof of a shared node or of a node in a contact row, and the
   // Dirichlet dofs.
@@ -57,8 +55,15 @@ SubdomainCostSample sample_subdomain_cost(SubdomainInput in, int dofs_per_node, 
   double touched = 0;
   for (int k = 0; k < nodes; ++k) touched += whole[k] ? dofs_per_node : 0;
   for (const DirichletDof& d : in.dirichlet) touched += whole[d.node] ? 0 : 1;
-  s.multipliers = multipliers + static_cast<double>(in.dirichlet.size());
-  s.interface_dofs = touched;
+  return {multipliers + static_cast<double>(in.dirichlet.size()), touched};
+}
+
+SubdomainCostSample sample_subdomain_cost(SubdomainInput in, int dofs_per_node, Ordering ordering) {
+  SubdomainCostSample s;
+  s.unknowns = static_cast<double>(in.system.f.size());
+  const MultiplierCount count = count_multipliers(in, dofs_per_node);
+  s.multipliers = count.multipliers;
+  s.interface_dofs = count.interface_dofs;
   Subdomain sub(std::move(in.system));
   const SparseCholesky::SymbolicStats st = sub.symbolic_stats(ordering);
   s.factor_values = st.values;

@@ -66,6 +66,14 @@ struct SubdomainCostSample {
   double factor_flops = 0;  ///< flops of its numeric factorization (CHOLMOD's count)
 };
 
+/// The rows of B~ on one subdomain (one per further copy of a shared dof, per Dirichlet dof,
+/// per contact row counted once with its tangential rows) and the dofs they touch. The memory
+/// estimate counts its sample's F_i with it too.
+struct MultiplierCount {
+  double multipliers = 0, interface_dofs = 0;
+};
+MultiplierCount count_multipliers(const SubdomainInput& in, int dofs_per_node);
+
 /// Counts one subdomain: its multipliers (one per further copy of a shared dof, per Dirichlet
 /// dof, per contact row), the dofs they touch, and the symbolic analysis of K_rr with
 /// `ordering` (the implicit operator's).

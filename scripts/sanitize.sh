@@ -31,4 +31,5 @@ export LSAN_OPTIONS="suppressions=$here/scripts/lsan.supp:print_suppressions=0"
 export ASAN_OPTIONS="detect_leaks=1:abort_on_error=1:fast_unwind_on_malloc=0"
 export UBSAN_OPTIONS="print_stacktrace=1:halt_on_error=1"
 cd "$build"
-ctest --output-on-failure --timeout 900 "${select[@]}" "$@"
+# -j: the MPI suites declare their ranks as PROCESSORS, so the serial suites pair up beside them.
+ctest --output-on-failure --timeout 900 -j "$(nproc)" "${select[@]}" "$@"

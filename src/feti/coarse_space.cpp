@@ -71,28 +71,45 @@ void CoarseSpace::set_up(const std::vector<std::unique_ptr<Cluster>>& clusters, 
     for (int c = 0; c < layout_.num_clusters; ++c) first_[c + 1] = first_[c] + all[c];
   }
   rows_.resize(ncl);
-  std::vector<double> acc(n_ext, 0.0);
-  std::vector<int> hit;
+  // One task per row (c, j) of G~: every row is formed as by one thread, in the same order, so
+  // the bits do not depend on the threads. Each thread has its own accumulator over the
+  // multipliers (n_ext doubles).
+  std::vector<std::pair<int, int>> tasks;
   for (int c = 0; c < ncl; ++c) {
-    const int dk = clusters[c]->kernel_dimension();
-    rows_[c].resize(dk);
-    for (int j = 0; j < dk; ++j) {
-      hit.clear();
-      for (int i = 0; i < members(c); ++i)
-        for (const auto& r : m_.rows[sub_of(c, i)]) {
-          if (acc[r.k] == 0.0) hit.push_back(r.k);
-          acc[r.k] += r.value * clusters[c]->kernel_entry(i, r.dof, j);
+    rows_[c].resize(clusters[c]->kernel_dimension());
+    for (int j = 0; j < clusters[c]->kernel_dimension(); ++j) tasks.push_back({c, j});
+  }
+  const int ntasks = static_cast<int>(tasks.size());
+  RegionError failure;
+#pragma omp parallel if (!omp_in_parallel() && ntasks > 1)
+  {
+    std::vector<double> acc;
+    std::vector<int> hit;
+#pragma omp for schedule(dynamic)
+    for (int t = 0; t < ntasks; ++t) {
+      try {
+        const auto [c, j] = tasks[t];
+        if (acc.empty()) acc.assign(n_ext, 0.0);
+        hit.clear();
+        for (int i = 0; i < members(c); ++i)
+          for (const auto& r : m_.rows[sub_of(c, i)]) {
+            if (acc[r.k] == 0.0) hit.push_back(r.k);
+            acc[r.k] += r.value * clusters[c]->kernel_entry(i, r.dof, j);
+          }
+        std::sort(hit.begin(), hit.end(), [&](int a, int b) {  // global order, as on one rank
+          return m_.layout.global(a) < m_.layout.global(b);
+        });
+        hit.erase(std::unique(hit.begin(), hit.end()), hit.end());
+        for (int k : hit) {
+          if (acc[k] != 0.0) rows_[c][j].push_back({k, acc[k]});
+          acc[k] = 0.0;
         }
-      std::sort(hit.begin(), hit.end(), [&](int a, int b) {  // global order, as on one rank
-        return m_.layout.global(a) < m_.layout.global(b);
-      });
-      hit.erase(std::unique(hit.begin(), hit.end()), hit.end());
-      for (int k : hit) {
-        if (acc[k] != 0.0) rows_[c][j].push_back({k, acc[k]});
-        acc[k] = 0.0;
+      } catch (const std::exception& e) {
+        failure.record(e);
       }
     }
   }
+  failure.rethrow();
   {  // G~^T by ordered sums over clusters: one pair per (cluster, multiplier)
     std::vector<int> pk;
     std::vector<long long> pc;

@@ -1,8 +1,8 @@
 #!/usr/bin/env bash
 # Sets up (Debian packages, Release build) and runs the whole test suite with CTest, then the
-# sanitizer job (scripts/sanitize.sh: ASan + UBSan build, unit and MPI suites under it; 6 to 12
-# minutes on 2 cores, mostly the build; bench/build_time.py). `scripts/test.sh --quick` skips
-# the sanitizer job; other arguments go to ctest.
+# sanitizer job (scripts/sanitize.sh: ASan + UBSan build, unit and MPI suites under it; about 19
+# minutes on 2 cores, two thirds of it the build; docs/reliability.md, "Open").
+# `scripts/test.sh --quick` skips the sanitizer job; other arguments go to ctest.
 set -euo pipefail
 here=$(cd "$(dirname "$0")/.." && pwd)
 quick=0

@@ -59,9 +59,9 @@ TEST_F(Cli, BadArgumentsExitWithCode2AndWriteNothing) {
     EXPECT_FALSE(fs::exists("u.vtu")) << args;
   }
   // E = F G~^T of one coarse step per product beyond the memory limit (the setup fits it: the
-  // estimate before setup is 24 MB here, the process holds more than 100 MB after setup).
+  // estimate before setup is 13 MB here, the process holds more than 40 MB after setup).
   EXPECT_EQ(run(bin + " solve --problem cube-obstacle --coarse-steps-per-product 1 "
-                      "--memory-limit 0.05 --report r.json --vtu u.vtu"),
+                      "--memory-limit 0.03 --report r.json --vtu u.vtu"),
             2);
   EXPECT_NE(stderr_text().find("one coarse step per product needs E"), std::string::npos)
       << stderr_text();

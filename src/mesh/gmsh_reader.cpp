@@ -1,4 +1,5 @@
-#include <gmsh.h>
+#include <dlfcn.h>
+#include <gmshc.h>  // declarations only: the SDK is loaded at run time (GmshSdk)
 #include <omp.h>
 
 #include <algorithm>
@@ -8,6 +9,7 @@
 #include <fstream>
 #include <mutex>
 #include <stdexcept>
+#include <type_traits>
 #include <unordered_map>
 
 #include "htfeti/mesh/mesh.hpp"
@@ -49,7 +51,7 @@ CellType cell_type_of(int gmsh_type) {
   }
 }
 
-// Names of Gmsh element types for messages. (Not gmsh::model::mesh::getElementProperties: it runs
+// Names of Gmsh element types for messages. (Not the SDK's getElementProperties: it runs
 // Gmsh's own Eigen code, whose template instances clash with ours in sanitizer builds.)
 std::string gmsh_type_name(int type) {
   static const char* names[] = {"?",      "line2",   "tri3",  "quad4", "tet4",  "hex8",
@@ -60,6 +62,100 @@ std::string gmsh_type_name(int type) {
 }
 
 std::mutex gmsh_mutex;  // the Gmsh SDK keeps global state
+
+// The Gmsh SDK, loaded when the first mesh file is read (dlopen, RTLD_LOCAL), not linked.
+// Its library brings some 120 others (OpenCASCADE, FLTK, X11, image codecs); linked, their
+// symbols were searched at every start of every process, Open MPI's own start among them: 0.23
+// s per process whether it read a mesh or not, and some 60 MB of resident memory. Loaded here,
+// a run that reads a mesh pays about 0.18 s more than linked (bench/startup_time.py). The C
+// API (gmshc.h) is used: plain functions that dlsym finds by name; arrays it returns are freed
+// with its own free.
+struct GmshSdk {
+  decltype(&gmshFree) free = nullptr;
+  decltype(&gmshInitialize) initialize = nullptr;
+  decltype(&gmshFinalize) finalize = nullptr;
+  decltype(&gmshOpen) open = nullptr;
+  decltype(&gmshOptionSetNumber) set_number = nullptr;
+  decltype(&gmshModelMeshGetElements) get_elements = nullptr;
+  decltype(&gmshModelMeshGetNodes) get_nodes = nullptr;
+  decltype(&gmshModelGetPhysicalGroups) get_physical_groups = nullptr;
+  decltype(&gmshModelGetPhysicalName) get_physical_name = nullptr;
+  decltype(&gmshModelMeshGetNodesForPhysicalGroup) get_nodes_for_physical_group = nullptr;
+  decltype(&gmshModelGetEntitiesForPhysicalGroup) get_entities_for_physical_group = nullptr;
+  decltype(&gmshLoggerGetLastError) last_error = nullptr;
+
+  /// The SDK, loaded on the first call; std::invalid_argument if it cannot be loaded.
+  static const GmshSdk& get() {
+    static const GmshSdk sdk = load();  // (a failed load is retried on the next call)
+    return sdk;
+  }
+
+  /// Throws std::runtime_error with the SDK's last message when a call reported an error.
+  void check(int ierr) const {
+    if (ierr == 0) return;
+    char* text = nullptr;
+    int e = 0;
+    last_error(&text, &e);
+    const std::string message = text && e == 0 ? text : "error " + std::to_string(ierr);
+    free(text);
+    throw std::runtime_error(message);
+  }
+
+ private:
+  static GmshSdk load() {
+    void* lib = dlopen(HTFETI_GMSH_LIBRARY, RTLD_LAZY | RTLD_LOCAL);
+    if (!lib)
+      throw std::invalid_argument(std::string("reading a .msh file needs the Gmsh SDK (") +
+                                  HTFETI_GMSH_LIBRARY +
+                                  "), which could not be loaded: " + dlerror());
+    GmshSdk s;
+    const auto find = [lib](auto& f, const char* name) {
+      f = reinterpret_cast<std::remove_reference_t<decltype(f)>>(dlsym(lib, name));
+      if (!f)
+        throw std::invalid_argument(std::string("the Gmsh SDK (") + HTFETI_GMSH_LIBRARY +
+                                    ") has no function " + name);
+    };
+    find(s.free, "gmshFree");
+    find(s.initialize, "gmshInitialize");
+    find(s.finalize, "gmshFinalize");
+    find(s.open, "gmshOpen");
+    find(s.set_number, "gmshOptionSetNumber");
+    find(s.get_elements, "gmshModelMeshGetElements");
+    find(s.get_nodes, "gmshModelMeshGetNodes");
+    find(s.get_physical_groups, "gmshModelGetPhysicalGroups");
+    find(s.get_physical_name, "gmshModelGetPhysicalName");
+    find(s.get_nodes_for_physical_group, "gmshModelMeshGetNodesForPhysicalGroup");
+    find(s.get_entities_for_physical_group, "gmshModelGetEntitiesForPhysicalGroup");
+    find(s.last_error, "gmshLoggerGetLastError");
+    return s;
+  }
+};
+
+// An array the SDK returned: copied into a vector, then freed.
+template <class T>
+std::vector<T> take(const GmshSdk& sdk, T* p, std::size_t n) {
+  std::vector<T> v(p, p + n);
+  sdk.free(p);
+  return v;
+}
+
+// gmsh::model::mesh::getElements: element types, and per type the element tags and node tags.
+void get_elements(const GmshSdk& sdk, std::vector<int>& types,
+                  std::vector<std::vector<std::size_t>>& tags,
+                  std::vector<std::vector<std::size_t>>& nodes, int dim, int tag) {
+  int* t = nullptr;
+  std::size_t nt = 0, ntags = 0, nnodes = 0;
+  std::size_t **et = nullptr, **en = nullptr, *et_n = nullptr, *en_n = nullptr;
+  int ierr = 0;
+  sdk.get_elements(&t, &nt, &et, &et_n, &ntags, &en, &en_n, &nnodes, dim, tag, &ierr);
+  sdk.check(ierr);
+  types = take(sdk, t, nt);
+  tags.assign(ntags, {});
+  nodes.assign(nnodes, {});
+  for (std::size_t i = 0; i < ntags; ++i) tags[i] = take(sdk, et[i], et_n[i]);
+  for (std::size_t i = 0; i < nnodes; ++i) nodes[i] = take(sdk, en[i], en_n[i]);
+  sdk.free(et), sdk.free(et_n), sdk.free(en), sdk.free(en_n);
+}
 
 // A node tag that an ASCII .msh file gives twice in its $Nodes section, or 0 (also for binary
 // files). The Gmsh SDK keeps one of the two points without a word, so a repeated tag shows only
@@ -147,8 +243,9 @@ std::vector<std::size_t> read_cells(const std::string& path, Mesh& mesh) {
   int dim = -1;
   std::vector<int> types;
   std::vector<std::vector<std::size_t>> tags, nodes;
+  const GmshSdk& sdk = GmshSdk::get();
   for (int d = 3; d >= 2 && dim < 0; --d) {
-    gmsh::model::mesh::getElements(types, tags, nodes, d, -1);
+    get_elements(sdk, types, tags, nodes, d, -1);
     for (size_t i = 0; i < types.size(); ++i)
       if (!tags[i].empty()) dim = d;
   }
@@ -183,9 +280,15 @@ std::vector<std::size_t> read_cells(const std::string& path, Mesh& mesh) {
 // (mesh.cells). Returns the tag -> node map.
 TagIndex read_nodes(const std::string& path, const std::vector<std::size_t>& cell_node_tags,
                     Mesh& mesh) {
-  std::vector<std::size_t> node_tags;
-  std::vector<double> coord, param;
-  gmsh::model::mesh::getNodes(node_tags, coord, param, -1, -1, false, false);
+  const GmshSdk& sdk = GmshSdk::get();
+  std::size_t *tag_p = nullptr, n_tags = 0, n_coord = 0, n_param = 0;
+  double *coord_p = nullptr, *param_p = nullptr;
+  int ierr = 0;
+  sdk.get_nodes(&tag_p, &n_tags, &coord_p, &n_coord, &param_p, &n_param, -1, -1, 0, 0, &ierr);
+  sdk.check(ierr);
+  const std::vector<std::size_t> node_tags = take(sdk, tag_p, n_tags);
+  const std::vector<double> coord = take(sdk, coord_p, n_coord);
+  sdk.free(param_p);
   std::vector<std::size_t> used(cell_node_tags);
   std::sort(used.begin(), used.end());
   used.erase(std::unique(used.begin(), used.end()), used.end());
@@ -214,7 +317,7 @@ void read_group_entity(const std::string& path, const std::string& name, int gd,
                        const TagIndex& index, const TagIndex& cell_index, Mesh& mesh) {
   std::vector<int> et;
   std::vector<std::vector<std::size_t>> etags, enodes;
-  gmsh::model::mesh::getElements(et, etags, enodes, gd, entity);
+  get_elements(GmshSdk::get(), et, etags, enodes, gd, entity);
   for (size_t i = 0; i < et.size(); ++i) {
     if (gd == mesh.dim) {
       auto& cg = mesh.cell_groups[name];
@@ -247,16 +350,28 @@ void read_groups(const std::string& path, const TagIndex& index, bool named_only
   TagIndex cell_index;
   for (size_t i = 0; i < mesh.cell_tags.size(); ++i)
     cell_index[mesh.cell_tags[i]] = static_cast<int>(i);
-  gmsh::vectorpair groups;
-  gmsh::model::getPhysicalGroups(groups, -1);
-  for (const auto& [gd, gt] : groups) {
-    std::string name;
-    gmsh::model::getPhysicalName(gd, gt, name);
+  const GmshSdk& sdk = GmshSdk::get();
+  int* dim_tags = nullptr;
+  std::size_t n_dim_tags = 0;
+  int ierr = 0;
+  sdk.get_physical_groups(&dim_tags, &n_dim_tags, -1, &ierr);
+  sdk.check(ierr);
+  const std::vector<int> groups = take(sdk, dim_tags, n_dim_tags);  // (dim, tag) pairs
+  for (std::size_t g = 0; g + 1 < groups.size(); g += 2) {
+    const int gd = groups[g], gt = groups[g + 1];
+    char* name_p = nullptr;
+    sdk.get_physical_name(gd, gt, &name_p, &ierr);
+    sdk.check(ierr);
+    std::string name = name_p ? name_p : "";
+    sdk.free(name_p);
     if (name.empty() && named_only) continue;
     if (name.empty()) name = std::to_string(gt);
-    std::vector<std::size_t> gnodes;
-    std::vector<double> gcoord;
-    gmsh::model::mesh::getNodesForPhysicalGroup(gd, gt, gnodes, gcoord);
+    std::size_t *gnodes_p = nullptr, n_gnodes = 0, n_gcoord = 0;
+    double* gcoord_p = nullptr;
+    sdk.get_nodes_for_physical_group(gd, gt, &gnodes_p, &n_gnodes, &gcoord_p, &n_gcoord, &ierr);
+    sdk.check(ierr);
+    const std::vector<std::size_t> gnodes = take(sdk, gnodes_p, n_gnodes);
+    sdk.free(gcoord_p);
     auto& ng = mesh.node_groups[name];
     for (std::size_t t : gnodes) {
       auto it = index.find(t);
@@ -264,8 +379,11 @@ void read_groups(const std::string& path, const TagIndex& index, bool named_only
     }
     std::sort(ng.begin(), ng.end());
     ng.erase(std::unique(ng.begin(), ng.end()), ng.end());
-    std::vector<int> ents;
-    gmsh::model::getEntitiesForPhysicalGroup(gd, gt, ents);
+    int* ents_p = nullptr;
+    std::size_t n_ents = 0;
+    sdk.get_entities_for_physical_group(gd, gt, &ents_p, &n_ents, &ierr);
+    sdk.check(ierr);
+    const std::vector<int> ents = take(sdk, ents_p, n_ents);
     for (int e : ents) read_group_entity(path, name, gd, e, index, cell_index, mesh);
   }
 }
@@ -289,22 +407,33 @@ Mesh read_gmsh(const std::string& path, const GmshReadOptions& options) {
     throw std::invalid_argument("mesh file '" + path + "': node " + std::to_string(tag) +
                                 " is given twice in $Nodes (which coordinates are meant?)");
   std::lock_guard<std::mutex> lock(gmsh_mutex);
+  const GmshSdk& sdk = GmshSdk::get();
   Mesh mesh;
   mesh.partitions = partition_count(path);
-  // gmsh::initialize() sets OpenMP's thread count to its own default (1): restore ours after.
+  // Initializing the SDK sets OpenMP's thread count to its own default (1): restore ours after.
   const int threads = omp_get_max_threads();
-  gmsh::initialize();
+  int ierr = 0;
+  sdk.initialize(0, nullptr, 1, &ierr);
+  if (ierr != 0) {
+    omp_set_num_threads(threads);
+    throw std::invalid_argument("mesh file '" + path + "': the Gmsh SDK did not start");
+  }
   struct Finalize {
+    const GmshSdk& sdk;
     int threads;
     ~Finalize() {
-      gmsh::finalize();
+      int e = 0;
+      sdk.finalize(&e);
       omp_set_num_threads(threads);
     }
-  } finalize{threads};
-  gmsh::option::setNumber("General.Terminal", 0);
-  gmsh::option::setNumber("General.Verbosity", 0);
+  } finalize{sdk, threads};
   try {
-    gmsh::open(path);
+    sdk.set_number("General.Terminal", 0, &ierr);
+    sdk.check(ierr);
+    sdk.set_number("General.Verbosity", 0, &ierr);
+    sdk.check(ierr);
+    sdk.open(path.c_str(), &ierr);
+    sdk.check(ierr);
     const std::vector<std::size_t> cell_node_tags = read_cells(path, mesh);
     const TagIndex index = read_nodes(path, cell_node_tags, mesh);
     read_groups(path, index, options.named_groups_only, mesh);

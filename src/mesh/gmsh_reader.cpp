@@ -69,20 +69,26 @@ std::mutex gmsh_mutex;  // the Gmsh SDK keeps global state
 // s per process whether it read a mesh or not, and some 60 MB of resident memory. Loaded here,
 // a run that reads a mesh pays about 0.18 s more than linked (bench/startup_time.py). The C
 // API (gmshc.h) is used: plain functions that dlsym finds by name; arrays it returns are freed
-// with its own free.
+// with its own free. HTFETI_GMSH_FUNCTIONS lists the functions htfeti calls: (member of
+// GmshSdk, name in the library).
+#define HTFETI_GMSH_FUNCTIONS(X)                                           \
+  X(free, gmshFree)                                                        \
+  X(initialize, gmshInitialize)                                            \
+  X(finalize, gmshFinalize)                                                \
+  X(open, gmshOpen)                                                        \
+  X(set_number, gmshOptionSetNumber)                                       \
+  X(get_elements, gmshModelMeshGetElements)                                \
+  X(get_nodes, gmshModelMeshGetNodes)                                      \
+  X(get_physical_groups, gmshModelGetPhysicalGroups)                       \
+  X(get_physical_name, gmshModelGetPhysicalName)                           \
+  X(get_nodes_for_physical_group, gmshModelMeshGetNodesForPhysicalGroup)   \
+  X(get_entities_for_physical_group, gmshModelGetEntitiesForPhysicalGroup) \
+  X(last_error, gmshLoggerGetLastError)
+
 struct GmshSdk {
-  decltype(&gmshFree) free = nullptr;
-  decltype(&gmshInitialize) initialize = nullptr;
-  decltype(&gmshFinalize) finalize = nullptr;
-  decltype(&gmshOpen) open = nullptr;
-  decltype(&gmshOptionSetNumber) set_number = nullptr;
-  decltype(&gmshModelMeshGetElements) get_elements = nullptr;
-  decltype(&gmshModelMeshGetNodes) get_nodes = nullptr;
-  decltype(&gmshModelGetPhysicalGroups) get_physical_groups = nullptr;
-  decltype(&gmshModelGetPhysicalName) get_physical_name = nullptr;
-  decltype(&gmshModelMeshGetNodesForPhysicalGroup) get_nodes_for_physical_group = nullptr;
-  decltype(&gmshModelGetEntitiesForPhysicalGroup) get_entities_for_physical_group = nullptr;
-  decltype(&gmshLoggerGetLastError) last_error = nullptr;
+#define HTFETI_GMSH_MEMBER(member, name) decltype(&name) member = nullptr;
+  HTFETI_GMSH_FUNCTIONS(HTFETI_GMSH_MEMBER)
+#undef HTFETI_GMSH_MEMBER
 
   /// The SDK, loaded on the first call; std::invalid_argument if it cannot be loaded.
   static const GmshSdk& get() {
@@ -115,18 +121,9 @@ struct GmshSdk {
         throw std::invalid_argument(std::string("the Gmsh SDK (") + HTFETI_GMSH_LIBRARY +
                                     ") has no function " + name);
     };
-    find(s.free, "gmshFree");
-    find(s.initialize, "gmshInitialize");
-    find(s.finalize, "gmshFinalize");
-    find(s.open, "gmshOpen");
-    find(s.set_number, "gmshOptionSetNumber");
-    find(s.get_elements, "gmshModelMeshGetElements");
-    find(s.get_nodes, "gmshModelMeshGetNodes");
-    find(s.get_physical_groups, "gmshModelGetPhysicalGroups");
-    find(s.get_physical_name, "gmshModelGetPhysicalName");
-    find(s.get_nodes_for_physical_group, "gmshModelMeshGetNodesForPhysicalGroup");
-    find(s.get_entities_for_physical_group, "gmshModelGetEntitiesForPhysicalGroup");
-    find(s.last_error, "gmshLoggerGetLastError");
+#define HTFETI_GMSH_FIND(member, name) find(s.member, #name);
+    HTFETI_GMSH_FUNCTIONS(HTFETI_GMSH_FIND)
+#undef HTFETI_GMSH_FIND
     return s;
   }
 };

@@ -9,8 +9,8 @@ Usage: bench/build_time.py [--configs release sanitize] [--generators Ninja "Uni
 --generators: CMake's generator (scripts/configure.sh uses Ninja: Make does not compile a
 target's sources until the libraries it links are built, so one core idles while the library's
 slowest file compiles).
---unity: CMake's unity build (CMAKE_UNITY_BUILD, sources compiled in batches of 8 per
-translation unit; htfeti's own build does not use it: it gave nothing, docs/method.md "Build").
+--unity: the library's unity build (-DHTFETI_UNITY_BUILD, its sources compiled in batches of 10
+per translation unit; on by default, as in htfeti's own build, docs/method.md "Build").
 --debug-info: the sanitizer build's -g level (-g1: line tables, what the sanitizers' stack
 traces print; -g: full debug information).
 --compilers: the sanitizer build's compiler (scripts/sanitize.sh takes Clang, GCC where Clang is
@@ -63,7 +63,7 @@ def build(config, generator, unity, debug, jobs, compiler="clang"):
     work = tempfile.mkdtemp(prefix="htfeti-build-")
     try:
         cmake = ["cmake", "-G", generator, "-S", ROOT, "-B", work,
-                 f"-DCMAKE_UNITY_BUILD={unity.upper()}"]
+                 f"-DHTFETI_UNITY_BUILD={unity.upper()}"]
         if config == "release":
             cmake.append("-DCMAKE_BUILD_TYPE=Release")
             targets = []
@@ -94,7 +94,7 @@ def main():
                    choices=["release", "sanitize"])
     p.add_argument("--generators", nargs="+", default=["Ninja"],
                    choices=["Ninja", "Unix Makefiles"])
-    p.add_argument("--unity", nargs="+", default=["off"], choices=["on", "off"])
+    p.add_argument("--unity", nargs="+", default=["on"], choices=["on", "off"])
     p.add_argument("--debug-info", nargs="+", default=["g1"], choices=["g1", "g"])
     p.add_argument("--compilers", nargs="+", default=["clang"], choices=["clang", "gcc"])
     p.add_argument("--jobs", type=int, default=os.cpu_count())

@@ -416,7 +416,7 @@ void add_facet_shares(const SubdomainMesh& mesh, const SubdomainMesh::FacetGroup
                       std::vector<double>& share_of_node) {
   const int fn = g.facet_nodes;
   if (fn == 0) return;
-  double x[12];
+  double x[12] = {};
   for (size_t i = 0; i + fn <= g.nodes.size(); i += fn) {
     for (int a = 0; a < fn; ++a)
       for (int d = 0; d < 3; ++d)

@@ -1,8 +1,8 @@
 #!/usr/bin/env bash
 # Sets up (Debian packages, Release build) and runs the whole test suite with CTest, then the
 # sanitizer job (scripts/sanitize.sh: ASan + UBSan build, unit and MPI suites under it). On 2
-# cores, after the Release build (about 9 minutes): CTest about 5 minutes, the sanitizer job
-# about 13, two thirds of it its build (docs/reliability.md, "Open").
+# cores, after the Release build (about 6.5 minutes): CTest about 5 minutes, the sanitizer job
+# about 11, 6.5 of them its build (docs/reliability.md, "Open").
 # `scripts/test.sh --quick` skips the sanitizer job; other arguments go to ctest.
 set -euo pipefail
 here=$(cd "$(dirname "$0")/.." && pwd)

@@ -69,9 +69,10 @@ cd "$build"
 rc=0
 ctest --output-on-failure --timeout 900 -j "$(nproc)" "${select[@]}" "$@" || rc=$?
 # LeakSanitizer's tracer (the thread that stops the process to look for leaks at exit) now and
-# then crashes on its own ("Tracer caught signal 11", google/sanitizers#1353; here in test_qp after all
-# its tests had passed, in clean clones; docs/reliability.md, "Sanitizers"). A suite whose only fault is that crash (it passed, no sanitizer
-# reported anything: scripts/lsan_tracer_crash.py) runs once more; any other failure stands.
+# then crashes on its own ("Tracer caught signal 11", google/sanitizers#1353; here in test_qp
+# after all its tests had passed, in clean clones; docs/reliability.md, "Sanitizers"). A suite
+# whose only fault is that crash (it passed, no sanitizer reported anything:
+# scripts/lsan_tracer_crash.py) runs once more; any other failure stands.
 if [ "$rc" != 0 ] && "$here/scripts/lsan_tracer_crash.py" "$build"; then
   echo "sanitize: LeakSanitizer's tracer crashed at exit; running those suites once more"
   rc=0

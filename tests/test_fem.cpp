@@ -642,6 +642,37 @@ INSTANTIATE_TEST_SUITE_P(Objects, HierarchicalComplement,
                                            std::make_tuple(PhysicsKind::elasticity, 3, 2),
                                            std::make_tuple(PhysicsKind::elasticity, 3, 3)));
 
+TEST(ObjectRowCache, GivesTheRowsOfHierarchicalComplementOncePerDistinctObject) {
+  // Two 5 x 4 faces of a box at different places (the same kernel W in the box's frame, the same
+  // tree), and a face of other proportions: the cache computes the first and the third and hands
+  // the first's rows to the second, each equal to hierarchical_complement's bit for bit.
+  Physics ph;
+  ph.kind = PhysicsKind::elasticity;
+  ph.dim = 3;
+  const int dpn = ph.dofs_per_node();
+  auto face = [](double x0, double y0, int nx, int ny) {
+    std::vector<double> xyz;
+    for (int j = 0; j < ny; ++j)
+      for (int i = 0; i < nx; ++i) xyz.insert(xyz.end(), {x0 + 0.5 * i, y0 + 0.5 * j, 3.0});
+    return xyz;
+  };
+  const std::vector<double> a = face(0, 0, 5, 4), b = face(8, 2, 5, 4), c = face(0, 0, 4, 5);
+  std::vector<double> frame = face(0, 0, 5, 4);  // the box's frame: offsets from the first node
+  const Eigen::MatrixXd W = orthonormal_columns(physics_kernel(ph, frame.data(), 20));
+  const Eigen::MatrixXd Wc = orthonormal_columns(physics_kernel(ph, c.data(), 20));
+  ObjectRowCache cache;
+  const auto ra = cache.rows(W, a.data(), 20, dpn);
+  const auto rb = cache.rows(W, b.data(), 20, dpn);
+  const auto rc = cache.rows(Wc, c.data(), 20, dpn);
+  EXPECT_EQ(cache.reuses(), 1);
+  EXPECT_EQ(ra.get(), rb.get());
+  EXPECT_NE(ra.get(), rc.get());
+  EXPECT_EQ(*ra, hierarchical_complement(W, a.data(), 20, dpn));
+  EXPECT_EQ(*rb, hierarchical_complement(W, b.data(), 20, dpn));
+  EXPECT_EQ(*rc, hierarchical_complement(Wc, c.data(), 20, dpn));
+  EXPECT_EQ(static_cast<int>(ra->size()), 20 * dpn - 6);
+}
+
 class ClusterInverse : public ::testing::TestWithParam<std::tuple<int, int, Glue>> {};
 
 TEST_P(ClusterInverse, IsAGeneralizedInverseOfTheClusterStiffness) {

@@ -13,6 +13,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <limits>
 #include <numeric>
 #include <stdexcept>
 #include <string>
@@ -85,17 +86,31 @@ void CoarseSpace::set_up(const std::vector<std::unique_ptr<Cluster>>& clusters, 
   {
     std::vector<double> acc;
     std::vector<int> hit;
+    // The member's kernel entries (R~_{c,j} at a dof), each computed once per task at its first
+    // use: a dof is in several rows of B~ (a face's averaged rows: about six).
+    std::vector<double> entry;
+    std::vector<int> known;
 #pragma omp for schedule(dynamic)
     for (int t = 0; t < ntasks; ++t) {
       try {
         const auto [c, j] = tasks[t];
         if (acc.empty()) acc.assign(n_ext, 0.0);
         hit.clear();
-        for (int i = 0; i < members(c); ++i)
+        for (int i = 0; i < members(c); ++i) {
+          for (int d : known) entry[d] = std::numeric_limits<double>::quiet_NaN();
+          known.clear();
           for (const auto& r : m_.rows[sub_of(c, i)]) {
+            if (r.dof >= static_cast<int>(entry.size()))
+              entry.resize(r.dof + 1, std::numeric_limits<double>::quiet_NaN());
+            double& z = entry[r.dof];
+            if (std::isnan(z)) {
+              z = clusters[c]->kernel_entry(i, r.dof, j);
+              known.push_back(r.dof);
+            }
             if (acc[r.k] == 0.0) hit.push_back(r.k);
-            acc[r.k] += r.value * clusters[c]->kernel_entry(i, r.dof, j);
+            acc[r.k] += r.value * z;
           }
+        }
         std::sort(hit.begin(), hit.end(), [&](int a, int b) {  // global order, as on one rank
           return m_.layout.global(a) < m_.layout.global(b);
         });

@@ -3,8 +3,12 @@
 #include <Eigen/Dense>
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
+#include <cstring>
 #include <limits>
 #include <map>
+#include <memory>
+#include <mutex>
 #include <numeric>
 #include <stdexcept>
 
@@ -98,37 +102,59 @@ Eigen::MatrixXd object_kernel(const FetiLayout& L, const DofSharing& sh,
   return orthonormal_columns(L.kernel(frame.data(), p));  // rank-revealing
 }
 
-// Recursive step of hierarchical_complement: the group `idx` (node indices) is split by
-// coordinate bisection down to leaves of at most kLeafNodes nodes. Returns the group's coarse
-// basis E (orthonormal columns spanning W restricted to the group, rows = the group's dofs in
-// the order of `dofs`) and appends the group's detail rows.
+// hierarchical_complement in two steps: the tree of the nodes from their coordinates (its leaf
+// order), then the rows from W and that order. The rows depend on the coordinates only through
+// the leaf order, so objects with the same W and the same order (the faces of a box) can share
+// them (ObjectRowCache).
 constexpr int kLeafNodes = 4;
 
-void complement_group(const Eigen::MatrixXd& W, const double* xyz, int dpn, std::vector<int> idx,
-                      std::vector<int>& dofs, Eigen::MatrixXd& E, SparseRows& details) {
+// The leaf order of the group `idx` (node indices), appended to `order`: the group is bisected
+// along the axis of largest extent (ties: the first such axis; equal coordinates keep their
+// order), the lower half first, down to leaves of at most kLeafNodes nodes.
+void leaf_order(const double* xyz, std::vector<int> idx, std::vector<int>& order) {
   const int g = static_cast<int>(idx.size());
+  if (g <= kLeafNodes) {
+    order.insert(order.end(), idx.begin(), idx.end());
+    return;
+  }
+  int axis = 0;
+  double best = -1;
+  for (int d = 0; d < 3; ++d) {
+    double lo = xyz[3 * idx[0] + d], hi = lo;
+    for (int t : idx) lo = std::min(lo, xyz[3 * t + d]), hi = std::max(hi, xyz[3 * t + d]);
+    if (hi - lo > best) best = hi - lo, axis = d;
+  }
+  std::stable_sort(idx.begin(), idx.end(),
+                   [&](int a, int b) { return xyz[3 * a + axis] < xyz[3 * b + axis]; });
+  leaf_order(xyz, std::vector<int>(idx.begin(), idx.begin() + g / 2), order);
+  leaf_order(xyz, std::vector<int>(idx.begin() + g / 2, idx.end()), order);
+}
+
+std::vector<int> leaf_order(const double* xyz, int p) {
+  std::vector<int> idx(p), order;
+  std::iota(idx.begin(), idx.end(), 0);
+  order.reserve(p);
+  leaf_order(xyz, std::move(idx), order);
+  return order;
+}
+
+// The group order[lo, hi) of the tree (split in the middle, as leaf_order splits). Returns the
+// group's coarse basis E (orthonormal columns spanning W restricted to the group, rows = the
+// group's dofs in the order of `dofs`) and appends the group's detail rows after its children's.
+void complement_group(const Eigen::MatrixXd& W, int dpn, const std::vector<int>& order, int lo,
+                      int hi, std::vector<int>& dofs, Eigen::MatrixXd& E, SparseRows& details) {
+  const int g = hi - lo;
   Eigen::MatrixXd basis;  // columns spanning the group's part of W (rows: dofs)
   if (g <= kLeafNodes) {
     dofs.clear();
-    for (int t : idx)
-      for (int i = 0; i < dpn; ++i) dofs.push_back(t * dpn + i);
+    for (int q = lo; q < hi; ++q)
+      for (int i = 0; i < dpn; ++i) dofs.push_back(order[q] * dpn + i);
     basis = Eigen::MatrixXd::Identity(static_cast<int>(dofs.size()), static_cast<int>(dofs.size()));
   } else {
-    // Bisect along the axis of largest extent; ties by node index (deterministic).
-    int axis = 0;
-    double best = -1;
-    for (int d = 0; d < 3; ++d) {
-      double lo = xyz[3 * idx[0] + d], hi = lo;
-      for (int t : idx) lo = std::min(lo, xyz[3 * t + d]), hi = std::max(hi, xyz[3 * t + d]);
-      if (hi - lo > best) best = hi - lo, axis = d;
-    }
-    std::stable_sort(idx.begin(), idx.end(),
-                     [&](int a, int b) { return xyz[3 * a + axis] < xyz[3 * b + axis]; });
-    std::vector<int> left(idx.begin(), idx.begin() + g / 2), right(idx.begin() + g / 2, idx.end());
     std::vector<int> d1, d2;
     Eigen::MatrixXd E1, E2;
-    complement_group(W, xyz, dpn, std::move(left), d1, E1, details);
-    complement_group(W, xyz, dpn, std::move(right), d2, E2, details);
+    complement_group(W, dpn, order, lo, lo + g / 2, d1, E1, details);
+    complement_group(W, dpn, order, lo + g / 2, hi, d2, E2, details);
     dofs = d1;
     dofs.insert(dofs.end(), d2.begin(), d2.end());
     basis = Eigen::MatrixXd::Zero(static_cast<int>(dofs.size()), E1.cols() + E2.cols());
@@ -153,22 +179,83 @@ void complement_group(const Eigen::MatrixXd& W, const double* xyz, int dpn, std:
   }
 }
 
-}  // namespace
-
-SparseRows hierarchical_complement(const Eigen::MatrixXd& W, const double* xyz, int p, int dpn) {
+SparseRows complement_rows(const Eigen::MatrixXd& W, const std::vector<int>& order, int dpn) {
   SparseRows rows;
-  std::vector<int> idx(p), dofs;
-  std::iota(idx.begin(), idx.end(), 0);
+  std::vector<int> dofs;
   Eigen::MatrixXd E;
-  complement_group(W, xyz, dpn, std::move(idx), dofs, E, rows);
+  complement_group(W, dpn, order, 0, static_cast<int>(order.size()), dofs, E, rows);
   // The top group's coarse basis spans W itself: its complement in the span of the children's
   // coarse bases was emitted as the top group's details, so `rows` holds p*dpn - rank(W) rows.
   return rows;
 }
 
-namespace {}  // namespace
+}  // namespace
 
-void subdomain_rows(const FetiLayout& L, const SubdomainInput& in, std::vector<LocalRow>& out) {
+SparseRows hierarchical_complement(const Eigen::MatrixXd& W, const double* xyz, int p, int dpn) {
+  return complement_rows(W, leaf_order(xyz, p), dpn);
+}
+
+std::shared_ptr<const SparseRows> ObjectRowCache::rows(const Eigen::MatrixXd& W, const double* xyz,
+                                                       int p, int dpn) {
+  auto mine = std::make_shared<Entry>();
+  mine->order = leaf_order(xyz, p);
+  mine->dpn = dpn;
+  mine->w_rows = W.rows();
+  mine->w.assign(W.data(), W.data() + W.size());
+  std::uint64_t h = 1469598103934665603ULL;  // FNV-1a over the bits of W, the order and dpn
+  auto mix = [&h](std::uint64_t v) { h = (h ^ v) * 1099511628211ULL; };
+  for (double v : mine->w) {
+    std::uint64_t bits;
+    std::memcpy(&bits, &v, sizeof bits);
+    mix(bits);
+  }
+  for (int t : mine->order) mix(static_cast<std::uint64_t>(t));
+  mix(static_cast<std::uint64_t>(dpn));
+  mine->hash = h;
+  bool owner = false;
+  {
+    std::unique_lock<std::mutex> lock(mutex_);
+    std::shared_ptr<Entry> found;
+    for (const auto& e : entries_)
+      if (e->hash == h && e->dpn == dpn && e->w_rows == mine->w_rows && e->w == mine->w &&
+          e->order == mine->order) {
+        found = e;
+        break;
+      }
+    if (found) {
+      ready_.wait(lock, [&] { return found->rows != nullptr || found->failed; });
+      if (!found->failed) {
+        ++reuses_;
+        return found->rows;
+      }
+    } else {
+      entries_.push_back(mine);  // rows still null: equal keys wait for them
+      owner = true;
+    }
+  }
+  // The first holder of an equal key failed: computed unshared.
+  if (!owner) return std::make_shared<const SparseRows>(complement_rows(W, mine->order, dpn));
+  std::shared_ptr<const SparseRows> out;
+  try {
+    out = std::make_shared<const SparseRows>(complement_rows(W, mine->order, dpn));
+  } catch (...) {
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      mine->failed = true;
+    }
+    ready_.notify_all();
+    throw;
+  }
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    mine->rows = out;
+  }
+  ready_.notify_all();
+  return out;
+}
+
+void subdomain_rows(const FetiLayout& L, const SubdomainInput& in, std::vector<LocalRow>& out,
+                    ObjectRowCache* cache) {
   const DofSharing& sh = in.sharing;
   const int me = in.system.id, my_cluster = L.cluster_of(me), dpn = L.dofs_per_node;
   const int nn = sh.num_nodes();
@@ -304,8 +391,11 @@ void subdomain_rows(const FetiLayout& L, const SubdomainInput& in, std::vector<L
   std::vector<double> xyz;
   for (const auto& [pair, nodes] : averaged_objects(sh, cls)) {
     const Eigen::MatrixXd W = object_kernel(L, sh, nodes, xyz);
-    const SparseRows Wc =
-        hierarchical_complement(W, xyz.data(), static_cast<int>(nodes.size()), dpn);
+    const int p = static_cast<int>(nodes.size());
+    const std::shared_ptr<const SparseRows> held =
+        cache ? cache->rows(W, xyz.data(), p, dpn)
+              : std::make_shared<const SparseRows>(hierarchical_complement(W, xyz.data(), p, dpn));
+    const SparseRows& Wc = *held;
     // Sign: + on the first copy in the canonical order.
     const int* cp = sh.copies(nodes[0]);
     const double sign = cp[0] == me ? 1.0 : -1.0;

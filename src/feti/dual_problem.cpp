@@ -118,6 +118,7 @@ void DualProblem::assemble_subdomains(const std::function<SubdomainInput(int)>& 
   outer_parallel_ = omp_get_max_threads() > 1 && ncl >= omp_get_max_threads();
   std::string error;
   bool input_error = false;
+  ObjectRowCache object_rows;  // the rows of equal averaged objects computed once
 #pragma omp parallel for schedule(dynamic) if (outer_parallel_)
   for (int c = 0; c < ncl; ++c) {
     try {
@@ -138,7 +139,7 @@ void DualProblem::assemble_subdomains(const std::function<SubdomainInput(int)>& 
           in[i].system.K.swap(K);
           if (in[i].system.K.rows() == in[i].system.f.size())
             pooled[i] = cache_->intern_matrix(in[i].system.K);  // leaves system.K empty
-          subdomain_rows(layout_, in[i], local_rows[sub_of(c, i)]);
+          subdomain_rows(layout_, in[i], local_rows[sub_of(c, i)], &object_rows);
           if (preconditioner_.collects_node_copies()) {
             auto& nc = preconditioner_.node_copies(sub_of(c, i));
             for (int k = 0; k < in[i].sharing.num_nodes(); ++k)

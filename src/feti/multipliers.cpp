@@ -10,6 +10,7 @@
 #include <numeric>
 #include <stdexcept>
 
+#include "htfeti/errors.hpp"
 #include "htfeti/parallel/key_numbering.hpp"
 
 namespace htfeti {
@@ -89,53 +90,70 @@ std::vector<std::vector<Subdomain::BEntry>> Multipliers::number(
   // rows: (first entry, its part of the contact area).
   std::vector<std::vector<std::pair<size_t, double>>> bound_part(nsub), area_part(nsub);
   rows.assign(nsub, {});
+  // Per subdomain, independent: in parallel.
+  RegionError failure;
+#pragma omp parallel for schedule(dynamic)
   for (int s = 0; s < nsub; ++s) {
-    auto& lr = local_rows[s];
-    std::vector<std::pair<int, const LocalRow*>> ordered;
-    for (const auto& r : lr) {
-      const size_t i = std::lower_bound(keys.begin(), keys.end(), r.key) - keys.begin();
-      ordered.push_back({layout.ext_index(index[i]), &r});
+    try {
+      auto& lr = local_rows[s];
+      std::vector<std::pair<int, const LocalRow*>> ordered;
+      ordered.reserve(lr.size());
+      for (const auto& r : lr) {
+        const size_t i = std::lower_bound(keys.begin(), keys.end(), r.key) - keys.begin();
+        ordered.push_back({layout.ext_index(index[i]), &r});
+      }
+      // Rows in global order (the order of the ext indices of owned entries, then ghosts, is the
+      // global order within each part; sort by global index for a fixed accumulation order).
+      std::sort(ordered.begin(), ordered.end(), [&](const auto& x, const auto& y) {
+        return layout.global(x.first) < layout.global(y.first);
+      });
+      size_t entries = 0;
+      for (const auto& [k, r] : ordered) entries += r->entries.size();
+      rows[s].reserve(entries);
+      for (const auto& [k, r] : ordered) {
+        const RowClass cls = r->kind != MultiplierKind::gluing ? RowClass::other
+                             : r->key[0] == 0                  ? RowClass::node
+                                                               : RowClass::object;
+        const auto side = static_cast<std::int8_t>(r->side);
+        if (r->kind == MultiplierKind::friction)
+          bound_part[s].push_back({rows[s].size(), r->bound});
+        if (r->kind == MultiplierKind::contact && r->area != 0.0)
+          area_part[s].push_back({rows[s].size(), r->area});
+        const auto key = static_cast<std::uint8_t>(r->key_node);
+        for (const auto& [dof, v] : r->entries) rows[s].push_back({k, -1, dof, side, cls, key, v});
+      }
+      lr = {};
+    } catch (const std::exception& e) {
+      failure.record(e);
     }
-    // Rows in global order (the order of the ext indices of owned entries, then ghosts, is the
-    // global order within each part; sort by global index for a fixed accumulation order).
-    std::sort(ordered.begin(), ordered.end(), [&](const auto& x, const auto& y) {
-      return layout.global(x.first) < layout.global(y.first);
-    });
-    for (const auto& [k, r] : ordered) {
-      const RowClass cls = r->kind != MultiplierKind::gluing ? RowClass::other
-                           : r->key[0] == 0                  ? RowClass::node
-                                                             : RowClass::object;
-      const auto side = static_cast<std::int8_t>(r->side);
-      if (r->kind == MultiplierKind::friction) bound_part[s].push_back({rows[s].size(), r->bound});
-      if (r->kind == MultiplierKind::contact && r->area != 0.0)
-        area_part[s].push_back({rows[s].size(), r->area});
-      const auto key = static_cast<std::uint8_t>(r->key_node);
-      for (const auto& [dof, v] : r->entries) rows[s].push_back({k, -1, dof, side, cls, key, v});
-    }
-    lr = {};
   }
+  failure.rethrow();
   local_rows = {};
 
-  // Local numbering of the rows on each subdomain (distinct multipliers in extended order).
+  // Local numbering of the rows on each subdomain: its distinct multipliers by global index (not
+  // extended index, whose owned/ghost split depends on the ranks), which fixes the summation
+  // order of the dense blocks F_i. rows[s] is in that order already, a row's entries together.
   std::vector<std::vector<Subdomain::BEntry>> local_b(nsub);
   of_subdomain.assign(nsub, {});
-  {
-    std::vector<int> local_of(n_ext, -1);
-    for (int s = 0; s < nsub; ++s) {
+#pragma omp parallel for schedule(dynamic)
+  for (int s = 0; s < nsub; ++s) {
+    try {
       auto& mult = of_subdomain[s];
-      for (const auto& r : rows[s]) mult.push_back(r.k);
-      // By global index (not extended index, whose owned/ghost split depends on the ranks): the
-      // local numbering fixes the summation order of the dense blocks F_i.
-      std::sort(mult.begin(), mult.end(),
-                [&](int a, int b) { return layout.global(a) < layout.global(b); });
-      mult.erase(std::unique(mult.begin(), mult.end()), mult.end());
-      for (size_t j = 0; j < mult.size(); ++j) local_of[mult[j]] = static_cast<int>(j);
+      local_b[s].reserve(rows[s].size());
       for (auto& r : rows[s]) {
-        r.j = local_of[r.k];
+        if (mult.empty() || mult.back() != r.k) mult.push_back(r.k);
+        r.j = static_cast<int>(mult.size()) - 1;
         local_b[s].push_back({r.j, r.dof, r.value});
       }
+    } catch (const std::exception& e) {
+      failure.record(e);
     }
   }
+  failure.rethrow();
+  for (int s = 0; s < nsub; ++s)
+    if (!std::is_sorted(of_subdomain[s].begin(), of_subdomain[s].end(),
+                        [&](int a, int b) { return layout.global(a) <= layout.global(b); }))
+      throw std::logic_error("Multipliers::number: a subdomain's rows are not in global order");
   // Ordered sums over subdomains (F, B u, d) and the work vectors.
   {
     std::vector<int> pk;

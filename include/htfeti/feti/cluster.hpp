@@ -20,8 +20,8 @@
 //     [ -R_F^T C^T     0   ] [beta_F] = [ -R_F^T x ],
 // a dense system of size (#constraints + sum_i dim R_i - dim Ker), equilibrated (the C K^+ C^T
 // block, O(1/E), is scaled to O(1)) and factored by partial-pivoting LU; its reciprocal condition
-// number after scaling decides singularity. For one subdomain there are no constraints and
-// y = K_0^+ x: plain TFETI.
+// number after scaling (LAPACK's dgecon) decides singularity. For one subdomain there are no
+// constraints and y = K_0^+ x: plain TFETI.
 //
 // Cost of one application: one K_i^+ solve per subdomain, plus a dense solve of size above and
 // products with the precomputed K_i^+ C_i^T. Setup: one multi-column K_i^+ solve per subdomain

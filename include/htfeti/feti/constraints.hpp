@@ -35,7 +35,10 @@
 
 #include <Eigen/Dense>
 #include <array>
+#include <condition_variable>
 #include <cstdint>
+#include <memory>
+#include <mutex>
 #include <utility>
 #include <vector>
 
@@ -73,9 +76,13 @@ struct LocalRow {
   std::vector<std::pair<int, double>> entries;  ///< (local dof, value)
 };
 
-/// Rows of B~ touching one subdomain (unsorted).
+class ObjectRowCache;
+
+/// Rows of B~ touching one subdomain (unsorted). With a cache, the rows of an averaged object
+/// (hierarchical_complement) are computed once for all objects of the cache's holders with the
+/// same kernel W and the same tree (both sides of a face; every equal face of a box).
 void subdomain_rows(const FetiLayout& layout, const SubdomainInput& input,
-                    std::vector<LocalRow>& out);
+                    std::vector<LocalRow>& out, ObjectRowCache* cache = nullptr);
 
 struct ConstraintEntry {
   int member;  ///< index of the subdomain within its cluster
@@ -104,5 +111,33 @@ using SparseRows = std::vector<std::vector<std::pair<int, double>>>;
 /// orthonormal complement, so the dual problem changes only by an orthogonal transformation of
 /// the object's multipliers. Deterministic (both subdomains of an object compute the same rows).
 SparseRows hierarchical_complement(const Eigen::MatrixXd& W, const double* xyz, int p, int dpn);
+
+/// hierarchical_complement's rows held once per distinct input: its result depends on the
+/// coordinates only through the tree's leaf order, so the key is W (bit for bit), that order and
+/// dpn, compared in full. The first caller with a key computes the rows, callers with an equal
+/// key (waiting while it is under way) get the same rows: what hierarchical_complement gives
+/// them, whichever thread or subdomain asks first. Thread-safe; holds every key it is given
+/// (one per distinct object: a setup's worth).
+class ObjectRowCache {
+ public:
+  std::shared_ptr<const SparseRows> rows(const Eigen::MatrixXd& W, const double* xyz, int p,
+                                         int dpn);
+  long reuses() const { return reuses_; }
+
+ private:
+  struct Entry {
+    std::uint64_t hash = 0;
+    int dpn = 0;
+    Eigen::Index w_rows = 0;
+    std::vector<double> w;
+    std::vector<int> order;
+    std::shared_ptr<const SparseRows> rows;  // null while its first caller computes it
+    bool failed = false;                     // that computation threw: callers compute their own
+  };
+  std::mutex mutex_;
+  std::condition_variable ready_;
+  std::vector<std::shared_ptr<Entry>> entries_;
+  long reuses_ = 0;
+};
 
 }  // namespace htfeti

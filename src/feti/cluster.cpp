@@ -6,6 +6,7 @@
 #include <chrono>
 #include <cmath>
 #include <limits>
+#include <numeric>
 #include <stdexcept>
 #include <string>
 
@@ -14,6 +15,8 @@
 #include "htfeti/parallel/blas_buffers.hpp"
 
 // LAPACK (OpenBLAS)
+extern "C" void dgetrf_(const int* m, const int* n, double* a, const int* lda, int* ipiv,
+                        int* info);
 extern "C" void dgecon_(const char* norm, const int* n, const double* a, const int* lda,
                         const double* anorm, double* rcond, double* work, int* iwork, int* info);
 
@@ -83,8 +86,7 @@ std::vector<int> canonical_kernel(const Eigen::MatrixXd& CR, int id, Eigen::Matr
 }
 
 // LAPACK's estimate (dgecon: Higham's estimator, O(n^2) flops) of the reciprocal condition
-// number in the 1-norm, from the factors of A = P L U (Eigen's matrixLU() holds them as dgetrf
-// does) and ||A||_1. (Eigen's PartialPivLU::rcond()
+// number in the 1-norm, from dgetrf's factors of A and ||A||_1. (Eigen's PartialPivLU::rcond()
 // computes the same estimate, in 0.04 s for n = 1,242.) -1 if LAPACK refuses the arguments.
 double lu_rcond(const Eigen::MatrixXd& lu, double anorm) {
   const int n = static_cast<int>(lu.rows());
@@ -98,12 +100,49 @@ double lu_rcond(const Eigen::MatrixXd& lu, double anorm) {
   return info == 0 ? rcond : -1;
 }
 
+// The columns of C_i^T by object: columns whose entries share a node (a face's or an edge's
+// averages, the differences at a vertex) in one block, blocks in the order of their first
+// column, columns ascending within each. Depends only on C_i^T, so equal subdomains get equal
+// blocks, whichever rank holds them.
+std::vector<std::vector<int>> object_blocks(const Eigen::MatrixXd& Ct, int dofs_per_node) {
+  const int nc = static_cast<int>(Ct.cols());
+  std::vector<int> parent(nc);
+  std::iota(parent.begin(), parent.end(), 0);
+  auto root = [&](int a) {
+    while (parent[a] != a) a = parent[a] = parent[parent[a]];
+    return a;
+  };
+  std::vector<int> column_at(Ct.rows() / dofs_per_node + 1, -1);  // a column touching the node
+  for (int col = 0; col < nc; ++col)
+    for (Eigen::Index r = 0; r < Ct.rows(); ++r) {
+      if (Ct(r, col) == 0.0) continue;
+      int& at = column_at[r / dofs_per_node];
+      if (at < 0) {
+        at = col;
+      } else {
+        const int a = root(at), b = root(col);
+        if (a != b) parent[std::max(a, b)] = std::min(a, b);
+      }
+    }
+  std::vector<std::vector<int>> blocks;
+  std::vector<int> block_of(nc, -1);
+  for (int col = 0; col < nc; ++col) {
+    int& b = block_of[root(col)];
+    if (b < 0) {
+      b = static_cast<int>(blocks.size());
+      blocks.emplace_back();
+    }
+    blocks[b].push_back(col);
+  }
+  return blocks;
+}
+
 }  // namespace
 
 Cluster::Cluster(int id, std::vector<Subdomain*> subs, std::vector<std::vector<ConstraintEntry>> C,
                  Ordering ordering, std::vector<std::vector<Subdomain::BEntry>> b,
                  std::vector<int> nmult, DualOperator kind, SubdomainCache* cache,
-                 Precision precision)
+                 Precision precision, bool by_object)
     : id_(id), subs_(std::move(subs)), explicit_(kind != DualOperator::implicit) {
   if (kind == DualOperator::automatic)
     throw std::logic_error("cluster " + std::to_string(id) + ": the dual operator is not chosen");
@@ -193,9 +232,11 @@ Cluster::Cluster(int id, std::vector<Subdomain*> subs, std::vector<std::vector<C
               std::lower_bound(cols.begin(), cols.end(), e.constraint) - cols.begin());
           Ct(e.dof, col) += e.value;
         }
-        // All columns in one pass over the factor; equal subdomains with equal C_i (a box) share
-        // it.
-        W_[i] = subs_[i]->pinv_many_shared(Ct);
+        // One multi-column solve per object (by_object), or for all columns; equal subdomains
+        // share an object's solve and, with equal C_i (a box), the whole of W_i.
+        W_[i] = by_object
+                    ? subs_[i]->pinv_many_shared(Ct, object_blocks(Ct, subs_[i]->dofs_per_node()))
+                    : subs_[i]->pinv_many_shared(Ct);
       } catch (const std::exception& e) {
         werr.record(e, "subdomain " + std::to_string(subs_[i]->id()) + ": ");
       }
@@ -242,9 +283,19 @@ Cluster::Cluster(int id, std::vector<Subdomain*> subs, std::vector<std::vector<C
       for (const auto& e : b[i]) ex->U_[i].row(e.mult) += e.value * W_[i]->row(e.dof);
     }
   }
-  lu_.compute(Ss);
+  const double anorm = Ss.cwiseAbs().colwise().sum().maxCoeff();
+  lu_ = Ss;
+  pivots_.assign(dim, 0);
+  int info = 0;
+  {
+    const BlasOnOneThread one;  // the same bits on any number of threads
+    dgetrf_(&dim, &dim, lu_.data(), &dim, pivots_.data(), &info);
+  }
+  if (info < 0) throw std::logic_error("dgetrf: argument " + std::to_string(-info));
+  for (int& p : pivots_) --p;
   setup_seconds_ = seconds_now() - t0;
-  const double rcond = lu_rcond(lu_.matrixLU(), Ss.cwiseAbs().colwise().sum().maxCoeff());
+  // info > 0: an exact zero pivot, rcond 0
+  const double rcond = info > 0 ? 0.0 : lu_rcond(lu_, anorm);
   if (!(rcond > 1e-13))
     throw std::runtime_error("cluster " + std::to_string(id) +
                              ": singular cluster system (reciprocal condition number " +
@@ -255,7 +306,11 @@ Cluster::Cluster(int id, std::vector<Subdomain*> subs, std::vector<std::vector<C
 
 void Cluster::solve_saddle() {
   rhs_.array() *= dscale_.array();
-  sol_.noalias() = lu_.solve(rhs_);
+  sol_ = rhs_;  // P^T rhs, then L and U (as dgetrs)
+  for (int i = 0; i < static_cast<int>(pivots_.size()); ++i)
+    if (pivots_[i] != i) std::swap(sol_[i], sol_[pivots_[i]]);
+  lu_.triangularView<Eigen::UnitLower>().solveInPlace(sol_);
+  lu_.triangularView<Eigen::Upper>().solveInPlace(sol_);
   sol_.array() *= dscale_.array();
 }
 
@@ -417,7 +472,7 @@ long Cluster::dense_doubles(std::unordered_set<const void*>* seen) const {
   long n = 0;
   for (const auto& w : W_)
     if (w && (!seen || seen->insert(w.get()).second)) n += w->size();
-  return rhs_.size() > 0 ? n + lu_.matrixLU().size() : n;
+  return rhs_.size() > 0 ? n + lu_.size() : n;
 }
 
 void Cluster::solve(std::vector<Eigen::VectorXd>& x) {

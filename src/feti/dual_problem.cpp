@@ -118,7 +118,8 @@ void DualProblem::assemble_subdomains(const std::function<SubdomainInput(int)>& 
   outer_parallel_ = omp_get_max_threads() > 1 && ncl >= omp_get_max_threads();
   std::string error;
   bool input_error = false;
-  ObjectRowCache object_rows;  // the rows of equal averaged objects computed once
+  ObjectRowCache object_rows;         // the rows of equal averaged objects computed once
+  std::vector<char> framed(nsub, 0);  // the model gave a kernel frame: a generated box
 #pragma omp parallel for schedule(dynamic) if (outer_parallel_)
   for (int c = 0; c < ncl; ++c) {
     try {
@@ -140,6 +141,7 @@ void DualProblem::assemble_subdomains(const std::function<SubdomainInput(int)>& 
           if (in[i].system.K.rows() == in[i].system.f.size())
             pooled[i] = cache_->intern_matrix(in[i].system.K);  // leaves system.K empty
           subdomain_rows(layout_, in[i], local_rows[sub_of(c, i)], &object_rows);
+          framed[sub_of(c, i)] = in[i].sharing.kernel_frame ? 1 : 0;
           if (preconditioner_.collects_node_copies()) {
             auto& nc = preconditioner_.node_copies(sub_of(c, i));
             for (int k = 0; k < in[i].sharing.num_nodes(); ++k)
@@ -169,6 +171,11 @@ void DualProblem::assemble_subdomains(const std::function<SubdomainInput(int)>& 
     }
   }
   comm_.agree(error, input_error);
+  // Subdomains and objects that repeat (every input has a kernel frame, on every rank): the
+  // clusters' K_i^+ C_i^T by object (Cluster).
+  by_object_ =
+      comm_.min(std::all_of(framed.begin(), framed.end(), [](char f) { return f; }) ? 1.0 : 0.0) >
+      0;
   setup_.shared_matrices = cache_->matrix_reuses();
   setup_.assembly = seconds_now() - t;
   setup_.peak_mb_assembly = peak_rss_mb();
@@ -272,7 +279,7 @@ void DualProblem::set_up_clusters(Setup& st) {
                                     checked_    ? DualOperator::checked
                                     : explicit_ ? DualOperator::explicit_
                                                 : DualOperator::implicit,
-                                    factor_cache(), options.explicit_precision);
+                                    factor_cache(), options.explicit_precision, by_object_);
       // The cluster's part of d = B~ K~^+ f, while its factors are at hand.
       cluster_rhs_from_ext(c, true, 0.0);
       clusters_[c]->solve(x_[c]);

@@ -210,4 +210,20 @@ std::shared_ptr<const Eigen::MatrixXd> Subdomain::pinv_many_shared(const Eigen::
   });
 }
 
+std::shared_ptr<const Eigen::MatrixXd> Subdomain::pinv_many_shared(
+    const Eigen::MatrixXd& X, const std::vector<std::vector<int>>& blocks) {
+  return chol_.shared_result(X, sys_.fixed_dofs, [&] {
+    Eigen::MatrixXd Y(X.rows(), X.cols());
+    for (const auto& block : blocks) {
+      Eigen::MatrixXd Xb(X.rows(), static_cast<Eigen::Index>(block.size()));
+      for (size_t t = 0; t < block.size(); ++t)
+        Xb.col(static_cast<Eigen::Index>(t)) = X.col(block[t]);
+      const std::shared_ptr<const Eigen::MatrixXd> Yb = pinv_many_shared(Xb);
+      for (size_t t = 0; t < block.size(); ++t)
+        Y.col(block[t]) = Yb->col(static_cast<Eigen::Index>(t));
+    }
+    return Y;
+  });
+}
+
 }  // namespace htfeti

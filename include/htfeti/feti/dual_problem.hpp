@@ -475,6 +475,7 @@ class DualProblem {
   bool checked_ = false;  // the explicit operator checked against the implicit one
   bool factors_released_ = false;
   std::vector<char> released_;   // per local cluster: factors freed after setup
+  bool by_object_ = false;       // the clusters' K_i^+ C_i^T by object (Cluster)
   bool outer_parallel_ = false;  // threads over clusters (true) or inside each cluster
   Ordering ordering_ = Ordering::amd;
 };

@@ -92,6 +92,14 @@ class Subdomain {
   /// (numeric cache) and ask with an equal X and equal fixed dofs (SparseCholesky::shared_result):
   /// the cluster's K_i^+ C_i^T for the equal subdomains of a box. Thread-safe across subdomains.
   std::shared_ptr<const Eigen::MatrixXd> pinv_many_shared(const Eigen::MatrixXd& X);
+  /// K_i^+ X with the columns of each block of `blocks` (indices of columns of X, together
+  /// covering them once) solved together, one pinv_many_shared() per block, so that a block is
+  /// solved once for all subdomains that share this factor and hold an equal block (the
+  /// cluster's C_i^T of a box: the same face averages in up to 27 kinds of subdomain); the whole
+  /// result is held once as pinv_many_shared()'s is. A column's value depends only on its block,
+  /// not on the subdomain or the rank that holds it.
+  std::shared_ptr<const Eigen::MatrixXd> pinv_many_shared(
+      const Eigen::MatrixXd& X, const std::vector<std::vector<int>>& blocks);
   /// Nonzeros of the last factorization (also after release_factor()).
   long factor_nonzeros() const { return factor_nonzeros_; }
   /// Bytes factorize(ordering) would hold, from CHOLMOD's symbolic analysis alone.

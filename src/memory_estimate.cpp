@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <limits>
 #include <stdexcept>
 
 #include "htfeti/feti/operator_cost.hpp"
@@ -56,7 +57,10 @@ MemoryEstimate estimate_memory(const Model& model, const FetiOptions& options, c
   MemoryEstimate e;
   const FetiLayout layout = model.layout();
   const auto [c0, c1] = layout.cluster_range(comm.rank(), comm.size());
-  if (c0 == c1) return e;
+  if (c0 == c1) {
+    e.idle = true;
+    return e;
+  }
   const int s0 = layout.cluster_first[c0], s1 = layout.cluster_first[c1];
   const double share = static_cast<double>(s1 - s0) / model.num_subdomains();
   const double unknowns = static_cast<double>(model.primal_dimension()) * share;
@@ -84,7 +88,7 @@ MemoryEstimate estimate_memory(const Model& model, const FetiOptions& options, c
                            options.dual_operator == DualOperator::checked ||
                            (options.dual_operator == DualOperator::automatic &&
                             automatic_prefers_explicit(options, layout.dim, nodes) &&
-                            explicit_bytes <= options.explicit_budget_bytes);
+                            explicit_bytes <= explicit_budget(options));
   const Ordering ordering = options.ordering == Ordering::automatic
                                 ? (layout.dim == 3 || is_explicit ? Ordering::metis : Ordering::amd)
                                 : options.ordering;
@@ -118,20 +122,20 @@ MemoryEstimate estimate_memory(const Model& model, const FetiOptions& options, c
   e.factors_held_mb = e.factors_mb;
   if (is_explicit) {
     e.explicit_mb = explicit_bytes / kMiB;
+    // The factors of the clusters set up at one time (threads x the rank's largest cluster).
+    int largest = 1;
+    for (int c = c0; c < c1; ++c)
+      largest = std::max(largest, layout.cluster_first[c + 1] - layout.cluster_first[c]);
+    const double working =
+        std::min(subdomains, static_cast<double>(largest) * std::max(1, omp_get_max_threads()));
+    e.factors_working_mb = e.shared_factors > 0 ? std::min(e.factors_mb, f_bytes * working / kMiB)
+                                                : e.factors_mb * working / subdomains;
     // Released factors (FetiOptions::keep_factors): at most the clusters being set up at one
-    // time hold theirs (threads x the rank's largest cluster).
+    // time hold theirs.
     const bool released =
         !options.keep_factors && options.dual_operator != DualOperator::checked &&
         (options.factor_budget_bytes < 0 || 8.0 * 100.0 * unknowns > options.factor_budget_bytes);
-    if (released) {
-      int largest = 1;
-      for (int c = c0; c < c1; ++c)
-        largest = std::max(largest, layout.cluster_first[c + 1] - layout.cluster_first[c]);
-      const double working =
-          std::min(subdomains, static_cast<double>(largest) * std::max(1, omp_get_max_threads()));
-      e.factors_held_mb = e.shared_factors > 0 ? std::min(e.factors_mb, f_bytes * working / kMiB)
-                                               : e.factors_mb * working / subdomains;
-    }
+    if (released) e.factors_held_mb = e.factors_working_mb;
   }
   e.sampled = true;
   return e;
@@ -180,14 +184,47 @@ MemoryEstimate check_memory(const Model& model, FetiOptions& options, const Comm
                    ? 1.0
                    : 0.0) > 0;
   if (!refuse_early && before_sample) before_sample(options);
-  if (!refuse_early) s = estimate(options, true);
+  // The automatic budget of the explicit blocks (FetiOptions::explicit_budget_bytes < 0): when
+  // the cost model prefers the explicit operator, its F_i may take what the machine has, as long
+  // as the whole run with them is estimated at most kExplicitMemoryShare of every machine's
+  // memory; otherwise none (the implicit operator, unless it does not fit: below). Without a
+  // known available memory, the fixed budget of an unchecked run. Resolved here, the same on
+  // every rank, so that DualProblem's rule gives the operator counted.
+  const bool auto_budget =
+      options.dual_operator == DualOperator::automatic && options.explicit_budget_bytes < 0;
+  if (!refuse_early && auto_budget && comm.min(available > 0 ? 1.0 : 0.0) > 0) {
+    FetiOptions wide = options;
+    wide.explicit_budget_bytes = std::numeric_limits<double>::infinity();
+    Sums t = estimate(wide, true);
+    // (A rank without clusters has no say.)
+    const bool wants =
+        comm.min(t.error.empty() && (t.e.idle || t.e.explicit_operator) ? 1.0 : 0.0) > 0 &&
+        comm.max(t.e.explicit_operator ? 1.0 : 0.0) > 0;
+    const bool within =
+        wants && comm.min(t.sum[0] <= kExplicitMemoryShare * available ? 1.0 : 0.0) > 0;
+    options.explicit_budget_bytes = within ? std::numeric_limits<double>::infinity() : 0.0;
+    const double explicit_peak = comm.max(t.sum[0]);
+    if (within || !wants) {
+      s = std::move(t);  // the operator counted is the one the budget now gives
+    } else {
+      s = estimate(options, true);
+      s.e.explicit_declined_for_memory = true;
+      s.e.explicit_peak_mb = explicit_peak;
+    }
+  } else if (!refuse_early) {
+    if (auto_budget) options.explicit_budget_bytes = kExplicitBudgetUnchecked;
+    s = estimate(options, true);
+  }
   // The implicit operator keeps every factor; the explicit one can free them. When the automatic
   // choice (the explicit blocks' size budget) gives the implicit operator and it does not fit,
   // the explicit operator is taken if it fits everywhere.
   const bool implicit_over =
       comm.max(s.fits(available) ? 0.0 : 1.0) > 0 && comm.max(s.error.empty() ? 0.0 : 1.0) == 0;
   if (!refuse_early && options.dual_operator == DualOperator::automatic && implicit_over &&
-      comm.min(s.e.sampled && s.e.explicit_eligible && !s.e.explicit_operator ? 1.0 : 0.0) > 0) {
+      comm.min(s.e.idle || (s.e.sampled && s.e.explicit_eligible && !s.e.explicit_operator)
+                   ? 1.0
+                   : 0.0) > 0 &&
+      comm.max(s.e.idle ? 0.0 : 1.0) > 0) {
     FetiOptions alt = options;
     alt.dual_operator = DualOperator::explicit_;
     Sums t = estimate(alt, true);

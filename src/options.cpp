@@ -319,11 +319,27 @@ void add_feti_options(std::vector<OptionSpec>& t) {
 
 // Memory: limits, budgets and caches (GB).
 void add_memory_options(std::vector<OptionSpec>& t) {
-  t.push_back(gigabytes(
-      "explicit_budget_gb", "--explicit-budget",
-      "GB per rank: --dual-operator auto takes the explicit operator only when its F_i fit "
-      "this, or when the implicit operator would not fit in memory",
-      [](RunOptions& r) -> double& { return r.solve.feti.explicit_budget_bytes; }));
+  t.push_back({"solver",
+               "explicit_budget_gb",
+               "--explicit-budget",
+               "",
+               OptionType::number,
+               "GB",
+               "GB per rank: --dual-operator auto takes the explicit operator only when its F_i "
+               "fit this, or when the implicit operator would not fit in memory (default "
+               "automatic: the F_i fit when the memory check estimates the whole run with them at "
+               "most 3/4 of each machine's memory; 4 GB with --no-memory-check)",
+               {},
+               [](RunOptions& r, const OptionValue& v) {
+                 const double x = as_number(v);
+                 if (!std::isfinite(x) || x < 0) refuse("must be a non-negative number of GB");
+                 if (x > 1e9) refuse("must be at most 1e9 GB");
+                 r.solve.feti.explicit_budget_bytes = x * kGiB;
+               },
+               [](const RunOptions& r) {
+                 const double b = r.solve.feti.explicit_budget_bytes;
+                 return b >= 0 ? nlohmann::json(b / kGiB) : nlohmann::json(nullptr);
+               }});
   t.push_back({"solver",
                "memory_limit_gb",
                "--memory-limit",

@@ -58,12 +58,13 @@ void report_problem_and_solve(nlohmann::json& rep, const Model& model, DualProbl
     rep["dual_operator_check"] = {{"cluster_applications", check.applications},
                                   {"max_relative_difference", check.max_relative_difference}};
   }
-  // Why: "requested", "automatic" (FetiOptions' rule) or "memory" (the implicit operator would
-  // not fit: check_memory).
-  rep["dual_operator_reason"] = estimate.explicit_for_memory ? "memory"
-                                : options.feti.dual_operator == DualOperator::automatic
-                                    ? "automatic"
-                                    : "requested";
+  // Why: "requested", "automatic" (FetiOptions' rule) or "memory" (check_memory: the implicit
+  // operator would not fit, or the explicit one the cost model prefers would take more than
+  // kExplicitMemoryShare of the memory).
+  rep["dual_operator_reason"] =
+      estimate.explicit_for_memory || estimate.explicit_declined_for_memory ? "memory"
+      : options.feti.dual_operator == DualOperator::automatic               ? "automatic"
+                                                                            : "requested";
   if (r.cost) {
     // The cost model behind the automatic choice (operator_cost.hpp): the mean sampled
     // subdomain, and model seconds per subdomain on one thread.
@@ -216,7 +217,12 @@ void report_timings_and_memory(nlohmann::json& rep, DualProblem& dual, const Com
         // Factors counted as shared by equal subdomains (a count; 0: one each).
         {"shared_factors", comm.sum(estimate.shared_factors)},
         // The implicit operator's, when it was estimated not to fit (0 otherwise).
-        {"implicit_peak", estimate.implicit_peak_mb}}},
+        {"implicit_peak", estimate.implicit_peak_mb},
+        // The explicit operator's, when the cost model preferred it and it was estimated to
+        // take more than kExplicitMemoryShare of the memory (0 otherwise).
+        {"explicit_peak", estimate.explicit_peak_mb},
+        // The memory the estimate was compared with (the smallest over the machines).
+        {"available", estimate.available_mb}}},
       {"limit_mb", options.feti.memory_limit_mb},
       {"factor_nonzeros", comm.sum(static_cast<long long>(dual.factor_nonzeros()))},
       {"coarse_factor_nonzeros", dual.coarse_factor_nonzeros()},

@@ -406,6 +406,16 @@ SolveOutput solve(std::shared_ptr<const Model> model_ptr, const SolveOptions& op
                      ? "of --memory-limit"
                      : "available",
                  estimate.machine_peak_mb);
+  if (verbose && estimate.explicit_declined_for_memory && !estimate.explicit_for_memory)
+    std::fprintf(stderr,
+                 "  memory: the explicit operator would need %.0f MB on this machine, more than "
+                 "%.0f%% of the %.0f MB %s; taking the implicit operator (estimated %.0f MB; "
+                 "--explicit-budget sets a fixed budget for the F_i)\n",
+                 estimate.explicit_peak_mb, 100 * kExplicitMemoryShare, estimate.available_mb,
+                 feti.memory_limit_mb > 0 && estimate.available_mb == feti.memory_limit_mb
+                     ? "of --memory-limit"
+                     : "available",
+                 estimate.machine_peak_mb);
   if (verbose && cost) std::fprintf(stderr, "  %s\n", describe_operator_cost(*cost).c_str());
   double t0 = seconds_now();
   if (verbose)

@@ -636,6 +636,55 @@ TEST_F(Cli, AutomaticOperatorFollowsTheCostModel) {
   }
 }
 
+// The automatic budget of the explicit blocks (no --explicit-budget): where the cost model
+// prefers the explicit operator it is taken while the run with it is estimated at most 3/4 of
+// the memory; above that, the implicit operator, which the equal subdomains of a box make the
+// smaller (they share their factors), with the same solution. A fixed budget leaves the memory
+// share out.
+TEST_F(Cli, AutomaticExplicitBudgetFollowsTheMemory) {
+  const std::string base = bin + " solve --problem poisson2d -n 480 --subdomains 12 --no-vtu ";
+  auto report = [](const char* file) {
+    std::ifstream f(file);
+    return nlohmann::json::parse(f);
+  };
+  ASSERT_EQ(run(base + "--dual-operator implicit --report i.json"), 0) << stderr_text();
+  ASSERT_EQ(run(base + "--dual-operator explicit --report e.json"), 0) << stderr_text();
+  const auto ri = report("i.json"), re = report("e.json");
+  const double peak_i = ri["memory"]["estimate_mb"]["peak"],
+               peak_e = re["memory"]["estimate_mb"]["peak"];
+  EXPECT_GT(ri["memory"]["estimate_mb"]["shared_factors"].get<double>(), 0);
+  ASSERT_LT(peak_i, peak_e) << "shared factors make the implicit operator the smaller";
+  const double obj = ri["objective"];
+  // Between 3/4 of the limit and the limit: the implicit operator, for memory.
+  const double tight_gb = peak_e / 0.8 / 1024.0;
+  ASSERT_EQ(run(base + "--progress --report t.json --memory-limit " + std::to_string(tight_gb)), 0)
+      << stderr_text();
+  EXPECT_NE(stderr_text().find("taking the implicit operator"), std::string::npos) << stderr_text();
+  const auto rt = report("t.json");
+  EXPECT_EQ(rt["dual_operator"], "implicit");
+  EXPECT_EQ(rt["dual_operator_reason"], "memory");
+  EXPECT_NEAR(rt["memory"]["estimate_mb"]["explicit_peak"].get<double>(), peak_e, 1e-9 * peak_e);
+  EXPECT_NEAR(rt["memory"]["estimate_mb"]["peak"].get<double>(), peak_i, 1e-9 * peak_i);
+  EXPECT_NEAR(rt["objective"].get<double>(), obj, 1e-8 * std::abs(obj));
+  // Below 3/4 of the limit: the explicit operator, as the cost model prefers.
+  const double wide_gb = peak_e / 0.7 / 1024.0;
+  ASSERT_EQ(run(base + "--report w.json --memory-limit " + std::to_string(wide_gb)), 0)
+      << stderr_text();
+  const auto rw = report("w.json");
+  EXPECT_EQ(rw["dual_operator"], "explicit");
+  EXPECT_EQ(rw["dual_operator_reason"], "automatic");
+  EXPECT_EQ(rw["dual_operator_model"]["prefers"], "explicit");
+  EXPECT_EQ(rw["memory"]["estimate_mb"]["explicit_peak"], 0.0);
+  EXPECT_NEAR(rw["objective"].get<double>(), obj, 1e-8 * std::abs(obj));
+  // A fixed budget that the F_i fit: explicit under the tight limit too (the run fits it).
+  ASSERT_EQ(
+      run(base + "--explicit-budget 1 --report f.json --memory-limit " + std::to_string(tight_gb)),
+      0)
+      << stderr_text();
+  EXPECT_EQ(report("f.json")["dual_operator"], "explicit");
+  EXPECT_EQ(report("f.json")["dual_operator_reason"], "automatic");
+}
+
 // The automatic dual operator under a memory limit: with the explicit blocks over their budget
 // it is the implicit operator, which keeps every factor; when that does not fit in the limit but
 // the explicit operator (factors freed) does, the explicit one is taken, and the solution is the

@@ -52,20 +52,33 @@ struct MemoryEstimate {
   /// the number of factors counted in factors_mb; 0 when every subdomain has its own.
   double shared_factors = 0;
   bool sampled = false;  ///< false: the lower bound only (no subdomain was assembled)
+  bool idle = false;     ///< the rank holds no cluster (more ranks than clusters)
   /// The dual operator the estimate counted, and whether the explicit one was possible (the
   /// sample has at least kExplicitMinNodes nodes).
   bool explicit_operator = false, explicit_eligible = false;
   /// check_memory took the explicit operator because the implicit one does not fit; the
   /// implicit operator's estimated peak summed over the ranks of the fullest machine (MiB).
   bool explicit_for_memory = false;
+  /// check_memory took the implicit operator although the cost model prefers the explicit one:
+  /// the run with the explicit operator, estimated at explicit_peak_mb on the fullest machine,
+  /// exceeds kExplicitMemoryShare of the memory (the automatic budget,
+  /// FetiOptions::explicit_budget_bytes < 0).
+  bool explicit_declined_for_memory = false;
+  double explicit_peak_mb = 0;
   double implicit_peak_mb = 0;
   /// Set by check_memory: the peak summed over the ranks of the fullest machine (MiB).
   double machine_peak_mb = 0;
   /// Set by check_memory: the memory compared with (the smallest over the machines; MiB).
   double available_mb = 0;
+  /// Explicit operator: the factors of the clusters set up at one time.
+  double factors_working_mb = 0;
+  /// K_i is freed once factored, so the matrices of the clusters still to be set up and what
+  /// those done keep (their factors, and the explicit operator's F_i) are in memory together:
+  /// at most the larger of the two totals. The explicit operator adds the clusters in flight,
+  /// which hold their matrices and their factors at once.
   double peak_mb() const {
-    return (matrices_mb > factors_held_mb ? matrices_mb : factors_held_mb) + vectors_mb +
-           explicit_mb;
+    const double done = factors_held_mb + explicit_mb;
+    return (matrices_mb > done ? matrices_mb : done) + vectors_mb + factors_working_mb;
   }
 };
 

@@ -217,7 +217,7 @@ void DualProblem::choose_operator(Setup& st) {
   explicit_ = options.dual_operator == DualOperator::explicit_ || checked_ ||
               (options.dual_operator == DualOperator::automatic &&
                automatic_prefers_explicit(options, layout_.dim, min_nodes) &&
-               explicit_bytes <= options.explicit_budget_bytes);
+               explicit_bytes <= explicit_budget(options));
 
   // automatic: METIS in 3D, and for the explicit operator's interface-last factors (nested
   // dissection of the interior: 8% fewer nonzeros than constrained AMD on the 2D Table 3

@@ -54,7 +54,7 @@ namespace htfeti {
 struct FetiOptions {
   Ordering ordering = Ordering::automatic;  ///< fill-reducing ordering of the subdomain factors
   /// implicit, explicit, or automatic: automatic_prefers_explicit() when its blocks fit
-  /// explicit_budget_bytes, and explicit when only it fits in memory (check_memory). checked:
+  /// explicit_budget(), and explicit when only it fits in memory (check_memory). checked:
   /// the explicit operator compared with the implicit one at every product (a diagnostic; the
   /// factors are kept, keep_factors ignored).
   DualOperator dual_operator = DualOperator::automatic;
@@ -80,8 +80,11 @@ struct FetiOptions {
   /// memory_limit_mb / R less what the rank already holds.
   double memory_limit_mb = 0;
   /// automatic picks the explicit operator only when its dense blocks (8 n_i^2 bytes per
-  /// subdomain, n_i its multipliers) fit this budget on every rank.
-  double explicit_budget_bytes = 4.0 * (1LL << 30);
+  /// subdomain, n_i its multipliers) fit this budget on every rank. Negative (the default):
+  /// automatic, resolved by the memory check (check_memory: the blocks fit when the whole run
+  /// with the explicit operator is estimated at most kExplicitMemoryShare of the memory of every
+  /// machine), else kExplicitBudgetUnchecked (explicit_budget()).
+  double explicit_budget_bytes = -1;
   /// Storage of the explicit F_i (lower triangle, packed): double, or single precision with
   /// double sums (half the memory and bandwidth; docs/performance.md).
   Precision explicit_precision = Precision::double_;
@@ -113,6 +116,16 @@ struct FetiOptions {
 };
 
 constexpr int kExplicitMinNodes = 25;
+/// The automatic explicit budget: the share of a machine's memory the estimated run with the
+/// explicit operator may take (the estimate leaves out the dual vectors and the clusters' dense
+/// K_i^+ C_i^T; the factor release frees factors when memory runs short), and the budget per
+/// rank when no memory check resolves it.
+constexpr double kExplicitMemoryShare = 0.75;
+constexpr double kExplicitBudgetUnchecked = 4.0 * (1LL << 30);
+/// The budget in effect for the explicit blocks (bytes per rank).
+inline double explicit_budget(const FetiOptions& o) {
+  return o.explicit_budget_bytes < 0 ? kExplicitBudgetUnchecked : o.explicit_budget_bytes;
+}
 /// The automatic operator's rule for speed: explicit in 2D when every subdomain has at least
 /// kExplicitMinNodes nodes (the packed F_i are 45 times faster per F than the factor sweeps and
 /// pay for their setup after about 20 applications), implicit in 3D, where the F_i over large
@@ -124,7 +137,7 @@ inline bool explicit_for_speed(int dim, double min_nodes) {
   return dim == 2 && min_nodes >= kExplicitMinNodes;
 }
 /// The automatic operator, as far as speed goes: the cost model's verdict where solve() ran it,
-/// else the rule above. (The explicit blocks must still fit explicit_budget_bytes.)
+/// else the rule above. (The explicit blocks must still fit explicit_budget().)
 inline bool automatic_prefers_explicit(const FetiOptions& o, int dim, double min_nodes) {
   return o.explicit_by_cost.value_or(explicit_for_speed(dim, min_nodes));
 }

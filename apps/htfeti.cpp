@@ -418,9 +418,16 @@ int dry_run(const Model& model, RunOptions run, const Comm& comm) {
     std::printf(
         "  dual operator: %s (%s)\n", op,
         estimate.explicit_for_memory ? "the implicit operator would not fit in memory"
+        : estimate.explicit_declined_for_memory
+            ? "the explicit operator the cost model prefers would take more than 3/4 of the "
+              "memory"
         : run.solve.feti.dual_operator == DualOperator::automatic
             ? (cost ? "automatic, " + describe_operator_cost(*cost) +
-                          (cost->explicit_cheaper() ? ", where its F_i fit explicit_budget_gb" : "")
+                          (!cost->explicit_cheaper()                  ? ""
+                           : run.solve.feti.explicit_budget_bytes < 0 ? ", where the run with its "
+                                                                        "F_i fits 3/4 of the memory"
+                                                                      : ", where its F_i fit "
+                                                                        "explicit_budget_gb")
                     : std::string("automatic"))
                   .c_str()
             : "requested");

@@ -666,6 +666,17 @@ TEST_F(Cli, AutomaticExplicitBudgetFollowsTheMemory) {
   EXPECT_NEAR(rt["memory"]["estimate_mb"]["explicit_peak"].get<double>(), peak_e, 1e-9 * peak_e);
   EXPECT_NEAR(rt["memory"]["estimate_mb"]["peak"].get<double>(), peak_i, 1e-9 * peak_i);
   EXPECT_NEAR(rt["objective"].get<double>(), obj, 1e-8 * std::abs(obj));
+  // --dry-run names the same choice and the reason.
+  ASSERT_EQ(std::system((base + "--dry-run --memory-limit " + std::to_string(tight_gb) +
+                         " > d.txt 2> cli_stderr.txt")
+                            .c_str()),
+            0);
+  std::ifstream d("d.txt");
+  const std::string dry(std::istreambuf_iterator<char>(d), {});
+  EXPECT_NE(dry.find("dual operator: implicit (the explicit operator the cost model prefers "
+                     "would take more than 3/4 of the memory)"),
+            std::string::npos)
+      << dry;
   // Below 3/4 of the limit: the explicit operator, as the cost model prefers.
   const double wide_gb = peak_e / 0.7 / 1024.0;
   ASSERT_EQ(run(base + "--report w.json --memory-limit " + std::to_string(wide_gb)), 0)

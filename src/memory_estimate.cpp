@@ -202,7 +202,11 @@ MemoryEstimate check_memory(const Model& model, FetiOptions& options, const Comm
         comm.max(t.e.explicit_operator ? 1.0 : 0.0) > 0;
     const bool within =
         wants && comm.min(t.sum[0] <= kExplicitMemoryShare * available ? 1.0 : 0.0) > 0;
-    options.explicit_budget_bytes = within ? std::numeric_limits<double>::infinity() : 0.0;
+    // Subdomains too large to sample (kMaxSampleUnknowns) leave the choice to the fixed budget.
+    const bool sampled = comm.min(t.e.idle || t.e.sampled ? 1.0 : 0.0) > 0;
+    options.explicit_budget_bytes = within    ? std::numeric_limits<double>::infinity()
+                                    : sampled ? 0.0
+                                              : kExplicitBudgetUnchecked;
     const double explicit_peak = comm.max(t.sum[0]);
     if (within || !wants) {
       s = std::move(t);  // the operator counted is the one the budget now gives

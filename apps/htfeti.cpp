@@ -415,22 +415,22 @@ int dry_run(const Model& model, RunOptions run, const Comm& comm) {
                      : feti.dual_operator == DualOperator::checked  ? "checked"
                      : estimate.explicit_operator                   ? "explicit"
                                                                     : "implicit";
-    std::printf(
-        "  dual operator: %s (%s)\n", op,
-        estimate.explicit_for_memory ? "the implicit operator would not fit in memory"
-        : estimate.explicit_declined_for_memory
-            ? "the explicit operator the cost model prefers would take more than 3/4 of the "
-              "memory"
-        : run.solve.feti.dual_operator == DualOperator::automatic
-            ? (cost ? "automatic, " + describe_operator_cost(*cost) +
-                          (!cost->explicit_cheaper()                  ? ""
-                           : run.solve.feti.explicit_budget_bytes < 0 ? ", where the run with its "
-                                                                        "F_i fits 3/4 of the memory"
-                                                                      : ", where its F_i fit "
-                                                                        "explicit_budget_gb")
-                    : std::string("automatic"))
-                  .c_str()
-            : "requested");
+    // Why: the memory check's reasons first, then the rule of the automatic operator.
+    std::string reason = "requested";
+    if (estimate.explicit_for_memory) {
+      reason = "the implicit operator would not fit in memory";
+    } else if (estimate.explicit_declined_for_memory) {
+      reason =
+          "the explicit operator the cost model prefers would take more than 3/4 of the memory";
+    } else if (run.solve.feti.dual_operator == DualOperator::automatic) {
+      reason = "automatic";
+      if (cost) reason += ", " + describe_operator_cost(*cost);
+      if (cost && cost->explicit_cheaper())
+        reason += run.solve.feti.explicit_budget_bytes < 0
+                      ? ", where the run with its F_i fits 3/4 of the memory"
+                      : ", where its F_i fit explicit_budget_gb";
+    }
+    std::printf("  dual operator: %s (%s)\n", op, reason.c_str());
     std::printf("memory estimate: %.0f MB at the peak on the fullest machine, %.0f MB available\n",
                 estimate.machine_peak_mb, estimate.available_mb);
   } else {

@@ -190,16 +190,19 @@ MemoryEstimate check_memory(const Model& model, FetiOptions& options, const Comm
   // memory; otherwise none (the implicit operator, unless it does not fit: below). Without a
   // known available memory, the fixed budget of an unchecked run. Resolved here, the same on
   // every rank, so that DualProblem's rule gives the operator counted.
+  // Whether cond holds on every rank that holds clusters, and some rank does (a rank without
+  // clusters has no say in the operator).
+  const auto every_active = [&](const MemoryEstimate& e, bool cond) {
+    return comm.min(e.idle || cond ? 1.0 : 0.0) > 0 && comm.max(e.idle ? 0.0 : 1.0) > 0;
+  };
   const bool auto_budget =
       options.dual_operator == DualOperator::automatic && options.explicit_budget_bytes < 0;
   if (!refuse_early && auto_budget && comm.min(available > 0 ? 1.0 : 0.0) > 0) {
     FetiOptions wide = options;
     wide.explicit_budget_bytes = std::numeric_limits<double>::infinity();
     Sums t = estimate(wide, true);
-    // (A rank without clusters has no say.)
     const bool wants =
-        comm.min(t.error.empty() && (t.e.idle || t.e.explicit_operator) ? 1.0 : 0.0) > 0 &&
-        comm.max(t.e.explicit_operator ? 1.0 : 0.0) > 0;
+        comm.max(t.error.empty() ? 0.0 : 1.0) == 0 && every_active(t.e, t.e.explicit_operator);
     const bool within =
         wants && comm.min(t.sum[0] <= kExplicitMemoryShare * available ? 1.0 : 0.0) > 0;
     // Subdomains too large to sample (kMaxSampleUnknowns) leave the choice to the fixed budget.
@@ -225,10 +228,7 @@ MemoryEstimate check_memory(const Model& model, FetiOptions& options, const Comm
   const bool implicit_over =
       comm.max(s.fits(available) ? 0.0 : 1.0) > 0 && comm.max(s.error.empty() ? 0.0 : 1.0) == 0;
   if (!refuse_early && options.dual_operator == DualOperator::automatic && implicit_over &&
-      comm.min(s.e.idle || (s.e.sampled && s.e.explicit_eligible && !s.e.explicit_operator)
-                   ? 1.0
-                   : 0.0) > 0 &&
-      comm.max(s.e.idle ? 0.0 : 1.0) > 0) {
+      every_active(s.e, s.e.sampled && s.e.explicit_eligible && !s.e.explicit_operator)) {
     FetiOptions alt = options;
     alt.dual_operator = DualOperator::explicit_;
     Sums t = estimate(alt, true);

@@ -22,9 +22,16 @@ int run(const std::string& cmd) {
   return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
 }
 
-std::string stderr_text() {
-  std::ifstream f("cli_stderr.txt");
+std::string file_text(const std::string& path) {
+  std::ifstream f(path);
   return std::string(std::istreambuf_iterator<char>(f), {});
+}
+
+std::string stderr_text() { return file_text("cli_stderr.txt"); }
+
+nlohmann::json read_json(const std::string& path) {
+  std::ifstream f(path);
+  return nlohmann::json::parse(f);
 }
 
 class Cli : public ::testing::Test {
@@ -643,10 +650,7 @@ TEST_F(Cli, AutomaticOperatorFollowsTheCostModel) {
 // share out.
 TEST_F(Cli, AutomaticExplicitBudgetFollowsTheMemory) {
   const std::string base = bin + " solve --problem poisson2d -n 480 --subdomains 12 --no-vtu ";
-  auto report = [](const char* file) {
-    std::ifstream f(file);
-    return nlohmann::json::parse(f);
-  };
+  const auto report = read_json;
   ASSERT_EQ(run(base + "--dual-operator implicit --report i.json"), 0) << stderr_text();
   ASSERT_EQ(run(base + "--dual-operator explicit --report e.json"), 0) << stderr_text();
   const auto ri = report("i.json"), re = report("e.json");
@@ -671,8 +675,7 @@ TEST_F(Cli, AutomaticExplicitBudgetFollowsTheMemory) {
                          " > d.txt 2> cli_stderr.txt")
                             .c_str()),
             0);
-  std::ifstream d("d.txt");
-  const std::string dry(std::istreambuf_iterator<char>(d), {});
+  const std::string dry = file_text("d.txt");
   EXPECT_NE(dry.find("dual operator: implicit (the explicit operator the cost model prefers "
                      "would take more than 3/4 of the memory)"),
             std::string::npos)
@@ -704,10 +707,7 @@ TEST_F(Cli, AutomaticExplicitBudgetFollowsTheMemory) {
 TEST_F(Cli, AutomaticOperatorFollowsTheMemoryLimit) {
   const std::string base =
       bin + " solve --problem poisson2d -n 320 --subdomains 10 --no-vtu --numeric-cache 0 ";
-  auto report = [](const char* file) {
-    std::ifstream f(file);
-    return nlohmann::json::parse(f);
-  };
+  const auto report = read_json;
   // The two estimates, each operator requested.
   ASSERT_EQ(run(base + "--explicit-budget 0 --report i.json"), 0) << stderr_text();
   ASSERT_EQ(run(base + "--dual-operator explicit --report e.json"), 0) << stderr_text();

@@ -12,7 +12,9 @@ nu = 0.3, own weight, clamped at x = 0, the obstacle u_z >= -A sin(pi x / 50) un
     1 rank x --ranks threads. Box split: (n/10)^3 subdomains; METIS split: the same number;
     each also with --mprgp-expansion preconditioned (MPRGP's expansion step along the
     preconditioned free gradient) and projected-cg (the projected CG step; splits
-    box_projected_cg and metis_projected_cg, not in the default list).
+    box_projected_cg and metis_projected_cg, not in the default list), and with
+    --preconditioner dirichlet (splits box_dirichlet and metis_dirichlet, not in the default
+    list).
 The two stopping tests are not the same quantity; each row also gives its energy's distance
 from the reference energy (the peer's solve at rtol 1e-10), so the accuracy reached can be
 compared. --check-energy also solves each case with htfeti at rtol 1e-8 and asserts that its
@@ -48,7 +50,7 @@ p.add_argument("--check-energy", action="store_true")
 p.add_argument("--splits", nargs="+", default=["box", "metis", "box_preconditioned",
                                                "metis_preconditioned"],
                help="the htfeti rows to run (default: these four; also box_projected_cg, "
-                    "metis_projected_cg)")
+                    "metis_projected_cg, box_dirichlet, metis_dirichlet)")
 p.add_argument("--out", default="cube_obstacle_peer.json")
 a = p.parse_args()
 
@@ -130,12 +132,15 @@ with tempfile.TemporaryDirectory() as tmp:
                 "energy_error": err(r["objective"]), "contact_nodes": r["contact_nodes"]}}
             pre = ["--mprgp-expansion", "preconditioned"]
             pcg = ["--mprgp-expansion", "projected-cg"]
+            dir_ = ["--preconditioner", "dirichlet"]
             for split, sub, extra in (("box", f"[{ns}, {ns}, {ns}]", []),
                                       ("metis", str(ns ** 3), []),
                                       ("box_preconditioned", f"[{ns}, {ns}, {ns}]", pre),
                                       ("metis_preconditioned", str(ns ** 3), pre),
                                       ("box_projected_cg", f"[{ns}, {ns}, {ns}]", pcg),
-                                      ("metis_projected_cg", str(ns ** 3), pcg)):
+                                      ("metis_projected_cg", str(ns ** 3), pcg),
+                                      ("box_dirichlet", f"[{ns}, {ns}, {ns}]", dir_),
+                                      ("metis_dirichlet", str(ns ** 3), dir_)):
                 if split not in a.splits:
                     continue
                 path = os.path.join(tmp, f"c{n}_{split}_{amp}.toml")
@@ -145,7 +150,8 @@ with tempfile.TemporaryDirectory() as tmp:
                 h = hr[0]
                 what = split.replace("_preconditioned", " split, preconditioned expansion")
                 what = what.replace("_projected_cg", " split, projected CG expansion")
-                what = what if "expansion" in what else what + " split"
+                what = what.replace("_dirichlet", " split, Dirichlet preconditioner")
+                what = what if "expansion" in what or "Dirichlet" in what else what + " split"
                 row[split] = {"code": f"htfeti TFETI, {what}, 1 rank x {a.ranks} threads",
                               "runs": len(hr), "wall_s": statistics.median(x["wall_s"] for x in hr),
                               "total_s": statistics.median(x["timings"]["total"] for x in hr),
@@ -166,7 +172,8 @@ with tempfile.TemporaryDirectory() as tmp:
                                  f"{tight!r} differs from the peer's {ref!r} by {err(tight):.2e}")
             for split in a.splits:
                 row[f"ratio_{split}_to_peer"] = row[split]["wall_s"] / row["peer"]["wall_s"]
-            for split in ("metis", "metis_preconditioned", "metis_projected_cg"):
+            for split in ("metis", "metis_preconditioned", "metis_projected_cg",
+                          "metis_dirichlet"):
                 if split in row and "box" in row:
                     row[f"products_{split}_to_box"] = (row[split]["products"] /
                                                        row["box"]["products"])

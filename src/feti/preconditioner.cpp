@@ -61,8 +61,9 @@ LocalPreconditioner::LocalPreconditioner(const Eigen::SparseMatrix<double>& K,
     Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qr(Rb);
     qr.setThreshold(1e-10);
     const int rank = static_cast<int>(qr.rank());
-    // The first `rank` columns of Q only: forming all of Q costs 8 n_b^2 bytes and 4 n_b^2 k
-    // flops per subdomain (at 80^3 with 512 METIS parts, 7 of the Dirichlet setup's 17 s).
+    // The first `rank` columns of Q only: forming all of Q costs 8 n_b^2 bytes and about
+    // 4 n_b^2 k flops per subdomain (80^3 cube, 512 METIS parts: the preconditioner's setup took
+    // 50.1 core-s with all of Q, 14.2 with the columns; docs/performance.md).
     Q_ = qr.householderQ() * Eigen::MatrixXd::Identity(nb, rank);
     qwork_.resize(rank);
     tau_ = Kbb_.diagonal().mean();
@@ -87,9 +88,8 @@ LocalPreconditioner::LocalPreconditioner(const Eigen::SparseMatrix<double>& K,
     // n_b^3): dlauum forms U U^T of an upper triangle U, here U = J L J (J reverses the order),
     // so that U U^T = J L L^T J.
     Eigen::MatrixXd U = L.reverse();
-    const int m = nb;
     int info = 0;
-    if (m > 0) dlauum_("U", &m, U.data(), &m, &info);
+    if (nb > 0) dlauum_("U", &nb, U.data(), &nb, &info);
     if (info != 0) throw std::logic_error("Dirichlet preconditioner: dlauum failed");
     S_.resize(nb, nb);
     for (int b = 0; b < nb; ++b)

@@ -228,8 +228,17 @@ QpSolve solve_with_contact(DualProblem& dual, DualOperators& ops, Vec& lambda,
     out.reason = "coulomb_fixed_point";
   }
   // The accuracy refinement (solve_parts.hpp): SMALBE-M again from x and its multiplier with a
-  // smaller rtol (with Coulomb friction on the bounds of the fixed point's last solve).
-  const nlohmann::json steps = refine_accuracy(check, lambda, so.rtol, out.converged, solve_again);
+  // smaller rtol (with Coulomb friction on the bounds of the fixed point's last solve). The QP
+  // is the same, so the refinement continues the last solve: its penalty rho and its M too
+  // (restarted from M_0 = 100 ||PFP||, the first inner solves stopped at once on the loose
+  // M test while only mu moved, by rho G x per outer iteration, and raised ||g^P|| several
+  // times before M came down again: docs/method.md, "Accuracy refinement").
+  const auto refine_again = [&]() {
+    so.rho_start = r.rho;
+    so.M_start = r.M;
+    solve_again();
+  };
+  const nlohmann::json steps = refine_accuracy(check, lambda, so.rtol, out.converged, refine_again);
   const bool discs = dynamic_cast<const qp::SeparableSet*>(qp.constraints.get()) != nullptr;
   out.solver = {{"algorithm", discs ? "smalbe-m+mpgp" : "smalbe-m+mprgp"},
                 {"projected_gradient", r.projected_gradient},

@@ -341,6 +341,43 @@ TEST_P(SmalbeConformance, MatchesEnumeratedActiveSets) {
 INSTANTIATE_TEST_SUITE_P(Random, SmalbeConformance,
                          ::testing::Combine(::testing::Range(1u, 7u), ::testing::Bool()));
 
+// A continuation (the accuracy refinement): a loose solve, then SMALBE-M again from its x, its
+// equality multiplier, its rho and its M with a tight rtol, reaches the solution; M never grows
+// and rho never falls from where the continuation started (so the start values were taken).
+TEST(Smalbe, ContinuesFromTheLastSolvesPenaltyAndM) {
+  for (unsigned seed = 1; seed <= 6; ++seed) {
+    const int n = 10, bounded = 6, me = 2;
+    const Qp q = random_qp(n, bounded, me, seed, seed % 2 == 0);
+    DenseOperator A(q.A);
+    SerialReducer red;
+    const double normA = estimate_norm(A, Vec::Ones(n), red, 200, 1e-10);
+    SmalbeOptions opt;
+    opt.rtol = 1e-3;
+    Vec x = Vec::Zero(n), nu;
+    const auto loose = smalbe(qp_of(A, q), normA, x, red, opt, {}, {}, &nu);
+    ASSERT_EQ(loose.reason, StopReason::converged) << seed;
+    opt.rtol = 1e-11;
+    opt.rho_start = loose.rho;
+    opt.M_start = loose.M;
+    const auto tight = smalbe(qp_of(A, q), normA, x, red, opt, {}, {}, &nu);
+    ASSERT_EQ(tight.reason, StopReason::converged) << seed;
+    EXPECT_LT((x - exact_solution(q, bounded)).norm(), 1e-7) << seed;
+    expect_kkt(q, x, 1e-8);
+    EXPECT_LE(tight.M, loose.M) << seed;
+    EXPECT_GE(tight.rho, loose.rho) << seed;
+  }
+  const Qp q = random_qp(10, 6, 2, 1, false);
+  DenseOperator A(q.A);
+  SerialReducer red;
+  Vec x = Vec::Zero(10);
+  SmalbeOptions bad;
+  bad.M_start = -1;
+  EXPECT_THROW(smalbe(qp_of(A, q), 1.0, x, red, bad), std::invalid_argument);
+  bad.M_start = 0;
+  bad.rho_start = std::numeric_limits<double>::quiet_NaN();
+  EXPECT_THROW(smalbe(qp_of(A, q), 1.0, x, red, bad), std::invalid_argument);
+}
+
 // Box constraints l <= x <= u (BoxBounds): the random QP above with upper bounds on its first
 // `bounded` components: a lower bound only (i % 3 == 1), an upper bound only (i % 3 == 0), or
 // both (i % 3 == 2), around 0 so that both sides are active at some solutions.

@@ -35,16 +35,19 @@ SmalbeResult smalbe(const QuadraticProgram& qp, double normA, Vec& x, const Redu
   const Vec& l = *lower;
   const Vec& u = *upper;
   const Eigen::Index n = b.size();
-  const double rho0 = opt.rho_factor * normA;   // H.rho(): raised by the late update (step 4)
+  const double rho0 = opt.rho_factor * normA;  // H.rho(): raised by the late update (step 4)
+  if (!(opt.rho_start >= 0) || !(opt.M_start >= 0))
+    throw std::invalid_argument("SMALBE-M: rho_start and M_start must be >= 0");
   ComplementOperator Q(qp.equality_projector);  // Q = I - P
   Vec qx(n);
   // H_rho = A + rho Q; the image Q v of every argument is left in H.image(), from which MPRGP
   // keeps Q x up to date for the stopping test (TrackedImage).
-  PenalizedOperator H(*qp.hessian, Q, rho0, n, hooks.fused_hessian);
+  PenalizedOperator H(*qp.hessian, Q, opt.rho_start > 0 ? opt.rho_start : rho0, n,
+                      hooks.fused_hessian);
   res.rhs_norm = red.norm(b);
   const double bnorm = res.rhs_norm > 0 ? res.rhs_norm : 1.0;
   const double eta = opt.eta_factor * bnorm;
-  double M = opt.M0_factor * normA;
+  double M = opt.M_start > 0 ? opt.M_start : opt.M0_factor * normA;
   // The stopping tests (smalbe.hpp): ||g^P|| <= tol and ||A|| ||G x|| <= tol, with
   // tol = max(rtol ||b||, kRoundoffFloor eps (||b|| + ||A|| ||lambda||)), all in the units of b.
   const double floor_rel = kRoundoffFloor * std::numeric_limits<double>::epsilon();

@@ -79,6 +79,12 @@ struct SmalbeOptions {
   int max_outer = 200;
   int max_inner = 100000;       ///< total MPRGP iterations over all outer iterations
   int idle_count = kIdleCount;  ///< kIdleCount, or kWarmIdleCount for a warm-started solve
+  /// A continuation: the penalty and M to start from instead of rho_factor ||A|| and
+  /// M0_factor ||A|| (0: those). The accuracy refinement passes the last solve's rho and M
+  /// (SmalbeResult), so that a solve asked for a smaller rtol goes on where the last one
+  /// stopped instead of restarting SMALBE-M's adaptation (docs/method.md). The late update's
+  /// bound kMaxRhoGrowth stays relative to rho_factor ||A||.
+  double rho_start = 0, M_start = 0;
 };
 
 struct SmalbeResult {

@@ -24,6 +24,7 @@ import subprocess
 import tempfile
 
 from common import ROOT, machine, save, solve
+from hertz_cases import COMMON, CONTACT, MESHES
 
 p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
 p.add_argument("--repeat", type=int, default=3)
@@ -36,37 +37,6 @@ a = p.parse_args()
 
 E, NU, R, D = 1000.0, 0.3, 1.0, 0.01
 HERTZ_QUARTER = E / (1 - NU * NU) * math.sqrt(R) * D ** 1.5 / 3
-MESHES = [
-    ("hex8, strong grading (hmin 0.005)", "graded_block_hex.geo", ["-setnumber", "hmin", "0.005"]),
-    ("hex8, mild grading (hmin 0.015)", "graded_block_hex.geo", ["-setnumber", "hmin", "0.015"]),
-    ("hex8, uniform (1/32)", "graded_block_hex.geo", ["-setnumber", "hmin", "0.03125"]),
-    ("tet4, size field (0.004 to 0.07)", "graded_block_tet.geo",
-     ["-setnumber", "h", "0.004", "-setnumber", "H", "0.07"]),
-]
-COMMON = """[mesh]
-file = "{msh}"
-[physics]
-type = "elasticity"
-young = 1000.0
-poisson = 0.3
-[[dirichlet]]
-group = "bottom"
-[[dirichlet]]
-group = "x0"
-components = ["x"]
-[[dirichlet]]
-group = "y0"
-components = ["y"]
-[decomposition]
-subdomains = 16
-[solver]
-rtol = 1e-4
-"""
-CONTACT = """[[contact]]
-group = "top"
-direction = [0.0, 0.0, 1.0]
-gap = "0.99 - sqrt(max(1e-12, 1 - x^2 - y^2))"
-"""
 LINEAR = """[[load]]
 group = "top"
 traction = [0.0, 0.0, -1.0]

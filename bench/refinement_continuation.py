@@ -22,6 +22,7 @@ import subprocess
 import tempfile
 
 from common import BIN, ROOT, machine, save, solve
+from hertz_cases import COMMON, CONTACT, MESHES
 
 p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
 p.add_argument("--before", required=True)
@@ -31,36 +32,6 @@ p.add_argument("--threads", type=int, default=2)
 p.add_argument("--out", default="refinement_continuation.json")
 a = p.parse_args()
 
-HERTZ = """[mesh]
-file = "{msh}"
-[physics]
-type = "elasticity"
-young = 1000.0
-poisson = 0.3
-[[dirichlet]]
-group = "bottom"
-[[dirichlet]]
-group = "x0"
-components = ["x"]
-[[dirichlet]]
-group = "y0"
-components = ["y"]
-[[contact]]
-group = "top"
-direction = [0.0, 0.0, 1.0]
-gap = "0.99 - sqrt(max(1e-12, 1 - x^2 - y^2))"
-[decomposition]
-subdomains = 16
-[solver]
-rtol = 1e-4
-"""
-MESHES = [
-    ("Hertz hex8, strong grading", "graded_block_hex.geo", ["-setnumber", "hmin", "0.005"]),
-    ("Hertz hex8, mild grading", "graded_block_hex.geo", ["-setnumber", "hmin", "0.015"]),
-    ("Hertz hex8, uniform", "graded_block_hex.geo", ["-setnumber", "hmin", "0.03125"]),
-    ("Hertz tet4, size field", "graded_block_tet.geo",
-     ["-setnumber", "h", "0.004", "-setnumber", "H", "0.07"]),
-]
 CUBE = os.path.join(ROOT, "bench", "cases", "cube40_metis64.toml")
 CLUSTERS = ["--cluster-size", "8", "--cluster-split", "subdomains"]
 
@@ -77,12 +48,13 @@ rows = []
 with tempfile.TemporaryDirectory() as tmp:
     cases = []
     for label, geo, args in MESHES:
+        label = "Hertz " + label
         msh = os.path.join(tmp, f"m{len(cases)}.msh")
         subprocess.run(["gmsh", os.path.join(ROOT, "bench", geo), "-3", *args, "-format", "msh41",
                         "-o", msh], check=True, stdout=subprocess.DEVNULL)
         toml = os.path.join(tmp, f"c{len(cases)}.toml")
         with open(toml, "w") as f:
-            f.write(HERTZ.format(msh=msh))
+            f.write(COMMON.format(msh=msh) + CONTACT)
         cases.append((label, [toml]))
     cases.append(("cube-obstacle 40^3, A = 1, clusters of 8 METIS parts", [CUBE, *CLUSTERS]))
     if a.slow:

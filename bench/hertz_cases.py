@@ -33,3 +33,21 @@ group = "top"
 direction = [0.0, 0.0, 1.0]
 gap = "0.99 - sqrt(max(1e-12, 1 - x^2 - y^2))"
 """
+
+
+def contact_problems(tmp):
+    """Meshes every block of MESHES with gmsh into the directory tmp and writes its contact
+    problem file there: a list of ("Hertz " + label, problem file path)."""
+    import os
+    import subprocess
+    root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    out = []
+    for i, (label, geo, args) in enumerate(MESHES):
+        msh = os.path.join(tmp, f"hertz{i}.msh")
+        subprocess.run(["gmsh", os.path.join(root, "bench", geo), "-3", *args, "-format", "msh41",
+                        "-o", msh], check=True, stdout=subprocess.DEVNULL)
+        toml = os.path.join(tmp, f"hertz{i}.toml")
+        with open(toml, "w") as f:
+            f.write(COMMON.format(msh=msh) + CONTACT)
+        out.append(("Hertz " + label, toml))
+    return out

@@ -18,11 +18,10 @@ Writes bench/results/OUT and prints a markdown table."""
 import argparse
 import math
 import os
-import subprocess
 import tempfile
 
 from common import BIN, ROOT, machine, save, solve
-from hertz_cases import COMMON, CONTACT, MESHES
+from hertz_cases import contact_problems
 
 p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
 p.add_argument("--before", required=True)
@@ -47,14 +46,7 @@ def run(binary, args):
 rows = []
 with tempfile.TemporaryDirectory() as tmp:
     cases = []
-    for label, geo, args in MESHES:
-        label = "Hertz " + label
-        msh = os.path.join(tmp, f"m{len(cases)}.msh")
-        subprocess.run(["gmsh", os.path.join(ROOT, "bench", geo), "-3", *args, "-format", "msh41",
-                        "-o", msh], check=True, stdout=subprocess.DEVNULL)
-        toml = os.path.join(tmp, f"c{len(cases)}.toml")
-        with open(toml, "w") as f:
-            f.write(COMMON.format(msh=msh) + CONTACT)
+    for label, toml in contact_problems(tmp):
         cases.append((label, [toml]))
     cases.append(("cube-obstacle 40^3, A = 1, clusters of 8 METIS parts", [CUBE, *CLUSTERS]))
     if a.slow:

@@ -251,6 +251,12 @@ void add_qp_options(std::vector<OptionSpec>& t) {
       [](double x) -> const char* {
         return x >= 1 && x <= 1e3 ? nullptr : "must lie in [1, 1e3]";
       }));
+  t.push_back(boolean(
+      "solver", "face_solve", "--face-solve", "--no-face-solve",
+      "SMALBE-M: once two inner solves in a row end on the same active set, solve on that face "
+      "by projected CG with the equality held exactly (the coarse matrix of the free rows), and "
+      "take the face's equality multiplier (docs/method.md, \"The face solve\")",
+      [](RunOptions& r) -> bool& { return r.solve.smalbe.face_solve; }));
   t.push_back(number(
       "gamma", "--gamma", "MPRGP proportioning parameter Gamma",
       [](RunOptions& r) -> double& { return r.solve.smalbe.gamma; }, positive));

@@ -171,6 +171,9 @@ QpSolve solve_with_contact(DualProblem& dual, DualOperators& ops, Vec& lambda,
       ops.P.apply(pz, y);
       y += (v - pw) / rho;
     };
+  // The face solve: the coarse matrix of the free rows (CoarseSpace::set_face).
+  hooks.face.set = [&](const Vec& free) { return dual.set_face(free); };
+  hooks.face.correction = [&](const Vec& v, Vec& y) { dual.face_correction(v, y); };
   Vec x = Vec::Zero(n);
   Vec nu;  // the equality's multiplier: each Coulomb solve starts from the last one's
   auto r = qp::smalbe(qp, normA, x, red, so, hooks, progress, &nu);
@@ -184,6 +187,8 @@ QpSolve solve_with_contact(DualProblem& dual, DualOperators& ops, Vec& lambda,
   // The MPRGP steps of every solve (the report's counts add up to the inner iterations).
   int cg_steps = r.cg_steps, expansion_steps = r.expansion_steps,
       cost_increases = r.expansion_cost_increases, proportioning_steps = r.proportioning_steps;
+  int face_solves = r.face_solves, face_iterations = r.face_iterations,
+      face_converged = r.face_converged;
   // SMALBE-M once more from x and nu (warm), its counts added to the first solve's.
   const auto solve_again = [&]() {
     r = qp::smalbe(qp, normA, x, red, so, hooks, progress, &nu);
@@ -194,6 +199,9 @@ QpSolve solve_with_contact(DualProblem& dual, DualOperators& ops, Vec& lambda,
     cg_steps += r.cg_steps;
     expansion_steps += r.expansion_steps;
     cost_increases += r.expansion_cost_increases;
+    face_solves += r.face_solves;
+    face_iterations += r.face_iterations;
+    face_converged += r.face_converged;
     proportioning_steps += r.proportioning_steps;
     out.converged = r.reason == qp::StopReason::converged;
     out.reason = to_string(r.reason);
@@ -258,7 +266,10 @@ QpSolve solve_with_contact(DualProblem& dual, DualOperators& ops, Vec& lambda,
                 {"cg_steps", cg_steps},
                 {"expansion_steps", expansion_steps},
                 {"expansion_cost_increases", cost_increases},
-                {"proportioning_steps", proportioning_steps}};
+                {"proportioning_steps", proportioning_steps},
+                {"face_solves", face_solves},
+                {"face_iterations", face_iterations},
+                {"face_converged", face_converged}};
   if (steps.size() > 1) out.solver["accuracy_refinements"] = steps;
   // The fixed point's history: per step the relative change of the slip bounds.
   if (dual.has_coulomb())

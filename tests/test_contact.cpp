@@ -78,6 +78,39 @@ INSTANTIATE_TEST_SUITE_P(
                       Case{ProblemKind::membranes, 32, 8, 4, "corners+averages"},
                       Case{ProblemKind::membranes_coercive, 24, 4, 2, "averages"}));
 
+// SMALBE-M's face solve (qp/face_cg.hpp) on and off: both reach the undecomposed solution, the
+// face solve ends the TFETI solves where it is on (both coarse-step forms; on the H-TFETI-DP
+// clusters here SMALBE-M converges before an inner solve has ended twice on one active set), and
+// off it is never taken. Under mpiexec -n 1, 2, 4 like the suite above.
+TEST(FaceSolve, OnAndOffReachTheUndecomposedSolution) {
+  Comm comm;
+  const auto ref = solve_undecomposed(ProblemKind::membranes, ElementKind::q1, 24);
+  for (int m : {1, 2})
+    for (int steps : {2, 1}) {
+      SCOPED_TRACE("m " + std::to_string(m) + ", steps " + std::to_string(steps));
+      SolveOptions opt;
+      opt.rtol = 1e-10;
+      opt.decomposition = {ProblemKind::membranes, ElementKind::q1, 24, 4, m, Glue::averages};
+      opt.coarse_steps_per_product = steps;
+      const auto on = solve(opt, comm);
+      opt.smalbe.face_solve = false;
+      const auto off = solve(opt, comm);
+      ASSERT_TRUE(on.converged);
+      ASSERT_TRUE(off.converged);
+      if (m == 1) EXPECT_GE(on.report["solver"]["face_converged"].get<int>(), 1);
+      EXPECT_EQ(off.report["solver"]["face_solves"].get<int>(), 0);
+      for (const auto* out : {&on, &off}) {
+        EXPECT_NEAR(out->report["objective"].get<double>(), ref.energy,
+                    1e-8 * std::abs(ref.energy));
+        EXPECT_LT(test::relative_error(*out->model, *out->dual, out->u, ref.u), 1e-6);
+      }
+      // Ended by the face solve, G lambda = e holds to round-off.
+      if (on.report["solver"]["face_converged"].get<int>() > 0)
+        EXPECT_LT(on.report["solver"]["equality_residual"].get<double>(),
+                  1e-12 * on.report["solver"]["multiplier_norm"].get<double>());
+    }
+}
+
 TEST(FactorsReleased, SameSolutionWhenFactorsAreRebuiltForTheReconstruction) {
   Comm comm;
   SolveOptions opt;

@@ -341,6 +341,182 @@ TEST_P(SmalbeConformance, MatchesEnumeratedActiveSets) {
 INSTANTIATE_TEST_SUITE_P(Random, SmalbeConformance,
                          ::testing::Combine(::testing::Range(1u, 7u), ::testing::Bool()));
 
+static Vec box_upper(Qp& q, int bounded, unsigned seed);
+static Vec exact_box_solution(const Qp& q, const Vec& u, int bounded);
+
+// The face of the bounds for a dense G (orthonormal rows): G D G' factored densely; singular
+// when its smallest eigenvalue is below 1e-12 of its largest.
+struct DenseFace {
+  Eigen::MatrixXd G;
+  Eigen::LLT<Eigen::MatrixXd> llt;
+  int sets = 0;
+  FaceHooks hooks() {
+    FaceHooks h;
+    h.set = [this](const Vec& free) {
+      ++sets;
+      const Eigen::MatrixXd M = G * free.asDiagonal() * G.transpose();
+      const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(M);
+      if (!(eig.eigenvalues().minCoeff() > 1e-12 * eig.eigenvalues().cwiseAbs().maxCoeff()))
+        return false;
+      llt.compute(M);
+      return true;
+    };
+    h.correction = [this](const Vec& v, Vec& y) { y = G.transpose() * llt.solve(G * v); };
+    return h;
+  }
+};
+
+// face_cg from a point of the exact solution's face (the free entries perturbed): CG on that
+// face with G x = 0 reaches the solution, and the face's multiplier nu gives g + nu >= 0 on the
+// held rows (the solution's bound multipliers) and 0 on the free ones.
+TEST(FaceCg, ReachesTheSolutionFromItsFace) {
+  int faces = 0;
+  for (unsigned seed = 1; seed <= 8; ++seed) {
+    const int n = 10, bounded = 6, me = 2;
+    const Qp q = random_qp(n, bounded, me, seed, seed % 2 == 0);
+    const Vec xs = exact_solution(q, bounded);
+    DenseOperator A(q.A);
+    SerialReducer red;
+    DenseFace face{q.G, {}, 0};
+    std::mt19937 gen(seed);
+    std::uniform_real_distribution<double> U(0.0, 0.1);
+    Vec x = xs;
+    bool held = false;
+    // The free entries move by a small part of their distance from the bound, so that the CG
+    // path stays inside (CG's iterates need not approach the solution entry by entry).
+    for (int i = 0; i < n; ++i)
+      if (xs[i] > q.l[i] + 1e-9)
+        x[i] += U(gen) * std::min(1.0, 0.01 * (xs[i] - q.l[i]));
+      else
+        held = true;
+    Vec g = q.A * x - q.b, nu;
+    FaceWorkspace work;
+    const FaceResult r =
+        face_cg(A, q.b, q.l, Vec(), x, g, nu, face.hooks(), nullptr, red, 1e-12, 1.0, 100, work);
+    ASSERT_EQ(r.outcome, FaceOutcome::converged) << seed;
+    EXPECT_LT((x - xs).norm(), 1e-9) << seed;
+    EXPECT_LT((q.G * x).norm(), 1e-12) << seed;
+    EXPECT_LT((g - (q.A * x - q.b)).norm(), 1e-9) << seed;
+    const Vec gl = g + nu;
+    for (int i = 0; i < n; ++i) {
+      if (xs[i] > q.l[i] + 1e-9)
+        EXPECT_NEAR(gl[i], 0.0, 1e-9) << seed << " " << i;
+      else
+        EXPECT_GT(gl[i], -1e-9) << seed << " " << i;
+    }
+    EXPECT_LT((nu - q.G.transpose() * (q.G * nu)).norm(), 1e-12);  // nu in Im G'
+    faces += held;
+  }
+  EXPECT_GT(faces, 0);  // some solutions have held rows: the face is not the whole space
+}
+
+// On a wrong face face_cg ends without claiming a solution (declined, released or at a
+// bound); where G D G' is singular it is not taken and x is unchanged.
+TEST(FaceCg, LeavesAWrongFaceAndRefusesASingularOne) {
+  int wrong = 0;
+  for (unsigned seed = 1; seed <= 8; ++seed) {
+    const int n = 10, bounded = 6, me = 2;
+    const Qp q = random_qp(n, bounded, me, seed, false);
+    const Vec xs = exact_solution(q, bounded);
+    // Held where the solution is free, free (slightly above the bound) where it is held.
+    Vec x = q.l.cwiseMax(Vec::Constant(n, -1.0));
+    bool differs = false;
+    for (int i = 0; i < bounded; ++i) {
+      const bool free_at_solution = xs[i] > q.l[i] + 1e-9;
+      x[i] = free_at_solution ? q.l[i] : q.l[i] + 1e-3;
+      differs = true;
+    }
+    for (int i = bounded; i < n; ++i) x[i] = xs[i];
+    ASSERT_TRUE(differs);
+    DenseOperator A(q.A);
+    SerialReducer red;
+    DenseFace face{q.G, {}, 0};
+    Vec g = q.A * x - q.b, nu;
+    FaceWorkspace work;
+    const FaceResult r =
+        face_cg(A, q.b, q.l, Vec(), x, g, nu, face.hooks(), nullptr, red, 1e-12, 1.0, 100, work);
+    if (r.outcome == FaceOutcome::converged) {
+      // Possible only where the wrong face still holds the solution's KKT point.
+      EXPECT_LT((x - xs).norm(), 1e-8) << seed;
+    } else {
+      ++wrong;
+    }
+  }
+  EXPECT_GT(wrong, 0);
+  // G D G' singular: every row of G lives on the held entries.
+  Qp q = random_qp(6, 6, 2, 3, false);
+  q.G = Eigen::MatrixXd::Zero(2, 6);
+  q.G(0, 0) = q.G(1, 1) = 1.0;
+  DenseOperator A(q.A);
+  SerialReducer red;
+  DenseFace face{q.G, {}, 0};
+  Vec x = q.l;
+  x.tail(4).array() += 1.0;
+  const Vec x0 = x;
+  Vec g = q.A * x - q.b, nu;
+  FaceWorkspace work;
+  const FaceResult r =
+      face_cg(A, q.b, q.l, Vec(), x, g, nu, face.hooks(), nullptr, red, 1e-12, 1.0, 100, work);
+  EXPECT_EQ(r.outcome, FaceOutcome::singular);
+  EXPECT_FALSE(r.taken());
+  EXPECT_EQ(x, x0);
+}
+
+// SMALBE-M with the face solve reaches the enumerated solutions (bounds and boxes, with and
+// without a preconditioner), and across the suite some runs end by a face solve.
+TEST(Smalbe, FaceSolveReachesTheEnumeratedSolutions) {
+  int finished = 0, taken = 0;
+  for (unsigned seed = 1; seed <= 12; ++seed)
+    for (int box = 0; box < 2; ++box) {
+      const int n = 10, bounded = 6, me = 2;
+      Qp q = random_qp(n, bounded, me, seed, seed % 2 == 0);
+      Vec u;
+      if (box) {
+        q.b *= 2.0;
+        u = box_upper(q, bounded, seed);
+      }
+      const Vec xs = box ? exact_box_solution(q, u, bounded) : exact_solution(q, bounded);
+      DenseOperator A(q.A);
+      SerialReducer red;
+      const double normA = estimate_norm(A, Vec::Ones(n), red, 200, 1e-10);
+      QuadraticProgram qp = qp_of(A, q, !box);
+      if (box) qp.constraints = std::make_shared<BoxBounds>(q.l, u);
+      const Eigen::MatrixXd Qm = q.G.transpose() * q.G;
+      const Eigen::MatrixXd Pm = Eigen::MatrixXd::Identity(n, n) - Qm;
+      const Eigen::MatrixXd Dinv = q.A.diagonal().cwiseInverse().asDiagonal();
+      for (int pre = 0; pre < 2; ++pre) {
+        DenseFace face{q.G, {}, 0};
+        SmalbeHooks hooks;
+        hooks.face = face.hooks();
+        if (pre)
+          hooks.preconditioner = [&](const Vec& v, double rho, Vec& y) {
+            y = Pm * (Dinv * (Pm * v)) + Qm * v / rho;
+          };
+        SmalbeOptions opt;
+        opt.rtol = 1e-11;
+        Vec x = Vec::Zero(n);
+        const auto r = smalbe(qp, normA, x, red, opt, hooks);
+        ASSERT_EQ(r.reason, StopReason::converged) << seed << box << pre;
+        EXPECT_LT((x - xs).norm(), 1e-7) << seed << box << pre;
+        EXPECT_LT((q.G * x).norm(), 1e-8) << seed << box << pre;
+        if (!box) expect_kkt(q, x, 1e-8);
+        EXPECT_LE(r.face_converged, 1);
+        EXPECT_LE(r.face_solves, kMaxFaceSolves);
+        finished += r.face_converged;
+        taken += r.face_solves;
+        // Off: no face solve, the same solution.
+        opt.face_solve = false;
+        Vec x2 = Vec::Zero(n);
+        const auto r2 = smalbe(qp, normA, x2, red, opt, hooks);
+        ASSERT_EQ(r2.reason, StopReason::converged);
+        EXPECT_EQ(r2.face_solves, 0);
+        EXPECT_LT((x2 - xs).norm(), 1e-7);
+      }
+    }
+  EXPECT_GT(finished, 0);
+  EXPECT_GE(taken, finished);
+}
+
 // A continuation (the accuracy refinement): a loose solve, then SMALBE-M again from its x, its
 // equality multiplier, its rho and its M with a tight rtol, reaches the solution; M never grows
 // and rho never falls from where the continuation started (so the start values were taken).

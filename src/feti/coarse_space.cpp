@@ -202,6 +202,19 @@ int CoarseSpace::solve_weighted(const std::vector<double>& weight, Vec& coarse) 
   return factor.null_dimension();
 }
 
+bool CoarseSpace::set_face(const Vec& free) {
+  face_set_ = assemble(std::vector<double>(free.data(), free.data() + free.size()), face_, true);
+  return face_set_;
+}
+
+void CoarseSpace::face_correction(const Vec& v, Vec& y) {
+  if (!face_set_) throw std::logic_error("CoarseSpace::face_correction: no face is set");
+  apply_G(v, work_);
+  solve_with(face_, work_);
+  gt_into_ext(work_);
+  y = m_.ext_out.head(m_.layout.n_owned());
+}
+
 void CoarseSpace::solve_with(Factor& factor, Vec& x) {
   if (!subset_ || factor.use_dense) {
     factor.solve(x);
@@ -351,7 +364,8 @@ std::vector<CoarseSpace::CoarseTriplet> CoarseSpace::owner_cluster_sums(
   return mine;
 }
 
-void CoarseSpace::assemble(const std::vector<double>& weight, Factor& factor) {
+bool CoarseSpace::assemble(const std::vector<double>& weight, Factor& factor,
+                           bool fail_if_singular) {
   // (G~ W G~^T)_{ab} = sum_k w_k g_ak g_bk. The owners of the multipliers form the products and
   // sum equal entries; the summed triplets are shared (every rank factors the coarse matrix).
   using Triplet = CoarseTriplet;
@@ -418,7 +432,11 @@ void CoarseSpace::assemble(const std::vector<double>& weight, Factor& factor) {
   } else {
     factor.nonzeros = factor.sparse.factor_nonzeros();
   }
-  if (!singular) return;
+  if (!singular) return true;
+  if (fail_if_singular) {
+    factor = Factor();
+    return false;
+  }
   const int nc = dimension();
   if (nc > kMaxDense)
     throw std::runtime_error(
@@ -453,6 +471,7 @@ void CoarseSpace::assemble(const std::vector<double>& weight, Factor& factor) {
   factor.use_dense = true;
   if (factor.dense.info() != Eigen::Success)
     throw std::runtime_error("the coarse problem G G^T could not be factored");
+  return true;
 }
 
 std::string CoarseSpace::describe_null(const Eigen::MatrixXd& Z) const {

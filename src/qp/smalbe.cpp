@@ -83,6 +83,23 @@ SmalbeResult smalbe(const QuadraticProgram& qp, double normA, Vec& x, const Redu
   if (multiplier && multiplier->size() != 0 && multiplier->size() != n)
     throw std::invalid_argument("SMALBE-M: the multiplier has the wrong size");
   MprgpWorkspace work;  // shared by all inner solves: no allocation inside the outer loop
+  // The face solve (face_cg.hpp): held[i] = 1 where x_i was at a bound at the last inner exit
+  // (-1: no exit yet); fg, fnu: the face's gradient H x - b and equality multiplier.
+  const bool use_face = opt.face_solve && hooks.face && !separable;
+  Vec held = Vec::Constant(use_face ? n : 0, -1.0), fg(use_face ? n : 0), fnu(use_face ? n : 0);
+  FaceWorkspace face_work;
+  bool face_tried = false;  // on the active set of the last inner exit
+  int face_tries = 0;       // face solves taken (not declined) in this run
+  const bool has_upper = u.size() == n;
+  // 1 where the active set differs from held (updating held): reduced over the ranks.
+  const auto active_set_changed = [&]() {
+    double changed = 0;
+    for (Eigen::Index i = 0; i < n; ++i) {
+      const double a = !(x[i] > l[i]) || (has_upper && !(x[i] < u[i])) ? 1.0 : 0.0;
+      if (a != held[i]) changed = 1, held[i] = a;
+    }
+    return red.max(changed) > 0;
+  };
   double L_prev = 0;
   double qnorm = 0, qnorm_prev = 0;
   int stalls = 0;  // consecutive stalled outer iterations (step 4)
@@ -95,9 +112,52 @@ SmalbeResult smalbe(const QuadraticProgram& qp, double normA, Vec& x, const Redu
     const double q = red.norm(image.tx);
     return (gp <= grad_tol && q <= eq_tol) || gp <= std::min(M * q, eta);
   };
+  // The face solve: CG on the face of x's active set with G x = 0 held exactly. It either ends
+  // the solve (x and the face's multiplier pass the global test: true) or is undone, so that
+  // the outer loop goes on as if it had not been tried (only its products are spent). One try
+  // per active set: a face that did not finish is not tried again until the set changes.
+  // Needs g = H x - (b - nu) at x.
+  const auto face_finishes = [&]() {
+    face_tried = true;
+    face_work.x_save = x;
+    fg = g - nu;  // H x - b
+    const FaceResult fr =
+        face_cg(H, b, l, u, x, fg, fnu, hooks.face, hooks.preconditioner ? &Z : nullptr, red,
+                kFaceTolerance * grad_tol, opt.gamma,
+                opt.max_inner - res.inner_iterations - res.face_iterations, face_work);
+    if (!fr.taken()) return false;
+    ++face_tries;
+    ++res.face_solves;
+    res.face_iterations += fr.iterations;
+    if (fr.outcome == FaceOutcome::converged) {
+      Q.apply(x, face_work.t);
+      const double q = red.norm(face_work.t);
+      face_work.c = fg + fnu;  // the gradient of L at (x, mu of the face)
+      projected_gradient(x, face_work.c, l, face_work.z, u);
+      const double gp = red.norm(face_work.z);
+      // The test with the tolerances at this x (lambda sets the round-off floor).
+      const double grad_tol_old = grad_tol, eq_tol_old = eq_tol;
+      set_tolerances();
+      if (gp <= grad_tol && q <= eq_tol) {
+        ++res.face_converged;
+        nu = fnu;
+        g = face_work.c;
+        qx = face_work.t;
+        qnorm = q;
+        res.projected_gradient = gp;
+        res.equality_residual = q;
+        res.reason = StopReason::converged;
+        return true;
+      }
+      grad_tol = grad_tol_old, eq_tol = eq_tol_old;
+    }
+    x = face_work.x_save;  // undone: g, nu, Q x and the tracked image are those of x
+    set_tolerances();
+    return false;
+  };
   for (int k = 0;; ++k) {
     rhs = b - nu;
-    mo.max_iterations = opt.max_inner - res.inner_iterations;
+    mo.max_iterations = opt.max_inner - res.inner_iterations - res.face_iterations;
     // After the first outer iteration g = H x - (b - nu) is kept up to date below.
     const MprgpResult inner = separable
                                   ? mpgp(H, rhs, *separable, x, g, red, mo, stop, k > 0, &work)
@@ -127,10 +187,17 @@ SmalbeResult smalbe(const QuadraticProgram& qp, double normA, Vec& x, const Redu
       res.reason = StopReason::breakdown;
       break;
     }
-    if (res.inner_iterations >= opt.max_inner || k + 1 >= opt.max_outer) {
+    if (res.inner_iterations + res.face_iterations >= opt.max_inner || k + 1 >= opt.max_outer) {
       res.reason = StopReason::max_iterations;
       break;
     }
+    // The face solve (face_cg.hpp), once two inner solves in a row have ended on the same active
+    // set and an inner solve has met the gradient test (only the equality is left).
+    const bool set_changed = use_face && active_set_changed();
+    if (set_changed) face_tried = false;
+    if (use_face && !set_changed && !face_tried && face_tries < kMaxFaceSolves &&
+        (late || inner.projected_gradient <= grad_tol) && face_finishes())
+      break;
     // L(x^k, mu^k) = 1/2 x'(g - b + nu) with g = H x - b + nu.
     lag = g - b + nu;  // (into a vector of the solve: nothing is allocated per iteration)
     const double L = 0.5 * red.dot(x, lag);

@@ -74,6 +74,14 @@ class CoarseSpace {
   /// reconstruction's active rows); returns the null dimension of G~ W G~^T. Collective.
   int solve_weighted(const std::vector<double>& weight, Vec& coarse);
 
+  /// The face of the bounds (qp/face_cg.hpp): assembles and factors G~ D G~^T, D = diag(free)
+  /// on the owned multipliers (1 free, 0 held at a bound). Returns false, and keeps no factor,
+  /// when that matrix is singular (a rigid motion restrained only by rows held at a bound: the
+  /// problem on the face is not well posed). Collective.
+  bool set_face(const Vec& free);
+  /// y = G~^T (G~ D G~^T)^{-1} G~ v for the face last set (x and y may alias). Collective.
+  void face_correction(const Vec& v, Vec& y);
+
   /// Directions of the coarse space that no constraint row restrains (see Factor).
   int null_dimension() const { return factor_.null_dimension(); }
   const Eigen::MatrixXd& null_space() const { return factor_.null; }
@@ -128,7 +136,9 @@ class CoarseSpace {
   };
   static constexpr int kMaxDense = 4000;
   static constexpr double kSingularRcond = 1e-15;  // SparseCholesky::rcond() below it: singular
-  void assemble(const std::vector<double>& weight, Factor& factor);
+  // Returns false, leaving factor empty, for a singular matrix when fail_if_singular (the face);
+  // else a singular matrix takes the dense path above (true).
+  bool assemble(const std::vector<double>& weight, Factor& factor, bool fail_if_singular = false);
   // x <- factor^{-1} x: on every rank (replicated, or the dense factor of a singular problem),
   // or on the group's first rank and broadcast in the group.
   void solve_with(Factor& factor, Vec& x);
@@ -183,6 +193,8 @@ class CoarseSpace {
   Vec pairs_;                    // work: one value per (cluster, multiplier) pair
   Vec work_;                     // work: one coarse vector
   Factor factor_;
+  Factor face_;  // G~ D G~^T of the last set_face
+  bool face_set_ = false;
   // The ranks that hold the coarse factor (FetiOptions::coarse_ranks): every rank (subset_
   // false), or the first rank of each group of consecutive ranks (leader_): group_comm_ is the
   // group (its first rank is rank 0 in it), leader_comm_ the groups' first ranks

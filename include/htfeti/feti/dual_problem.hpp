@@ -232,6 +232,10 @@ class DualProblem {
   int unrestrained_at_solution() const { return reconstruction_null_; }
   /// y = P x (x and y may alias).
   void project(const Vec& x, Vec& y) { coarse_.project(x, y); }
+  /// The face of the bounds for SMALBE-M's face solve (CoarseSpace::set_face, face_correction):
+  /// free is 1 on the owned multipliers not held at a bound. Collective.
+  bool set_face(const Vec& free) { return coarse_.set_face(free); }
+  void face_correction(const Vec& v, Vec& y) { coarse_.face_correction(v, y); }
 
   /// The coarse image of F, for one coarse step per Hessian product (docs/method.md, "One
   /// coarse step per Hessian product"): E = F G~^T, stored by owned rows, and the coarse matrix

@@ -42,6 +42,7 @@
 // iteration adds one Q (x checked afresh) and a few vector operations.
 #pragma once
 
+#include "htfeti/qp/face_cg.hpp"
 #include "htfeti/qp/mprgp.hpp"
 #include "htfeti/qp/qp.hpp"
 
@@ -66,6 +67,10 @@ inline constexpr int kIdleCount = 10;
 /// 1 x 1 x 1; a cold solve keeps 10 (5 or 1 raised the membranes' products, n = 512, m = 1).
 inline constexpr int kWarmIdleCount = 3;
 
+/// Face solves (face_cg.hpp) in one SMALBE-M run at most, and the face CG's tolerance on
+/// ||P_F D g|| relative to the global test's (the held rows' share of g^P needs the rest).
+inline constexpr int kMaxFaceSolves = 3;
+inline constexpr double kFaceTolerance = 0.5;
 struct SmalbeOptions {
   double rtol = 1e-4;            ///< relative precision eps (paper: 1e-4)
   double rho_factor = 1.1;       ///< rho = rho_factor * ||A|| (theory: rho close to ||F~||)
@@ -85,6 +90,10 @@ struct SmalbeOptions {
   /// stopped instead of restarting SMALBE-M's adaptation (docs/method.md). The late update's
   /// bound kMaxRhoGrowth stays relative to rho_factor ||A||.
   double rho_start = 0, M_start = 0;
+  /// The face solve (face_cg.hpp; needs SmalbeHooks::face and bounds, not a SeparableSet):
+  /// after an outer iteration whose inner solve ended on the same active set as the one before,
+  /// CG on that face with G x = 0 held exactly, and the face's equality multiplier.
+  bool face_solve = true;
 };
 
 struct SmalbeResult {
@@ -102,6 +111,9 @@ struct SmalbeResult {
   bool roundoff_floor = false;       ///< the round-off floor, not rtol ||b||, set tol
   double rho = 0, M = 0, alpha = 0;  ///< at exit
   int rho_updates = 0;               ///< late penalty updates made (step 4)
+  int face_solves = 0;               ///< face solves taken (face_cg.hpp)
+  int face_iterations = 0;           ///< their CG steps
+  int face_converged = 0;            ///< of them, those that met their own test
 };
 
 /// y = Z_rho x (the preconditioner in face, which depends on rho).
@@ -114,6 +126,8 @@ struct SmalbeHooks {
   /// y = Z_rho x, a symmetric positive definite approximation of H_rho^{-1}, used by MPRGP in
   /// face (for A = PFP: P M^{-1} P + Q / rho, exact on Im Q).
   PenalizedApply preconditioner;
+  /// The face of the bounds for the face solve (SmalbeOptions::face_solve).
+  FaceHooks face;
 };
 
 /// qp: bounds (LowerBounds or BoxBounds) and an equality projector are required

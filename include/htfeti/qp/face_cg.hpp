@@ -1,0 +1,80 @@
+// The face solve of SMALBE-M (smalbe.hpp, docs/method.md "The face solve"): projected
+// preconditioned CG on one face of the bounds with the equality G x = 0 held exactly,
+//     min 1/2 x'Ax - b'x   subject to  x_i = l_i (or u_i) on the active set A,  G x = 0,
+// the problem that SMALBE-M's outer loop approaches through its multiplier updates once the
+// active set has settled. With D = diag(free) (1 off the bounds, 0 on A), the face projector is
+// P_F = I - D G'(G D G')^{-1} G D, applied to free vectors; the FETI dual gives G D G' as the
+// coarse matrix of the free rows (CoarseSpace::set_face), so P_F costs one pass of G, one
+// sparse coarse solve and one pass of G', as P does.
+//   1. x <- x - D G'(G D G')^{-1} G x: G x = 0, only free entries move; if one leaves its
+//      bounds, the face solve ends without a product;
+//   2. g = H x - b; w = P_F D g (the face's residual); z = P_F D Z w; p = z;
+//   3. CG in the face: a = w'z / p'Hp; if x - a p leaves the bounds, stop before the step
+//      (the active set has to grow: SMALBE-M goes on); else x -= a p, g -= a Hp, w, z anew,
+//      p = z + (w'z / w_old'z_old) p; until ||w|| <= tol;
+//      Before each step, MPRGP's proportionality test with the face's multiplier: when the
+//      held rows' share of g^P(g + nu) exceeds Gamma ||w||, some held row is to be freed and
+//      the face solve ends (SMALBE-M's MPRGP frees it by a proportioning step);
+//   4. the equality's multiplier of the face, nu = G' mu = -G'(G D G')^{-1} G D g: then
+//      D (g + nu) = w, and g + nu on the active set is what decides whether x is optimal.
+// Every direction lies in Ker G, where H_rho = A + rho Q equals A, so rho plays no part; one
+// iteration costs one product with H, two face projections and one application of Z.
+// Nothing is allocated once the workspace has its sizes.
+#pragma once
+
+#include <functional>
+
+#include "htfeti/qp/operator.hpp"
+
+namespace htfeti::qp {
+
+/// The face of the bounds, from the owner of G (FETI: DualProblem::set_face, face_correction).
+struct FaceHooks {
+  /// Sets the face: free[i] = 1 where x_i is off its bounds, 0 where it is held. Returns false
+  /// when G D G' is singular (some direction of Im G' is restrained only by held rows), in
+  /// which case the face solve is not taken. Collective.
+  std::function<bool(const Vec& free)> set;
+  /// y = G'(G D G')^{-1} G v for the face last set. Collective.
+  std::function<void(const Vec& v, Vec& y)> correction;
+  explicit operator bool() const { return set && correction; }
+};
+
+/// How a face solve ended.
+enum class FaceOutcome {
+  converged,       ///< ||P_F D g|| <= tol
+  bound,           ///< the next CG step would leave the bounds (x is the last point inside)
+  release,         ///< not proportional: the held rows' gradient exceeds Gamma ||P_F D g||
+  singular,        ///< G D G' singular: not taken
+  declined,        ///< not proportional at the given x already (see release): not taken
+  infeasible,      ///< step 1 would leave the bounds: not taken (x unchanged)
+  max_iterations,  ///< the iteration budget is spent
+  breakdown        ///< p'Hp <= 0
+};
+
+struct FaceResult {
+  FaceOutcome outcome = FaceOutcome::singular;
+  int iterations = 0;        ///< CG steps (products with H: iterations + 1 when taken)
+  double free_gradient = 0;  ///< ||P_F D g|| at exit
+  double held_gradient = 0;  ///< the held rows' share of g^P (g + nu) at exit
+  bool taken() const {
+    return outcome != FaceOutcome::singular && outcome != FaceOutcome::declined &&
+           outcome != FaceOutcome::infeasible;
+  }
+};
+
+struct FaceWorkspace {
+  Vec free, c, t, w, z, p, Hp, x_save;
+};
+
+/// H: the Hessian (SMALBE-M's H_rho); b: the linear term (without the equality's multiplier);
+/// lower, upper: the bounds (upper empty: none); x: a feasible point in, the face solution out
+/// (unchanged unless taken()); g: H x - b at the given x in, at the face solution out; nu: the
+/// face's equality multiplier G' mu out (when taken()); Z: the preconditioner or nullptr; tol: on
+/// ||P_F D g||; gamma: MPRGP's proportioning parameter (the solve leaves the face, outcome release,
+/// when the held rows' share of the projected gradient exceeds gamma ||P_F D g||: a held row is to
+/// be freed).
+FaceResult face_cg(Operator& H, const Vec& b, const Vec& lower, const Vec& upper, Vec& x, Vec& g,
+                   Vec& nu, const FaceHooks& face, Operator* Z, const Reducer& red, double tol,
+                   double gamma, int max_iterations, FaceWorkspace& work);
+
+}  // namespace htfeti::qp

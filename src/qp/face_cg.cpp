@@ -1,0 +1,123 @@
+#include "htfeti/qp/face_cg.hpp"
+
+#include <cmath>
+#include <limits>
+
+namespace htfeti::qp {
+
+FaceResult face_cg(Operator& H, const Vec& b, const Vec& l, const Vec& u, Vec& x, Vec& g, Vec& nu,
+                   const FaceHooks& face, Operator* Z, const Reducer& red, double tol, double gamma,
+                   int max_iterations, FaceWorkspace& w) {
+  const Eigen::Index n = b.size();
+  const bool upper = u.size() == n;
+  const double inf = std::numeric_limits<double>::infinity();
+  FaceResult res;
+  w.free.resize(n), w.c.resize(n), w.t.resize(n), w.w.resize(n), w.z.resize(n), w.p.resize(n),
+      w.Hp.resize(n);
+  Vec &d = w.free, &c = w.c, &t = w.t, &r = w.w, &z = w.z, &p = w.p, &Hp = w.Hp;
+  // nu holds G'(G D G')^{-1} G D g from the last projection of g (the multiplier is -nu).
+  nu.resize(n);
+  for (Eigen::Index i = 0; i < n; ++i) d[i] = x[i] > l[i] && !(upper && !(x[i] < u[i])) ? 1.0 : 0.0;
+  // out = P_F D v = D (v - corr), corr = G'(G D G')^{-1} G D v.
+  const auto project = [&](const Vec& v, Vec& out, Vec& corr) {
+    t = d.cwiseProduct(v);
+    face.correction(t, corr);
+    out = t - d.cwiseProduct(corr);
+  };
+  const auto precondition = [&]() {
+    if (!Z) {
+      z = r;
+      return;
+    }
+    Z->apply(r, z);
+    project(z, z, c);
+  };
+  // The held rows' share of the projected gradient of g - nu: min(g_i - nu_i, 0) at a lower
+  // bound, max(g_i - nu_i, 0) at an upper one (0 where both bounds hold).
+  const auto held_gradient = [&]() {
+    double s = 0;
+    for (Eigen::Index i = 0; i < n; ++i) {
+      if (d[i] != 0.0) continue;
+      const double gi = g[i] - nu[i];
+      const bool at_lower = !(x[i] > l[i]), at_upper = upper && !(x[i] < u[i]);
+      const double bi = at_lower && at_upper ? 0.0
+                        : at_lower           ? std::min(gi, 0.0)
+                                             : std::max(gi, 0.0);
+      s += bi * bi;
+    }
+    return std::sqrt(red.sum(s));
+  };
+  const auto proportional = [&]() {
+    res.free_gradient = red.norm(r);
+    res.held_gradient = held_gradient();
+    return res.held_gradient <= gamma * res.free_gradient;
+  };
+  if (!face.set(d)) return res;  // singular
+  // The proportionality test at the given x and g (no product): a held row is to be freed
+  // already, and the face solve is not taken.
+  project(g, r, nu);
+  if (!proportional()) {
+    res.outcome = FaceOutcome::declined;
+    return res;
+  }
+  // Step 1: onto G x = 0 by the free entries alone.
+  face.correction(x, c);
+  t = x - d.cwiseProduct(c);
+  double inside = 1.0;
+  for (Eigen::Index i = 0; i < n; ++i)
+    if (d[i] != 0.0 && (t[i] < l[i] || (upper && t[i] > u[i]))) inside = 0.0;
+  if (red.min(inside) == 0.0) {
+    res.outcome = FaceOutcome::infeasible;
+    return res;
+  }
+  x = t;
+  H.apply(x, g);
+  g -= b;
+  project(g, r, nu);
+  precondition();
+  p = z;
+  double rz = red.dot(r, z);
+  for (int it = 0;; ++it) {
+    res.iterations = it;
+    if (!proportional()) {
+      res.outcome = FaceOutcome::release;
+      break;
+    }
+    if (res.free_gradient <= tol) {
+      res.outcome = FaceOutcome::converged;
+      break;
+    }
+    if (it >= max_iterations) {
+      res.outcome = FaceOutcome::max_iterations;
+      break;
+    }
+    H.apply(p, Hp);
+    const double pHp = red.dot(p, Hp);
+    if (!(pHp > 0)) {
+      res.outcome = FaceOutcome::breakdown;
+      break;
+    }
+    const double a = rz / pHp;
+    double a_f = inf;  // the largest step along -p that stays inside the bounds
+    for (Eigen::Index i = 0; i < n; ++i) {
+      if (d[i] == 0.0) continue;
+      if (p[i] > 0 && l[i] > -inf) a_f = std::min(a_f, (x[i] - l[i]) / p[i]);
+      if (upper && p[i] < 0 && u[i] < inf) a_f = std::min(a_f, (x[i] - u[i]) / p[i]);
+    }
+    if (a > red.min(a_f)) {
+      res.outcome = FaceOutcome::bound;
+      break;
+    }
+    x -= a * p;
+    g -= a * Hp;
+    project(g, r, nu);
+    precondition();
+    const double rz_new = red.dot(r, z);
+    p = z + (rz_new / rz) * p;
+    rz = rz_new;
+  }
+  nu = -nu;  // the face's equality multiplier G' mu: D (g + nu) = P_F D g
+  return res;
+}
+
+}  // namespace htfeti::qp

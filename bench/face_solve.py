@@ -12,7 +12,8 @@ A = 1 and A = 20 (several minutes each; no reference, the energies of the two ru
 with each other). 1 rank x 2 threads, one run each: the counts are what is compared; the times
 are single runs.
 
-Usage: bench/face_solve.py [--slow] [--out face_solve.json]   (needs gmsh)
+Usage: bench/face_solve.py [--slow] [--only TEXT] [--out face_solve.json]   (needs gmsh)
+(--slow --only 80^3 runs the two 80^3 cases alone.)
 Writes bench/results/OUT and prints a markdown table."""
 import argparse
 import math
@@ -24,6 +25,7 @@ from hertz_cases import contact_problems
 
 p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
 p.add_argument("--slow", action="store_true", help="also the 80^3 cube in 512 METIS parts")
+p.add_argument("--only", default="", help="only the cases whose label contains this")
 p.add_argument("--threads", type=int, default=2)
 p.add_argument("--out", default="face_solve.json")
 a = p.parse_args()
@@ -79,7 +81,7 @@ with tempfile.TemporaryDirectory() as tmp:
         for A in (1, 20):
             cases.append((f"cube-obstacle 80^3, A = {A}, 512 METIS parts",
                           [amplitude(c80, A, tmp, f"b{A}.toml")], False))
-    for label, args, reference in cases:
+    for label, args, reference in [c for c in cases if a.only in c[0]]:
         row = {"case": label}
         for name, flag in (("off", "--no-face-solve"), ("on", "--face-solve")):
             row[name] = run([*args, flag])

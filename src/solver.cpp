@@ -188,7 +188,8 @@ QpSolve solve_with_contact(DualProblem& dual, DualOperators& ops, Vec& lambda,
   int cg_steps = r.cg_steps, expansion_steps = r.expansion_steps,
       cost_increases = r.expansion_cost_increases, proportioning_steps = r.proportioning_steps;
   int face_solves = r.face_solves, face_iterations = r.face_iterations,
-      face_converged = r.face_converged;
+      face_converged = r.face_converged, face_tries = r.face_tries;
+  double face_seconds = r.face_seconds, face_set_seconds = r.face_set_seconds;
   // SMALBE-M once more from x and nu (warm), its counts added to the first solve's.
   const auto solve_again = [&]() {
     r = qp::smalbe(qp, normA, x, red, so, hooks, progress, &nu);
@@ -202,6 +203,9 @@ QpSolve solve_with_contact(DualProblem& dual, DualOperators& ops, Vec& lambda,
     face_solves += r.face_solves;
     face_iterations += r.face_iterations;
     face_converged += r.face_converged;
+    face_tries += r.face_tries;
+    face_seconds += r.face_seconds;
+    face_set_seconds += r.face_set_seconds;
     proportioning_steps += r.proportioning_steps;
     out.converged = r.reason == qp::StopReason::converged;
     out.reason = to_string(r.reason);
@@ -269,7 +273,10 @@ QpSolve solve_with_contact(DualProblem& dual, DualOperators& ops, Vec& lambda,
                 {"proportioning_steps", proportioning_steps},
                 {"face_solves", face_solves},
                 {"face_iterations", face_iterations},
-                {"face_converged", face_converged}};
+                {"face_converged", face_converged},
+                {"face_tries", face_tries},
+                {"face_seconds", face_seconds},
+                {"face_set_seconds", face_set_seconds}};
   if (steps.size() > 1) out.solver["accuracy_refinements"] = steps;
   // The fixed point's history: per step the relative change of the slip bounds.
   if (dual.has_coulomb())

@@ -3,6 +3,8 @@
 #include <cmath>
 #include <limits>
 
+#include "htfeti/clock.hpp"
+
 namespace htfeti::qp {
 
 FaceResult face_cg(Operator& H, const Vec& b, const Vec& l, const Vec& u, Vec& x, Vec& g, Vec& nu,
@@ -52,7 +54,10 @@ FaceResult face_cg(Operator& H, const Vec& b, const Vec& l, const Vec& u, Vec& x
     res.held_gradient = held_gradient();
     return res.held_gradient <= gamma * res.free_gradient;
   };
-  if (!face.set(d)) return res;  // singular
+  const double t0 = seconds_now();
+  const bool regular = face.set(d);
+  res.set_seconds = seconds_now() - t0;
+  if (!regular) return res;  // singular
   // The proportionality test at the given x and g (no product): a held row is to be freed
   // already, and the face solve is not taken.
   project(g, r, nu);

@@ -4,6 +4,7 @@
 #include <limits>
 #include <stdexcept>
 
+#include "htfeti/clock.hpp"
 #include "htfeti/qp/mpgp.hpp"
 
 namespace htfeti::qp {
@@ -89,7 +90,7 @@ SmalbeResult smalbe(const QuadraticProgram& qp, double normA, Vec& x, const Redu
   Vec held = Vec::Constant(use_face ? n : 0, -1.0), fg(use_face ? n : 0), fnu(use_face ? n : 0);
   FaceWorkspace face_work;
   bool face_tried = false;  // on the active set of the last inner exit
-  int face_tries = 0;       // face solves taken (not declined) in this run
+  int face_taken = 0;       // face solves taken (not declined) in this run
   const bool has_upper = u.size() == n;
   // 1 where the active set differs from held (updating held): reduced over the ranks.
   const auto active_set_changed = [&]() {
@@ -117,7 +118,8 @@ SmalbeResult smalbe(const QuadraticProgram& qp, double normA, Vec& x, const Redu
   // the outer loop goes on as if it had not been tried (only its products are spent). One try
   // per active set: a face that did not finish is not tried again until the set changes.
   // Needs g = H x - (b - nu) at x.
-  const auto face_finishes = [&]() {
+  const auto face_attempt = [&]() {
+    ++res.face_tries;
     face_tried = true;
     face_work.x_save = x;
     fg = g - nu;  // H x - b
@@ -125,8 +127,9 @@ SmalbeResult smalbe(const QuadraticProgram& qp, double normA, Vec& x, const Redu
         face_cg(H, b, l, u, x, fg, fnu, hooks.face, hooks.preconditioner ? &Z : nullptr, red,
                 kFaceTolerance * grad_tol, opt.gamma,
                 opt.max_inner - res.inner_iterations - res.face_iterations, face_work);
+    res.face_set_seconds += fr.set_seconds;
     if (!fr.taken()) return false;
-    ++face_tries;
+    ++face_taken;
     ++res.face_solves;
     res.face_iterations += fr.iterations;
     if (fr.outcome == FaceOutcome::converged) {
@@ -154,6 +157,12 @@ SmalbeResult smalbe(const QuadraticProgram& qp, double normA, Vec& x, const Redu
     x = face_work.x_save;  // undone: g, nu, Q x and the tracked image are those of x
     set_tolerances();
     return false;
+  };
+  const auto face_finishes = [&]() {
+    const double t0 = seconds_now();
+    const bool done = face_attempt();
+    res.face_seconds += seconds_now() - t0;
+    return done;
   };
   for (int k = 0;; ++k) {
     rhs = b - nu;
@@ -195,7 +204,7 @@ SmalbeResult smalbe(const QuadraticProgram& qp, double normA, Vec& x, const Redu
     // set and an inner solve has met the gradient test (only the equality is left).
     const bool set_changed = use_face && active_set_changed();
     if (set_changed) face_tried = false;
-    if (use_face && !set_changed && !face_tried && face_tries < kMaxFaceSolves &&
+    if (use_face && !set_changed && !face_tried && face_taken < kMaxFaceSolves &&
         (late || inner.projected_gradient <= grad_tol) && face_finishes())
       break;
     // L(x^k, mu^k) = 1/2 x'(g - b + nu) with g = H x - b + nu.

@@ -56,6 +56,7 @@ struct FaceResult {
   int iterations = 0;        ///< CG steps (products with H: iterations + 1 when taken)
   double free_gradient = 0;  ///< ||P_F D g|| at exit
   double held_gradient = 0;  ///< the held rows' share of g^P (g + nu) at exit
+  double set_seconds = 0;    ///< wall time of FaceHooks::set (the face's coarse matrix)
   bool taken() const {
     return outcome != FaceOutcome::singular && outcome != FaceOutcome::declined &&
            outcome != FaceOutcome::infeasible;

@@ -113,7 +113,10 @@ struct SmalbeResult {
   int rho_updates = 0;               ///< late penalty updates made (step 4)
   int face_solves = 0;               ///< face solves taken (face_cg.hpp)
   int face_iterations = 0;           ///< their CG steps
-  int face_converged = 0;            ///< of them, those that met their own test
+  int face_converged = 0;            ///< of them, those that ended the solve
+  int face_tries = 0;                ///< face solves begun (also those declined or not taken)
+  double face_seconds = 0;           ///< wall time in face solves, their products included
+  double face_set_seconds = 0;       ///< of it, setting the faces (coarse matrices)
 };
 
 /// y = Z_rho x (the preconditioner in face, which depends on rho).

@@ -1,4 +1,5 @@
-// The face solve of SMALBE-M (smalbe.hpp, docs/method.md "The face solve"): projected
+// The face solve of SMALBE-M (smalbe.hpp, docs/method.md "The face solve"; the paper's dual
+// problem (11) on Ker G as in (15)-(16), the equality held on one face of the bounds): projected
 // preconditioned CG on one face of the bounds with the equality G x = 0 held exactly,
 //     min 1/2 x'Ax - b'x   subject to  x_i = l_i (or u_i) on the active set A,  G x = 0,
 // the problem that SMALBE-M's outer loop approaches through its multiplier updates once the

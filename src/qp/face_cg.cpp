@@ -4,6 +4,7 @@
 #include <limits>
 
 #include "htfeti/clock.hpp"
+#include "htfeti/qp/mprgp.hpp"
 
 namespace htfeti::qp {
 
@@ -14,8 +15,7 @@ FaceResult face_cg(Operator& H, const Vec& b, const Vec& l, const Vec& u, Vec& x
   const bool upper = u.size() == n;
   const double inf = std::numeric_limits<double>::infinity();
   FaceResult res;
-  w.free.resize(n), w.c.resize(n), w.t.resize(n), w.w.resize(n), w.z.resize(n), w.p.resize(n),
-      w.Hp.resize(n);
+  for (Vec* v : {&w.free, &w.c, &w.t, &w.w, &w.z, &w.p, &w.Hp, &w.phi, &w.beta}) v->resize(n);
   Vec &d = w.free, &c = w.c, &t = w.t, &r = w.w, &z = w.z, &p = w.p, &Hp = w.Hp;
   // nu holds G'(G D G')^{-1} G D g from the last projection of g (the multiplier is -nu).
   nu.resize(n);
@@ -34,20 +34,12 @@ FaceResult face_cg(Operator& H, const Vec& b, const Vec& l, const Vec& u, Vec& x
     Z->apply(r, z);
     project(z, z, c);
   };
-  // The held rows' share of the projected gradient of g - nu: min(g_i - nu_i, 0) at a lower
-  // bound, max(g_i - nu_i, 0) at an upper one (0 where both bounds hold).
+  // The held rows' share of the projected gradient of g - nu: the chopped gradient of MPRGP
+  // (zero on the free rows).
   const auto held_gradient = [&]() {
-    double s = 0;
-    for (Eigen::Index i = 0; i < n; ++i) {
-      if (d[i] != 0.0) continue;
-      const double gi = g[i] - nu[i];
-      const bool at_lower = !(x[i] > l[i]), at_upper = upper && !(x[i] < u[i]);
-      const double bi = at_lower && at_upper ? 0.0
-                        : at_lower           ? std::min(gi, 0.0)
-                                             : std::max(gi, 0.0);
-      s += bi * bi;
-    }
-    return std::sqrt(red.sum(s));
+    t = g - nu;
+    split_gradient(x, t, l, u, w.phi, w.beta);
+    return red.norm(w.beta);
   };
   const auto proportional = [&]() {
     res.free_gradient = red.norm(r);

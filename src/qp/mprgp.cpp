@@ -19,8 +19,16 @@ bool has_upper(const Vec& u, Eigen::Index n) {
     throw std::invalid_argument("MPRGP: the upper bounds have the wrong size");
   return u.size() == n;
 }
-// phi: free gradient, beta: chopped gradient (min(g, 0) at a lower bound, max(g, 0) at an upper
-// one, 0 where both bounds hold: a fixed component cannot move).
+// Preconditioned expansion steps that may raise the cost in one MPRGP run (then gradient ones).
+constexpr int kMaxCostIncreases = 10;
+
+// x <- the projection of x onto [l, u].
+void clamp(Vec& x, const Vec& l, const Vec& u) {
+  x = x.cwiseMax(l);
+  if (u.size() == x.size()) x = x.cwiseMin(u);
+}
+}  // namespace
+
 void split_gradient(const Vec& x, const Vec& g, const Vec& l, const Vec& u, Vec& phi, Vec& beta) {
   const bool upper = u.size() == x.size();
   for (Eigen::Index i = 0; i < x.size(); ++i) {
@@ -32,15 +40,6 @@ void split_gradient(const Vec& x, const Vec& g, const Vec& l, const Vec& u, Vec&
                                    : 0.0;
   }
 }
-// Preconditioned expansion steps that may raise the cost in one MPRGP run (then gradient ones).
-constexpr int kMaxCostIncreases = 10;
-
-// x <- the projection of x onto [l, u].
-void clamp(Vec& x, const Vec& l, const Vec& u) {
-  x = x.cwiseMax(l);
-  if (u.size() == x.size()) x = x.cwiseMin(u);
-}
-}  // namespace
 
 void projected_gradient(const Vec& x, const Vec& g, const Vec& lower, Vec& gp, const Vec& upper) {
   has_upper(upper, x.size());

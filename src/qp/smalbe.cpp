@@ -1,6 +1,7 @@
 #include "htfeti/qp/smalbe.hpp"
 
 #include <algorithm>
+#include <cmath>
 #include <limits>
 #include <stdexcept>
 
@@ -90,7 +91,6 @@ SmalbeResult smalbe(const QuadraticProgram& qp, double normA, Vec& x, const Redu
   Vec held = Vec::Constant(use_face ? n : 0, -1.0), fg(use_face ? n : 0), fnu(use_face ? n : 0);
   FaceWorkspace face_work;
   bool face_tried = false;  // on the active set of the last inner exit
-  int face_taken = 0;       // face solves taken (not declined) in this run
   const bool has_upper = u.size() == n;
   // 1 where the active set differs from held (updating held): reduced over the ranks.
   const auto active_set_changed = [&]() {
@@ -129,15 +129,15 @@ SmalbeResult smalbe(const QuadraticProgram& qp, double normA, Vec& x, const Redu
                 opt.max_inner - res.inner_iterations - res.face_iterations, face_work);
     res.face_set_seconds += fr.set_seconds;
     if (!fr.taken()) return false;
-    ++face_taken;
     ++res.face_solves;
     res.face_iterations += fr.iterations;
     if (fr.outcome == FaceOutcome::converged) {
       Q.apply(x, face_work.t);
       const double q = red.norm(face_work.t);
       face_work.c = fg + fnu;  // the gradient of L at (x, mu of the face)
-      projected_gradient(x, face_work.c, l, face_work.z, u);
-      const double gp = red.norm(face_work.z);
+      split_gradient(x, face_work.c, l, u, face_work.phi, face_work.beta);
+      const double gp = std::sqrt(red.dot(face_work.phi, face_work.phi) +
+                                  red.dot(face_work.beta, face_work.beta));
       // The test with the tolerances at this x (lambda sets the round-off floor).
       const double grad_tol_old = grad_tol, eq_tol_old = eq_tol;
       set_tolerances();
@@ -201,10 +201,11 @@ SmalbeResult smalbe(const QuadraticProgram& qp, double normA, Vec& x, const Redu
       break;
     }
     // The face solve (face_cg.hpp), once two inner solves in a row have ended on the same active
-    // set and an inner solve has met the gradient test (only the equality is left).
+    // set and an inner solve has met the gradient test (only the equality is left); at most
+    // kMaxFaceSolves taken per run.
     const bool set_changed = use_face && active_set_changed();
     if (set_changed) face_tried = false;
-    if (use_face && !set_changed && !face_tried && face_taken < kMaxFaceSolves &&
+    if (use_face && !set_changed && !face_tried && res.face_solves < kMaxFaceSolves &&
         (late || inner.projected_gradient <= grad_tol) && face_finishes())
       break;
     // L(x^k, mu^k) = 1/2 x'(g - b + nu) with g = H x - b + nu.

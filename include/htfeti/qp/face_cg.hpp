@@ -65,7 +65,7 @@ struct FaceResult {
 };
 
 struct FaceWorkspace {
-  Vec free, c, t, w, z, p, Hp, x_save;
+  Vec free, c, t, w, z, p, Hp, phi, beta, x_save;
 };
 
 /// H: the Hessian (SMALBE-M's H_rho); b: the linear term (without the equality's multiplier);

@@ -120,6 +120,11 @@ inline MprgpResult mprgp(Operator& A, const Vec& b, const Vec& lower, Vec& x, Ve
   return mprgp(A, b, lower, no_upper, x, g, red, options, stop, gradient_given, workspace);
 }
 
+/// The free gradient phi (g where l < x < u, else 0) and the chopped gradient beta (min(g, 0) at
+/// a lower bound, max(g, 0) at an upper one, 0 where both hold and off the bounds) of g at x
+/// (u empty: no upper bounds); phi and beta must have x's size. Allocates nothing.
+void split_gradient(const Vec& x, const Vec& g, const Vec& l, const Vec& u, Vec& phi, Vec& beta);
+
 /// The projected gradient g^P = phi + beta of min 1/2 x'Ax - b'x, l <= x <= u, for the gradient
 /// g at x (upper empty: no upper bounds).
 void projected_gradient(const Vec& x, const Vec& g, const Vec& lower, Vec& gp,

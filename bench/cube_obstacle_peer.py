@@ -14,7 +14,9 @@ nu = 0.3, own weight, clamped at x = 0, the obstacle u_z >= -A sin(pi x / 50) un
     preconditioned free gradient) and projected-cg (the projected CG step; splits
     box_projected_cg and metis_projected_cg, not in the default list), and with
     --preconditioner dirichlet (splits box_dirichlet and metis_dirichlet, not in the default
-    list).
+    list), and with --factor-precision double (the factor sweeps in double instead of the
+    automatic single-precision copies; splits box_double, metis_double and
+    metis_dirichlet_double, not in the default list).
 The two stopping tests are not the same quantity; each row also gives its energy's distance
 from the reference energy (the peer's solve at rtol 1e-10), so the accuracy reached can be
 compared. --check-energy also solves each case with htfeti at rtol 1e-8 and asserts that its
@@ -133,7 +135,11 @@ with tempfile.TemporaryDirectory() as tmp:
             pre = ["--mprgp-expansion", "preconditioned"]
             pcg = ["--mprgp-expansion", "projected-cg"]
             dir_ = ["--preconditioner", "dirichlet"]
+            dbl = ["--factor-precision", "double"]
             for split, sub, extra in (("box", f"[{ns}, {ns}, {ns}]", []),
+                                      ("box_double", f"[{ns}, {ns}, {ns}]", dbl),
+                                      ("metis_double", str(ns ** 3), dbl),
+                                      ("metis_dirichlet_double", str(ns ** 3), dir_ + dbl),
                                       ("metis", str(ns ** 3), []),
                                       ("box_preconditioned", f"[{ns}, {ns}, {ns}]", pre),
                                       ("metis_preconditioned", str(ns ** 3), pre),
@@ -151,7 +157,9 @@ with tempfile.TemporaryDirectory() as tmp:
                 what = split.replace("_preconditioned", " split, preconditioned expansion")
                 what = what.replace("_projected_cg", " split, projected CG expansion")
                 what = what.replace("_dirichlet", " split, Dirichlet preconditioner")
-                what = what if "expansion" in what or "Dirichlet" in what else what + " split"
+                what = what.replace("_double", " split, double-precision factor sweeps")
+                what = what.replace("split split", "split")
+                what = what if "split" in what else what + " split"
                 row[split] = {"code": f"htfeti TFETI, {what}, 1 rank x {a.ranks} threads",
                               "runs": len(hr), "wall_s": statistics.median(x["wall_s"] for x in hr),
                               "total_s": statistics.median(x["timings"]["total"] for x in hr),
@@ -160,6 +168,9 @@ with tempfile.TemporaryDirectory() as tmp:
                               "expansion_cost_increases":
                                   h["solver"].get("expansion_cost_increases"),
                               "preconditioner": h.get("preconditioner"),
+                              "factor_precision": h.get("factor_precision"),
+                              "single_check_products":
+                                  h["solver"].get("single_sweeps", {}).get("check_products"),
                               "peak_rss_gb": h["memory"]["peak_rss_mb_max_rank"] / 1024,
                               "energy": h["objective"], "energy_error": err(h["objective"])}
                 if a.check_energy:
@@ -173,7 +184,7 @@ with tempfile.TemporaryDirectory() as tmp:
             for split in a.splits:
                 row[f"ratio_{split}_to_peer"] = row[split]["wall_s"] / row["peer"]["wall_s"]
             for split in ("metis", "metis_preconditioned", "metis_projected_cg",
-                          "metis_dirichlet"):
+                          "metis_dirichlet", "metis_double", "metis_dirichlet_double"):
                 if split in row and "box" in row:
                     row[f"products_{split}_to_box"] = (row[split]["products"] /
                                                        row["box"]["products"])

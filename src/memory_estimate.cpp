@@ -120,6 +120,13 @@ MemoryEstimate estimate_memory(const Model& model, const FetiOptions& options, c
     }
   }
   e.factors_held_mb = e.factors_mb;
+  // The implicit operator's single-precision copies (4 of a value's 8 bytes), where every
+  // cluster of the rank is one subdomain (TFETI: no primal constraints).
+  bool one_per_cluster = true;
+  for (int c = c0; c < c1; ++c)
+    one_per_cluster = one_per_cluster && layout.cluster_first[c + 1] - layout.cluster_first[c] == 1;
+  if (!is_explicit && one_per_cluster && options.factor_precision != FactorPrecision::double_)
+    e.single_mb = 0.5 * e.factors_mb;
   if (is_explicit) {
     e.explicit_mb = explicit_bytes / kMiB;
     // The factors of the clusters set up at one time (threads x the rank's largest cluster).
@@ -238,6 +245,19 @@ MemoryEstimate check_memory(const Model& model, FetiOptions& options, const Comm
       s = std::move(t);
       s.e.explicit_for_memory = true;
       s.e.implicit_peak_mb = implicit_peak;
+    }
+  }
+  // The automatic factor precision takes the factors alone (double) when the single-precision
+  // copies would not fit and the run without them does.
+  if (!refuse_early && options.factor_precision == FactorPrecision::automatic &&
+      comm.max(s.fits(available) ? 0.0 : 1.0) > 0 && comm.max(s.e.single_mb > 0 ? 1.0 : 0.0) > 0) {
+    FetiOptions alt = options;
+    alt.factor_precision = FactorPrecision::double_;
+    Sums t = estimate(alt, true);
+    if (comm.min(t.fits(available) ? 1.0 : 0.0) > 0) {
+      options.factor_precision = FactorPrecision::double_;
+      s = std::move(t);
+      s.e.single_declined_for_memory = true;
     }
   }
   MPI_Comm_free(&node);

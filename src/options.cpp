@@ -285,6 +285,16 @@ void add_feti_options(std::vector<OptionSpec>& t) {
       kPrecisionNames,
       +[](RunOptions& r) -> Precision& { return r.solve.feti.explicit_precision; }));
   t.push_back(choice(
+      "solver", "factor_precision", "--factor-precision",
+      "what the implicit operator's factor sweeps read: double (the subdomain factors) | single "
+      "(single-precision copies of the factors, sums in double: half the bytes per F for 50% "
+      "more factor memory; the converged solve is then checked with the factors, one product, "
+      "and finished with them if the check fails, so the result meets rtol for the exact "
+      "operator) | auto (single for TFETI's implicit operator; H-TFETI-DP's clusters with "
+      "corners or averages and the explicit operator: double)",
+      kFactorPrecisionNames,
+      +[](RunOptions& r) -> FactorPrecision& { return r.solve.feti.factor_precision; }));
+  t.push_back(choice(
       "solver", "ordering", "--ordering",
       "fill-reducing ordering of subdomain factors: amd | metis | auto (METIS, except AMD for "
       "the implicit operator in 2D); the explicit operator orders the interface last and the "

@@ -53,6 +53,11 @@ void report_problem_and_solve(nlohmann::json& rep, const Model& model, DualProbl
   rep["rtol"] = options.rtol;
   rep["ordering"] = dual.ordering_in_effect();
   rep["dual_operator"] = dual.dual_operator_name();
+  rep["factor_precision"] = dual.single_sweeps() ? "single" : "double";
+  rep["factor_precision_reason"] = estimate.single_declined_for_memory ? "memory"
+                                   : options.feti.factor_precision == FactorPrecision::automatic
+                                       ? "automatic"
+                                       : "requested";
   if (options.feti.dual_operator == DualOperator::checked) {
     const DualProblem::OperatorCheck check = dual.dual_operator_check();
     rep["dual_operator_check"] = {{"cluster_applications", check.applications},
@@ -204,6 +209,7 @@ void report_timings_and_memory(nlohmann::json& rep, DualProblem& dual, const Com
       {"peak_mb_by_phase", peak_by_phase},
       {"factor_mb", comm.sum(st.factor_mb)},
       {"distinct_factor_mb", comm.sum(st.distinct_factor_mb)},
+      {"single_factor_mb", comm.sum(st.single_factor_mb)},
       {"shared_matrices", comm.sum(static_cast<long long>(st.shared_matrices))},
       // The estimate made before setup (0 with check_memory off); sums over ranks.
       {"estimate_mb",
@@ -213,6 +219,7 @@ void report_timings_and_memory(nlohmann::json& rep, DualProblem& dual, const Com
         {"vectors", comm.sum(estimate.vectors_mb)},
         {"explicit", comm.sum(estimate.explicit_mb)},
         {"factors_held", comm.sum(estimate.factors_held_mb)},
+        {"single_factors", comm.sum(estimate.single_mb)},
         {"sampled", comm.min(estimate.sampled ? 1.0 : 0.0) > 0},
         // Factors counted as shared by equal subdomains (a count; 0: one each).
         {"shared_factors", comm.sum(estimate.shared_factors)},

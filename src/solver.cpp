@@ -98,6 +98,20 @@ QpSolve solve_without_contact(DualProblem& dual, DualOperators& ops, Vec& lambda
   QpSolve out;
   out.outer = r.iterations;
   out.converged = r.reason == qp::StopReason::converged;
+  // Single-precision sweeps: PCG converged for the operator of the factors' copies; from here on
+  // F is the factors' own, and PCG goes on from lambda with the same rtol (one product when
+  // lambda already passes its test).
+  nlohmann::json single = nullptr;
+  if (dual.single_sweeps()) {
+    dual.set_single_sweeps(false);
+    if (out.converged) {
+      const long before = ops.F.count();
+      r = qp::projected_cg(qp, lambda, red, po, progress, ops.preconditioned ? &Z : nullptr);
+      out.outer += r.iterations;
+      out.converged = r.reason == qp::StopReason::converged;
+      single = {{"check_products", ops.F.count() - before}, {"check_iterations", r.iterations}};
+    }
+  }
   // The accuracy refinement: PCG again from lambda (in lambda~ + Ker G~) with a smaller rtol.
   const nlohmann::json steps = refine_accuracy(check, lambda, po.rtol, out.converged, [&]() {
     r = qp::projected_cg(qp, lambda, red, po, progress, ops.preconditioned ? &Z : nullptr);
@@ -109,6 +123,7 @@ QpSolve solve_without_contact(DualProblem& dual, DualOperators& ops, Vec& lambda
   out.solver = {{"algorithm", "pcg"},
                 {"projected_residual", r.projected_residual},
                 {"projected_rhs", r.projected_rhs}};
+  if (!single.is_null()) out.solver["single_sweeps"] = single;
   if (steps.size() > 1) out.solver["accuracy_refinements"] = steps;
   return out;
 }
@@ -129,7 +144,12 @@ QpSolve solve_with_contact(DualProblem& dual, DualOperators& ops, Vec& lambda,
   dual_qp.constraints = dual.constraint_set();
   dual_qp.equality_projector = qp::borrow(ops.P);
   // lambda = lambda~ + x: b = P(d - F lambda~), x_I >= -lambda~_I, A = P F P.
+  // b is formed once, so with the factors themselves (single sweeps would leave their
+  // perturbation in the QP that the check below solves).
+  const bool single = dual.single_sweeps();
+  if (single) dual.set_single_sweeps(false);
   qp::QuadraticProgram qp = qp::enforce_by_projector(qp::homogenize(dual_qp, dual.lambda_tilde()));
+  if (single) dual.set_single_sweeps(true);
   Vec fv(merged ? n : 0), qtmp(merged ? n : 0);
   auto coarse_step = [&](const Vec& v, double rho, Vec& y, Vec& qv) {
     ops.F.apply(v, fv);
@@ -250,6 +270,22 @@ QpSolve solve_with_contact(DualProblem& dual, DualOperators& ops, Vec& lambda,
     so.M_start = r.M;
     solve_again();
   };
+  // Single-precision sweeps (FetiOptions::factor_precision): the solve converged for the
+  // operator of the factors' copies; from here on F is the factors' own, and SMALBE-M goes on
+  // from x and its multiplier with the same rtol, its penalty and M (one product when x already
+  // passes the test with the exact operator). The accuracy refinement below and the
+  // reconstruction use the factors too.
+  nlohmann::json single_check = nullptr;
+  if (single) {
+    dual.set_single_sweeps(false);
+    if (out.converged) {
+      const long before = out.matvecs;
+      const int outer_before = out.outer;
+      refine_again();
+      single_check = {{"check_products", out.matvecs - before},
+                      {"check_outer_iterations", out.outer - outer_before}};
+    }
+  }
   const nlohmann::json steps = refine_accuracy(check, lambda, so.rtol, out.converged, refine_again);
   const bool discs = dynamic_cast<const qp::SeparableSet*>(qp.constraints.get()) != nullptr;
   out.solver = {{"algorithm", discs ? "smalbe-m+mpgp" : "smalbe-m+mprgp"},
@@ -277,6 +313,7 @@ QpSolve solve_with_contact(DualProblem& dual, DualOperators& ops, Vec& lambda,
                 {"face_tries", face_tries},
                 {"face_seconds", face_seconds},
                 {"face_set_seconds", face_set_seconds}};
+  if (!single_check.is_null()) out.solver["single_sweeps"] = single_check;
   if (steps.size() > 1) out.solver["accuracy_refinements"] = steps;
   // The fixed point's history: per step the relative change of the slip bounds.
   if (dual.has_coulomb())
@@ -433,6 +470,14 @@ SolveOutput solve(std::shared_ptr<const Model> model_ptr, const SolveOptions& op
                      ? "of --memory-limit"
                      : "available",
                  estimate.machine_peak_mb);
+  if (verbose && estimate.single_declined_for_memory)
+    std::fprintf(stderr,
+                 "  memory: the single-precision copies of the factors would not fit (%.0f MB "
+                 "%s); the factor sweeps read the factors (double)\n",
+                 estimate.available_mb,
+                 feti.memory_limit_mb > 0 && estimate.available_mb == feti.memory_limit_mb
+                     ? "of --memory-limit"
+                     : "available");
   if (verbose && estimate.explicit_declined_for_memory && !estimate.explicit_for_memory)
     std::fprintf(stderr,
                  "  memory: the explicit operator would need %.0f MB on this machine, more than "

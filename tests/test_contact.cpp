@@ -111,6 +111,53 @@ TEST(FaceSolve, OnAndOffReachTheUndecomposedSolution) {
     }
 }
 
+// Single-precision sweeps (FetiOptions::factor_precision) with the implicit operator: TFETI's
+// solve reads the factors' single-precision copies, then is checked and, where the check fails,
+// finished with the factors, so it reaches the undecomposed solution as the double sweeps do.
+// At rtol 1e-10 the copies' operator cannot pass the exact operator's test (its perturbation is
+// far above 1e-10), so the check must go on with the factors: more than the one product of a
+// check that passes. H-TFETI-DP's clusters (corners or averages) keep the double sweeps. The
+// same for PCG without contact. Under mpiexec -n 1, 2, 4 like the suites above.
+TEST(FactorPrecision, SingleSweepsAreCheckedAndFinishedWithTheFactors) {
+  Comm comm;
+  for (ProblemKind kind : {ProblemKind::membranes, ProblemKind::poisson2d}) {
+    const auto ref = solve_undecomposed(kind, ElementKind::q1, 24);
+    for (int m : {1, 2})
+      for (double rtol : {1e-10, 1e-5})
+        for (FactorPrecision fp : {FactorPrecision::automatic, FactorPrecision::double_}) {
+          SCOPED_TRACE(to_string(kind) + ", m " + std::to_string(m) + ", rtol " +
+                       std::to_string(rtol) + ", " + name_of(kFactorPrecisionNames, fp));
+          SolveOptions opt;
+          opt.rtol = rtol;
+          opt.decomposition = {kind, ElementKind::q1, 24, 4, m, Glue::averages};
+          opt.feti.dual_operator = DualOperator::implicit;
+          opt.feti.factor_precision = fp;
+          const auto out = solve(opt, comm);
+          ASSERT_TRUE(out.converged) << out.report["stop_reason"];
+          const bool single = fp == FactorPrecision::automatic && m == 1;
+          EXPECT_EQ(out.report["factor_precision"], single ? "single" : "double");
+          const auto& sv = out.report["solver"];
+          EXPECT_EQ(sv.contains("single_sweeps"), single);
+          if (single) {
+            EXPECT_GT(out.report["memory"]["single_factor_mb"].get<double>(), 0.0);
+            const long check = sv["single_sweeps"]["check_products"].get<long>();
+            if (rtol < 1e-8)
+              EXPECT_GE(check, 2);
+            else
+              EXPECT_GE(check, 1);
+          }
+          if (rtol < 1e-8) {
+            EXPECT_NEAR(out.report["objective"].get<double>(), ref.energy,
+                        1e-8 * std::abs(ref.energy));
+            EXPECT_LT(test::relative_error(*out.model, *out.dual, out.u, ref.u), 1e-6);
+          } else {
+            EXPECT_NEAR(out.report["objective"].get<double>(), ref.energy,
+                        1e-4 * std::abs(ref.energy));
+          }
+        }
+  }
+}
+
 TEST(FactorsReleased, SameSolutionWhenFactorsAreRebuiltForTheReconstruction) {
   Comm comm;
   SolveOptions opt;

@@ -111,22 +111,41 @@ TEST_P(DualOperators, FIsSymmetricPositiveSemidefinite) {
   }
 }
 
+// The implicit operator with the factors (double sweeps) equals the explicit one to round-off;
+// with the factors' single-precision copies (the automatic precision for TFETI) it differs by
+// their rounding (visible, and small), and set_single_sweeps(false) gives the double sweeps
+// back bit for bit. d is formed with the factors either way.
 TEST_P(DualOperators, ExplicitEqualsImplicit) {
-  FetiOptions imp, exp;
-  imp.dual_operator = DualOperator::implicit;
+  FetiOptions imp, exp, sgl;
+  imp.dual_operator = sgl.dual_operator = DualOperator::implicit;
+  imp.factor_precision = FactorPrecision::double_;
   exp.dual_operator = DualOperator::explicit_;
   auto pa = test::make_dual(*model, comm, imp), pb = test::make_dual(*model, comm, exp);
-  DualProblem &a = *pa, &b = *pb;
+  auto pc = test::make_dual(*model, comm, sgl);
+  DualProblem &a = *pa, &b = *pb, &c = *pc;
   ASSERT_FALSE(a.explicit_operator());
   ASSERT_TRUE(b.explicit_operator());
-  Eigen::VectorXd fa, fb;
+  EXPECT_FALSE(a.single_sweeps());
+  EXPECT_EQ(c.single_sweeps(), GetParam().m == 1);  // TFETI only
+  Eigen::VectorXd fa, fb, fc;
   for (double seed : {1.0, 5.0}) {
     const Eigen::VectorXd x = test::pseudo_random(a, seed);
     a.apply_F(x, fa);
     b.apply_F(x, fb);
     EXPECT_LT(std::sqrt(dot(fa - fb, fa - fb)), 1e-11 * std::sqrt(dot(fa, fa)));
+    c.apply_F(x, fc);
+    const double diff = std::sqrt(dot(fc - fa, fc - fa)) / std::sqrt(dot(fa, fa));
+    EXPECT_LT(diff, 1e-5);
+    if (c.single_sweeps()) {
+      EXPECT_GT(diff, 1e-12);
+      c.set_single_sweeps(false);
+      c.apply_F(x, fc);
+      EXPECT_EQ(dot(fc - fa, fc - fa), 0.0);
+      c.set_single_sweeps(true);
+    }
   }
   EXPECT_LT((a.d() - b.d()).norm(), 1e-11 * (1 + a.d().norm()));
+  EXPECT_EQ(dot(a.d() - c.d(), a.d() - c.d()), 0.0);
 }
 
 // The checked operator applies the explicit one (bit for bit what the explicit operator gives)

@@ -778,3 +778,54 @@ TEST(Decomposition, ClusterMajorNumberingRoundTrips) {
     EXPECT_EQ(covered, dec.num_clusters());
   }
 }
+
+// The single-precision copy of a factor (SparseCholesky::make_single): solve_single is the exact
+// solve with the rounded factor L_s, so on a well-conditioned matrix its residual is of the order
+// of single precision (not of double: the copy is read), its result agrees with solve() to that
+// order, and holders of a factor shared through the numeric cache share one copy.
+TEST(SparseCholesky, SingleCopySolvesWithTheRoundedFactor) {
+  const int n = 12;
+  std::vector<Eigen::Triplet<double>> t;
+  for (int z = 0; z < n; ++z)
+    for (int y = 0; y < n; ++y)
+      for (int x = 0; x < n; ++x) {
+        const int i = (z * n + y) * n + x;
+        t.emplace_back(i, i, 7.0 + 0.01 * (i % 7));
+        if (x + 1 < n) t.emplace_back(i, i + 1, -1.0), t.emplace_back(i + 1, i, -1.0);
+        if (y + 1 < n) t.emplace_back(i, i + n, -1.0), t.emplace_back(i + n, i, -1.0);
+        if (z + 1 < n) t.emplace_back(i, i + n * n, -1.0), t.emplace_back(i + n * n, i, -1.0);
+      }
+  const int N = n * n * n;
+  Eigen::SparseMatrix<double> A(N, N);
+  A.setFromTriplets(t.begin(), t.end());
+  for (Ordering ordering : {Ordering::amd, Ordering::metis}) {
+    SCOPED_TRACE(to_string(ordering));
+    SparseCholesky chol(ordering);
+    chol.factorize(A);
+    EXPECT_FALSE(chol.has_single());
+    chol.make_single();
+    ASSERT_TRUE(chol.has_single());
+    EXPECT_GT(chol.single_bytes(), 0);
+    const Eigen::VectorXd b = Eigen::VectorXd::LinSpaced(N, -1.0, 2.0).array().sin();
+    Eigen::VectorXd xd(N), xs(N);
+    chol.solve(b.data(), xd.data());
+    chol.solve_single(b.data(), xs.data());
+    const double rd = (A * xd - b).norm() / b.norm(), rs = (A * xs - b).norm() / b.norm();
+    EXPECT_LT(rd, 1e-14);
+    EXPECT_LT(rs, 1e-6);   // single precision (cond(A) < 3.5 here)
+    EXPECT_GT(rs, 1e-10);  // and not double: the copy is what was read
+    EXPECT_LT((xs - xd).norm(), 1e-6 * xd.norm());
+    Eigen::VectorXd inplace = b;  // b == x allowed
+    chol.solve_single(inplace.data(), inplace.data());
+    EXPECT_EQ((inplace - xs).cwiseAbs().maxCoeff(), 0.0);
+    chol.factorize(A * 2.0);  // a new factorization drops the copy
+    EXPECT_FALSE(chol.has_single());
+  }
+  // Holders of one factor shared through the numeric cache share its copy.
+  SubdomainCache cache(64, 1e9);
+  std::vector<SparseCholesky> f(3);
+  for (auto& c : f) c.factorize(A, &cache);
+  for (auto& c : f) c.make_single();
+  EXPECT_EQ(f[1].single_data(), f[2].single_data());
+  EXPECT_NE(f[1].single_data(), nullptr);
+}

@@ -48,6 +48,12 @@ struct MemoryEstimate {
   double matrices_mb = 0, factors_mb = 0, vectors_mb = 0, explicit_mb = 0;
   /// The factors held at the peak: factors_mb, or the working set when they are released.
   double factors_held_mb = 0;
+  /// The single-precision copies of the implicit operator's factors (FetiOptions::
+  /// factor_precision; TFETI): half of factors_mb. check_memory takes double instead for the
+  /// automatic precision when the copies do not fit and the run without them does
+  /// (single_declined_for_memory).
+  double single_mb = 0;
+  bool single_declined_for_memory = false;
   /// Factors counted as shared by equal subdomains (a generated box, the numeric cache on):
   /// the number of factors counted in factors_mb; 0 when every subdomain has its own.
   double shared_factors = 0;
@@ -77,7 +83,7 @@ struct MemoryEstimate {
   /// at most the larger of the two totals. The explicit operator adds the clusters in flight,
   /// which hold their matrices and their factors at once.
   double peak_mb() const {
-    const double done = factors_held_mb + explicit_mb;
+    const double done = factors_held_mb + single_mb + explicit_mb;
     return (matrices_mb > done ? matrices_mb : done) + vectors_mb + factors_working_mb;
   }
 };

@@ -142,7 +142,7 @@ std::vector<std::vector<int>> object_blocks(const Eigen::MatrixXd& Ct, int dofs_
 Cluster::Cluster(int id, std::vector<Subdomain*> subs, std::vector<std::vector<ConstraintEntry>> C,
                  Ordering ordering, std::vector<std::vector<Subdomain::BEntry>> b,
                  std::vector<int> nmult, DualOperator kind, SubdomainCache* cache,
-                 Precision precision, bool by_object)
+                 Precision precision, bool by_object, bool single_sweeps)
     : id_(id), subs_(std::move(subs)), explicit_(kind != DualOperator::implicit) {
   if (kind == DualOperator::automatic)
     throw std::logic_error("cluster " + std::to_string(id) + ": the dual operator is not chosen");
@@ -161,6 +161,9 @@ Cluster::Cluster(int id, std::vector<Subdomain*> subs, std::vector<std::vector<C
       dual_ = std::move(op);
     ex->F_.resize(s), ex->V_.resize(s), interface_.resize(s);
   } else {
+    // Without primal constraints K~^+ is block diagonal and the implicit operator's solves can
+    // read the factors' single-precision copies (solve_interface).
+    single_ = use_single_ = single_sweeps && C.empty();
     dual_ = std::make_unique<ImplicitClusterOperator>(*this, std::move(b), nmult);
   }
   RegionError failure;
@@ -180,6 +183,7 @@ Cluster::Cluster(int id, std::vector<Subdomain*> subs, std::vector<std::vector<C
         for (const auto& e : b[i]) ex->V_[i].row(e.mult) += e.value * subs_[i]->kernel().row(e.dof);
       } else {
         subs_[i]->factorize(ordering, cache);
+        if (single_) subs_[i]->make_single();
       }
     } catch (const std::exception& e) {
       failure.record(e, "subdomain " + std::to_string(subs_[i]->id()) + ": ");
@@ -349,6 +353,7 @@ void Cluster::refactor(Ordering ordering, SubdomainCache* cache, bool as_setup) 
         subs_[i]->factorize_with_interface_last(interface_[i], cache, ordering);
       else
         subs_[i]->factorize(ordering, cache);
+      if (single_ && !explicit_) subs_[i]->make_single();
       subs_[i]->release_matrix();
     } catch (const std::exception& e) {
       failure.record(e);
@@ -358,6 +363,13 @@ void Cluster::refactor(Ordering ordering, SubdomainCache* cache, bool as_setup) 
 }
 
 long Cluster::explicit_bytes() const { return dual_->bytes(); }
+
+long Cluster::single_bytes(std::unordered_set<const void*>* seen) const {
+  long n = 0;
+  for (const auto* sd : subs_)
+    if (!seen || seen->insert(sd->single_data()).second) n += sd->single_bytes();
+  return n;
+}
 
 void Cluster::apply_dual(const std::vector<Eigen::VectorXd>& lam,
                          std::vector<Eigen::VectorXd>& out) {
@@ -396,7 +408,7 @@ void ImplicitClusterOperator::do_apply(const std::vector<Eigen::VectorXd>& lam,
     xw_[i].setZero();
     for (const auto& e : b_[i]) xw_[i][e.dof] += e.value * lam[i][e.mult];  // B_i^T lam_i
   }
-  cluster_.solve(xw_);  // K~^+ B~^T lam
+  cluster_.solve_interface(xw_);  // K~^+ B~^T lam
 #pragma omp parallel for schedule(static) if (!omp_in_parallel() && s > 1)
   for (int i = 0; i < s; ++i) {
     out[i].setZero();
@@ -473,6 +485,13 @@ long Cluster::dense_doubles(std::unordered_set<const void*>* seen) const {
   for (const auto& w : W_)
     if (w && (!seen || seen->insert(w.get()).second)) n += w->size();
   return rhs_.size() > 0 ? n + lu_.size() : n;
+}
+
+void Cluster::solve_interface(std::vector<Eigen::VectorXd>& x) {
+  if (!use_single_) return solve(x);
+  const int s = static_cast<int>(subs_.size());
+#pragma omp parallel for schedule(dynamic) if (!omp_in_parallel() && s > 1)
+  for (int i = 0; i < s; ++i) subs_[i]->apply_pinv_single(x[i].data(), x[i].data());
 }
 
 void Cluster::solve(std::vector<Eigen::VectorXd>& x) {

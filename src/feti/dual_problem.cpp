@@ -279,7 +279,8 @@ void DualProblem::set_up_clusters(Setup& st) {
                                     checked_    ? DualOperator::checked
                                     : explicit_ ? DualOperator::explicit_
                                                 : DualOperator::implicit,
-                                    factor_cache(), options.explicit_precision, by_object_);
+                                    factor_cache(), options.explicit_precision, by_object_,
+                                    options.factor_precision != FactorPrecision::double_);
       // The cluster's part of d = B~ K~^+ f, while its factors are at hand.
       cluster_rhs_from_ext(c, true, 0.0);
       clusters_[c]->solve(x_[c]);
@@ -345,6 +346,16 @@ void DualProblem::set_up_clusters(Setup& st) {
   }
   setup_.factorization = seconds_now() - t;
   factors_released_ = comm_.max(static_cast<double>(clusters_released())) > 0;
+  {
+    std::unordered_set<const void*> seen;
+    double single = 0, any = 0;
+    for (const auto& c : clusters_) {
+      single += static_cast<double>(c->single_bytes(&seen));
+      any = std::max(any, c->single_sweeps() ? 1.0 : 0.0);
+    }
+    setup_.single_factor_mb = single / 1048576.0;
+    single_sweeps_ = comm_.max(any) > 0;
+  }
   if (factor_cache()) {
     setup_.symbolic_analyses = cache_->analyses();
     setup_.symbolic_reuses = cache_->reuses();
@@ -436,6 +447,10 @@ void DualProblem::b_of_x(int c) {
     double* out = contrib_[sub_of(c, i)].data();
     for (size_t j = 0; j < rows.size(); ++j) out[j] = rows[j].value * x[rows[j].dof];
   }
+}
+
+void DualProblem::set_single_sweeps(bool on) {
+  for (auto& c : clusters_) c->set_single_sweeps(on);
 }
 
 void DualProblem::apply_F(const Vec& lambda, Vec& y) {

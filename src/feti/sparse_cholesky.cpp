@@ -73,6 +73,8 @@ std::uint64_t nonzero_key(const double* x, long n, std::vector<long>& at,
 // (SparseCholesky::schur_inverse), and the solves done so far.
 struct SharedFactor {
   std::mutex mutex;
+  // make_single()'s copy of the factor's values, made once for all holders.
+  std::shared_ptr<const std::vector<float>> single;
   std::shared_ptr<const SparseCholesky::SchurInverse> value;
   // solve_many's results for the right-hand sides solved so far with this factor (the same bit
   // for bit in every holder of the slot): the input's nonzeros (position, value) and the
@@ -243,7 +245,9 @@ struct SparseCholesky::Impl {
   double symbolic_seconds = 0, numeric_seconds = 0;
   std::shared_ptr<SharedFactor> slot;  // shared with a numeric cache entry, if any
   bool memo_solves = false;            // solve() through solve_many's memo (interface-last factors)
-  std::shared_ptr<cholmod_factor> shared;  // set when `factor` is a numeric cache entry's
+  std::shared_ptr<cholmod_factor> shared;        // set when `factor` is a numeric cache entry's
+  std::shared_ptr<const std::vector<float>> xs;  // make_single(): L's values, single precision
+  std::vector<double> sy, st;  // solve_single(): permuted vector, rows below a supernode
 
   explicit Impl(Ordering ordering) : method(ordering == Ordering::amd ? 0 : 1) {
     cholmod_start(&common);
@@ -262,6 +266,7 @@ struct SparseCholesky::Impl {
     cholmod_finish(&common);
   }
   void drop_factor() {
+    xs.reset();
     if (shared)
       factor = nullptr, shared.reset();
     else
@@ -645,6 +650,100 @@ std::shared_ptr<const Eigen::MatrixXd> SparseCholesky::shared_result(
 }
 
 int SparseCholesky::rows() const { return impl_->n; }
+
+void SparseCholesky::make_single() {
+  const cholmod_factor* L = impl_->factor;
+  if (!L || !L->is_super) throw std::logic_error("make_single: no supernodal factor");
+  const auto copy = [L]() {
+    const double* Lx = static_cast<const double*>(L->x);
+    return std::make_shared<const std::vector<float>>(Lx, Lx + L->xsize);
+  };
+  if (impl_->slot) {  // a factor shared through the numeric cache: one copy for all holders
+    std::lock_guard<std::mutex> lock(impl_->slot->mutex);
+    if (!impl_->slot->single) impl_->slot->single = copy();
+    impl_->xs = impl_->slot->single;
+  } else {
+    impl_->xs = copy();
+  }
+  const int* pi = static_cast<const int*>(L->pi);
+  int widest = 0;
+  for (size_t s = 0; s < L->nsuper; ++s) widest = std::max(widest, pi[s + 1] - pi[s]);
+  impl_->sy.assign(impl_->n, 0.0);
+  impl_->st.assign(widest, 0.0);
+}
+
+bool SparseCholesky::has_single() const { return impl_->xs != nullptr; }
+
+const void* SparseCholesky::single_data() const { return impl_->xs.get(); }
+
+long SparseCholesky::single_bytes() const {
+  return impl_->xs ? static_cast<long>(impl_->xs->size() * sizeof(float)) : 0;
+}
+
+// Kernels of solve_single(): single-precision values, double sums. On x86-64 cloned for AVX2
+// (chosen at run time), since the build targets the baseline instruction set.
+#if defined(__x86_64__) && defined(__GNUC__)
+#define HTFETI_CLONES __attribute__((target_clones("avx2", "default")))
+#else
+#define HTFETI_CLONES
+#endif
+namespace {
+HTFETI_CLONES void axpy_single(int m, const float* c, double v, double* t) {
+#pragma omp simd
+  for (int i = 0; i < m; ++i) t[i] += static_cast<double>(c[i]) * v;
+}
+HTFETI_CLONES double dot_single(int m, const float* c, const double* t) {
+  double acc = 0.0;
+#pragma omp simd reduction(+ : acc)
+  for (int i = 0; i < m; ++i) acc += static_cast<double>(c[i]) * t[i];
+  return acc;
+}
+}  // namespace
+
+void SparseCholesky::solve_single(const double* b, double* x) {
+  const cholmod_factor* L = impl_->factor;
+  const int n = impl_->n, ns = static_cast<int>(L->nsuper);
+  const int* perm = static_cast<const int*>(L->Perm);
+  const int* super = static_cast<const int*>(L->super);
+  const int* pi = static_cast<const int*>(L->pi);
+  const int* px = static_cast<const int*>(L->px);
+  const int* Ls = static_cast<const int*>(L->s);
+  const float* Lx = impl_->xs->data();
+  double* y = impl_->sy.data();
+  double* t = impl_->st.data();
+  for (int k = 0; k < n; ++k) y[k] = b[perm[k]];
+  for (int s = 0; s < ns; ++s) {  // L y = P b
+    const int k1 = super[s], nscol = super[s + 1] - k1, nsrow = pi[s + 1] - pi[s];
+    const int below = nsrow - nscol;
+    const float* A = Lx + px[s];
+    double* yc = y + k1;
+    for (int i = 0; i < below; ++i) t[i] = 0.0;
+    for (int j = 0; j < nscol; ++j) {
+      const float* col = A + static_cast<long>(j) * nsrow;
+      const double v = yc[j] / static_cast<double>(col[j]);
+      yc[j] = v;
+      axpy_single(nscol - j - 1, col + j + 1, -v, yc + j + 1);
+      axpy_single(below, col + nscol, v, t);
+    }
+    const int* r = Ls + pi[s] + nscol;
+    for (int i = 0; i < below; ++i) y[r[i]] -= t[i];
+  }
+  for (int s = ns - 1; s >= 0; --s) {  // L^T x = y
+    const int k1 = super[s], nscol = super[s + 1] - k1, nsrow = pi[s + 1] - pi[s];
+    const int below = nsrow - nscol;
+    const float* A = Lx + px[s];
+    double* yc = y + k1;
+    const int* r = Ls + pi[s] + nscol;
+    for (int i = 0; i < below; ++i) t[i] = y[r[i]];
+    for (int j = nscol - 1; j >= 0; --j) {
+      const float* col = A + static_cast<long>(j) * nsrow;
+      const double acc = yc[j] - dot_single(below, col + nscol, t) -
+                         dot_single(nscol - j - 1, col + j + 1, yc + j + 1);
+      yc[j] = acc / static_cast<double>(col[j]);
+    }
+  }
+  for (int k = 0; k < n; ++k) x[perm[k]] = y[k];
+}
 
 void SparseCholesky::schur_factor(Eigen::MatrixXd& Ls, std::vector<int>& order) const {
   const cholmod_factor* L = impl_->factor;

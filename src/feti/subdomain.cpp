@@ -179,12 +179,15 @@ void Subdomain::factorize_impl(Ordering ordering, const std::vector<int>* interf
   work_.resize(Krr.rows());
 }
 
-void Subdomain::apply_pinv(const double* x, double* y) {
+void Subdomain::apply_pinv_with(const double* x, double* y, bool single) {
   const int nn = size();
   double* w = work_.data();
   for (int k = 0; k < nn; ++k)
     if (reduced_[k] >= 0) w[reduced_[k]] = x[k];
-  chol_.solve(w, w);
+  if (single)
+    chol_.solve_single(w, w);
+  else
+    chol_.solve(w, w);
   for (int k = nn - 1; k >= 0; --k) y[k] = reduced_[k] < 0 ? 0.0 : w[reduced_[k]];
 }
 

@@ -172,7 +172,8 @@ class Cluster {
   Cluster(int id, std::vector<Subdomain*> subs, std::vector<std::vector<ConstraintEntry>> C,
           Ordering ordering, std::vector<std::vector<Subdomain::BEntry>> b, std::vector<int> nmult,
           DualOperator kind, SubdomainCache* cache = nullptr,
-          Precision precision = Precision::double_, bool by_object = false);
+          Precision precision = Precision::double_, bool by_object = false,
+          bool single_sweeps = false);
   /// Without dual rows: for tests of the generalized inverse alone.
   Cluster(int id, std::vector<Subdomain*> subs, std::vector<std::vector<ConstraintEntry>> C,
           Ordering ordering)
@@ -198,6 +199,18 @@ class Cluster {
 
   /// x[i] -> K~^+ x[i] in place (physical vectors of the cluster's subdomains). Allocates nothing.
   void solve(std::vector<Eigen::VectorXd>& x);
+  /// solve() for the implicit operator, whose right-hand sides are B~^T lam: with single sweeps
+  /// on (the constructor's single_sweeps, for a cluster without primal constraints, and not
+  /// switched off by set_single_sweeps), each K_i^+ from the single-precision copy of its factor
+  /// (Subdomain::apply_pinv_single); otherwise solve(). Allocates nothing.
+  void solve_interface(std::vector<Eigen::VectorXd>& x);
+  /// Whether the implicit operator reads single-precision copies of the factors (set up).
+  bool single_sweeps() const { return single_; }
+  /// Switches the implicit operator between the copies (on) and the factors (off).
+  void set_single_sweeps(bool on) { use_single_ = on && single_; }
+  /// Bytes of the single-precision copies (a copy shared by equal subdomains counted once per
+  /// `seen` set).
+  long single_bytes(std::unordered_set<const void*>* seen = nullptr) const;
   /// out[i] = (B~ K~^+ B~^T lam) restricted to subdomain i's local rows; lam[i], out[i] have
   /// nmult[i] entries. Implicit: x = B^T lam, solve(x), B x. Explicit, with the same dense
   /// saddle-point system as solve():
@@ -246,6 +259,7 @@ class Cluster {
   Eigen::VectorXd rhs_, sol_, dscale_;
   friend class ExplicitClusterOperator;  // uses the saddle-point system
   bool explicit_ = false;
+  bool single_ = false, use_single_ = false;   // single sweeps set up / in use
   std::unique_ptr<ClusterDualOperator> dual_;  // F on this cluster
   std::vector<std::vector<int>> interface_;    // explicit: the dofs ordered last (refactor())
   double setup_seconds_ = 0;

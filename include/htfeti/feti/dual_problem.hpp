@@ -88,6 +88,9 @@ struct FetiOptions {
   /// Storage of the explicit F_i (lower triangle, packed): double, or single precision with
   /// double sums (half the memory and bandwidth; docs/performance.md).
   Precision explicit_precision = Precision::double_;
+  /// What the implicit operator's sweeps read: automatic and single take single-precision copies
+  /// of the factors of clusters without primal constraints (TFETI), double the factors.
+  FactorPrecision factor_precision = FactorPrecision::automatic;
   /// The preconditioner built for apply_preconditioner() (none: not built; preconditioner.hpp).
   PreconditionerKind preconditioner = PreconditionerKind::none;
   Scaling scaling = Scaling::multiplicity;
@@ -164,6 +167,8 @@ struct SetupTimings {
   double factor_mb = 0;  ///< the rank's subdomain factors as built (before any release)
   /// The same with a factor shared by equal subdomains (numeric cache) counted once.
   double distinct_factor_mb = 0;
+  /// The single-precision copies of the factors (a shared copy counted once).
+  double single_factor_mb = 0;
   /// Subdomains whose assembled K_i equals an earlier one's and shares its storage.
   long shared_matrices = 0;
   double peak_mb_assembly = 0, peak_mb_constraints = 0, peak_mb_factorization = 0,
@@ -418,6 +423,11 @@ class DualProblem {
   /// Whether the subdomain factors of some cluster were freed after setup and are rebuilt for the
   /// reconstruction (on any rank), and how many clusters of this rank freed them.
   bool factors_released() const { return factors_released_; }
+  /// Whether the implicit operator reads single-precision copies of the factors on some rank
+  /// (FetiOptions::factor_precision), and the switch between them and the factors (collective
+  /// in effect: every rank switches with the same argument).
+  bool single_sweeps() const { return single_sweeps_; }
+  void set_single_sweeps(bool on);
   int clusters_released() const;
   long explicit_bytes() const;         ///< bytes of the explicit blocks on this rank
   long cluster_dense_doubles() const;  ///< doubles in the clusters' K^+ C^T blocks and LUs
@@ -491,6 +501,7 @@ class DualProblem {
   bool explicit_ = false;
   bool checked_ = false;  // the explicit operator checked against the implicit one
   bool factors_released_ = false;
+  bool single_sweeps_ = false;
   std::vector<char> released_;   // per local cluster: factors freed after setup
   bool by_object_ = false;       // the clusters' K_i^+ C_i^T by object (Cluster)
   bool outer_parallel_ = false;  // threads over clusters (true) or inside each cluster

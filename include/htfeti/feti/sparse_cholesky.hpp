@@ -21,6 +21,15 @@ namespace htfeti {
 enum class Ordering { amd, metis, automatic };
 inline constexpr std::array<EnumName<Ordering>, 3> kOrderingNames{
     {{Ordering::amd, "amd"}, {Ordering::metis, "metis"}, {Ordering::automatic, "auto"}}};
+/// The values the implicit operator's sweeps read (FetiOptions::factor_precision): the factors
+/// in double, or their single-precision copies (sums in double; the solve then verified and, if
+/// need be, finished with the factors: docs/method.md, "Single-precision sweeps"). automatic:
+/// single where the operator is implicit and a cluster has no primal constraints (TFETI).
+enum class FactorPrecision { automatic, double_, single };
+inline constexpr std::array<EnumName<FactorPrecision>, 3> kFactorPrecisionNames{
+    {{FactorPrecision::automatic, "auto"},
+     {FactorPrecision::double_, "double"},
+     {FactorPrecision::single, "single"}}};
 Ordering parse_ordering(const std::string& name);
 std::string to_string(Ordering ordering);
 
@@ -134,6 +143,19 @@ class SparseCholesky {
       const Eigen::MatrixXd& key, const std::vector<int>& tag,
       const std::function<Eigen::MatrixXd()>& compute);
   int rows() const;
+  /// Keeps a copy of the factor's values rounded to single precision (4 bytes a value) for
+  /// solve_single(); a factor shared through the numeric cache shares one copy among its holders.
+  /// Needs the supernodal factor; setup work (allocates). A new factorization drops the copy.
+  void make_single();
+  bool has_single() const;
+  /// Bytes of the single-precision copy (0 without one).
+  long single_bytes() const;
+  const void* single_data() const;  ///< identifies a shared copy (nullptr without one)
+  /// x = (L_s L_s^T)^{-1} b with L_s the copy of make_single() (the permutation as in solve()):
+  /// the values read in single precision, every sum and quotient in double, so the result is
+  /// the exact solve with L_s up to double round-off, for half the bytes of the factor. One pass
+  /// over the copy in each direction. Allocates nothing; b == x allowed.
+  void solve_single(const double* b, double* x);
   /// CHOLMOD's estimate of the reciprocal condition number, (min_j L_jj / max_j L_jj)^2: at least
   /// 1 / cond(A), so a value below round-off means a matrix that is singular to working precision
   /// (a semidefinite A can factor with a round-off pivot instead of failing). 0 without a factor.

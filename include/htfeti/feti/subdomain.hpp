@@ -84,7 +84,15 @@ class Subdomain {
   /// Frees the calling thread's work arrays of dual_block().
   static void release_dual_block_work();
   /// y = K^+ x (x and y of length size(); they may alias). Allocates nothing.
-  void apply_pinv(const double* x, double* y);
+  void apply_pinv(const double* x, double* y) { apply_pinv_with(x, y, false); }
+  /// A single-precision copy of the factor for apply_pinv_single() (SparseCholesky::make_single).
+  void make_single() { chol_.make_single(); }
+  long single_bytes() const { return chol_.single_bytes(); }
+  const void* single_data() const { return chol_.single_data(); }
+  /// apply_pinv() with the single-precision copy of the factor (SparseCholesky::solve_single):
+  /// K^+ of the matrix L_s L_s^T, within about cond(K) times single precision of K^+.
+  /// Allocates nothing.
+  void apply_pinv_single(const double* x, double* y) { apply_pinv_with(x, y, true); }
   /// X = K^+ X for every column of X (size() rows), in place: one multi-column solve, each
   /// column the same as apply_pinv() gives up to round-off. Setup work (allocates).
   void apply_pinv_many(Eigen::MatrixXd& X);
@@ -118,6 +126,7 @@ class Subdomain {
   void release_factor();
 
  private:
+  void apply_pinv_with(const double* x, double* y, bool single);
   void factorize_impl(Ordering ordering, const std::vector<int>* interface_dofs,
                       SubdomainCache* cache);
   Eigen::SparseMatrix<double> reduced_matrix();

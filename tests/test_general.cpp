@@ -350,6 +350,43 @@ TEST(Partition, AreaObjectiveCutsAcrossTheShortFacetsOfStretchedCells) {
   EXPECT_NE(p.cell_subdomain[0], p.cell_subdomain[7]);
 }
 
+// The repair of a split in pieces or hinged (repair_parts) on a 6 x 6 square of quads, cell
+// (i, j) = j * 6 + i: parts 0 (i < 3) and 1 (i >= 3), then
+//  - a lone cell of part 0 inside part 1 (a piece): it moves to part 1, nothing else moves;
+//  - part 0 in two blocks touching only at a node (hinged): the smaller block, which shares its
+//    facets with part 1 only, moves there;
+//  - more cells to move than max_share allows: -1, the split unchanged;
+//  - a split without pieces: nothing moves.
+TEST(Partition, RepairMovesPiecesToTheirNeighbour) {
+  const Mesh square = quad_strip(6, 6, 6.0, 6.0);
+  const auto halves = [] {
+    std::vector<int> part(36);
+    for (int j = 0; j < 6; ++j)
+      for (int i = 0; i < 6; ++i) part[j * 6 + i] = i < 3 ? 0 : 1;
+    return part;
+  };
+  std::vector<int> part = halves();
+  part[2 * 6 + 4] = 0;  // (4, 2): inside part 1
+  EXPECT_EQ(repair_parts(square, part, 1.0), 1);
+  EXPECT_EQ(part, halves());
+  part = halves();  // part 0: rows 0-2 of i < 3, and the cell (3, 3) joined at a node
+  for (int j = 3; j < 6; ++j)
+    for (int i = 0; i < 3; ++i) part[j * 6 + i] = 1;
+  part[3 * 6 + 3] = 0;
+  std::vector<int> want = part;
+  want[3 * 6 + 3] = 1;
+  EXPECT_EQ(repair_parts(square, part, 1.0), 1);
+  EXPECT_EQ(part, want);
+  part = halves();
+  part[2 * 6 + 4] = 0;
+  const std::vector<int> before = part;
+  EXPECT_EQ(repair_parts(square, part, 0.5 / 36), -1);
+  EXPECT_EQ(part, before);
+  part = halves();
+  EXPECT_EQ(repair_parts(square, part, 1.0), 0);
+  EXPECT_EQ(part, halves());
+}
+
 // Square cells: none stretched, the automatic objective is the communication volume; cells of
 // 2.4 : 1 are not stretched either, 2.5 : 1 are (kStretchRatio).
 TEST(Partition, AutomaticObjectiveKeepsTheVolumeOnRegularCells) {

@@ -167,6 +167,8 @@ class MetisSplit final : public MeshSource {
                                                         {"cells", mesh_->num_cells()}};
     j["partitioner"] = "metis";
     j["partition_objective"] = to_string(part_->objective);
+    j["partition_repaired_cells"] = part_->repaired_cells;
+    j["partition_contiguous_splits"] = part_->contiguous_splits;
     if (spec.cluster_size > 1) j["cluster_split"] = to_string(part_->cluster_split);
     if (spec.partition_objective == PartitionObjective::automatic)
       j["stretched_cells"] = part_->stretched_share;

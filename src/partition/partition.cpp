@@ -245,6 +245,82 @@ SplitDefects split_defects(const Mesh& mesh, const std::vector<int>& cells,
   return defects;
 }
 
+// Repairs a split whose parts are in pieces or hinged (split_defects) by moving pieces: in every
+// part, the cells joined through facets form pieces; all but the largest move to the part they
+// share the most facets with (the lowest part number on a tie), in up to three passes. Every part
+// then keeps one piece joined through facets, so it is neither hinged nor in pieces. Returns the
+// cells moved, or -1, leaving `part` as it was, when a piece shares no facet with another part (a
+// body joined only through nodes or edges), the moves would leave a part over twice the mean or
+// move more than max_share of the cells. `facets`: all_facets(mesh). Deterministic: it depends
+// on the cells' order only.
+long repair_split(const std::vector<int>& cells, std::vector<idx_t>& part,
+                  const std::vector<std::pair<FacetKey, int>>& facets, double max_share) {
+  std::vector<int> local(part.size(), -1);
+  for (size_t i = 0; i < cells.size(); ++i) local[cells[i]] = static_cast<int>(i);
+  // Facet neighbours within the region (pairs of local indices).
+  std::vector<std::pair<int, int>> nb;
+  for (size_t i = 1; i < facets.size(); ++i)
+    if (facets[i].first == facets[i - 1].first) {
+      const int a = local[facets[i].second], b = local[facets[i - 1].second];
+      if (a >= 0 && b >= 0) nb.push_back({a, b});
+    }
+  const int n = static_cast<int>(cells.size());
+  std::vector<idx_t> p(n);
+  for (int i = 0; i < n; ++i) p[i] = part[cells[i]];
+  idx_t nparts = 0;
+  for (idx_t q : p) nparts = std::max(nparts, q + 1);
+  for (int pass = 0; pass < 3; ++pass) {
+    std::vector<int> parent(n);
+    std::iota(parent.begin(), parent.end(), 0);
+    auto root = [&](int a) {
+      while (parent[a] != a) a = parent[a] = parent[parent[a]];
+      return a;
+    };
+    for (const auto& [a, b] : nb)
+      if (p[a] == p[b]) {
+        const int ra = root(a), rb = root(b);
+        if (ra != rb) parent[std::max(ra, rb)] = std::min(ra, rb);
+      }
+    std::vector<int> size(n, 0);
+    for (int i = 0; i < n; ++i) ++size[root(i)];
+    std::vector<int> largest(nparts, -1);  // each part's largest piece (root)
+    for (int i = 0; i < n; ++i)
+      if (root(i) == i && (largest[p[i]] < 0 || size[i] > size[largest[p[i]]])) largest[p[i]] = i;
+    std::map<int, std::map<idx_t, int>> shared;  // piece -> other part -> facets
+    bool any = false;
+    for (int i = 0; i < n; ++i) any = any || (root(i) == i && largest[p[i]] != i);
+    if (!any) {
+      std::vector<long long> count(nparts, 0);
+      for (idx_t q : p) ++count[q];
+      if (*std::max_element(count.begin(), count.end()) * nparts > 2 * static_cast<long long>(n))
+        return -1;
+      long moved = 0;
+      for (int i = 0; i < n; ++i) moved += part[cells[i]] != p[i];
+      if (static_cast<double>(moved) > max_share * n) return -1;
+      for (int i = 0; i < n; ++i) part[cells[i]] = p[i];
+      return moved;
+    }
+    for (const auto& [a, b] : nb)
+      if (p[a] != p[b]) {
+        const int ra = root(a), rb = root(b);
+        if (largest[p[a]] != ra) ++shared[ra][p[b]];
+        if (largest[p[b]] != rb) ++shared[rb][p[a]];
+      }
+    std::vector<idx_t> to(n, -1);
+    for (int i = 0; i < n; ++i) {
+      if (root(i) != i || largest[p[i]] == i) continue;
+      const auto it = shared.find(i);
+      if (it == shared.end()) return -1;  // joined to no other part through a facet
+      int best = -1;
+      for (const auto& [q, c] : it->second)
+        if (c > best) best = c, to[i] = q;
+    }
+    for (int i = 0; i < n; ++i)
+      if (to[root(i)] >= 0) p[i] = to[root(i)];
+  }
+  return -1;
+}
+
 // Subdomains per body, proportional to the bodies' cell counts (largest remainders, at least
 // one each), summing to `subdomains`.
 std::vector<int> parts_per_body(const std::vector<long long>& cells_of_body, int subdomains) {
@@ -401,6 +477,15 @@ void index_groups(const Mesh& mesh, MeshPartition& p) {
 }
 }  // namespace
 
+long repair_parts(const Mesh& mesh, std::vector<int>& part, double max_share) {
+  std::vector<int> cells(mesh.num_cells());
+  std::iota(cells.begin(), cells.end(), 0);
+  std::vector<idx_t> p(part.begin(), part.end());
+  const long moved = repair_split(cells, p, all_facets(mesh), max_share);
+  if (moved >= 0) part.assign(p.begin(), p.end());
+  return moved;
+}
+
 MeshPartition partition_mesh(const Mesh& mesh, int subdomains, int cluster_size,
                              PartitionObjective objective, ClusterSplit split) {
   if (subdomains < 1) throw std::invalid_argument("decomposition.subdomains must be positive");
@@ -446,6 +531,19 @@ MeshPartition partition_mesh(const Mesh& mesh, int subdomains, int cluster_size,
     split_cells(mesh, subset, k, objective, out);
     const SplitDefects defects = k > 1 ? split_defects(mesh, region, out, facets) : SplitDefects{};
     if (!defects.hinged && !defects.pieces) return;
+    // A few cells in pieces: moved to a neighbouring part (repair_split); METIS's split is kept
+    // otherwise. Larger defects: METIS again with connected parts asked for.
+    const std::vector<idx_t> metis_split = out;
+    const long moved = repair_split(region, out, facets, kRepairShare);
+    if (moved >= 0) {
+      const SplitDefects left = split_defects(mesh, region, out, facets);
+      if (!left.hinged && !left.pieces) {
+        p.repaired_cells += moved;
+        return;
+      }
+      out = metis_split;
+    }
+    ++p.contiguous_splits;
     split_cells(mesh, subset, k, objective, out, true);
     if (subdomain_parts && split_defects(mesh, region, out, facets).hinged)
       throw std::invalid_argument("METIS could not split " + what + " into " + std::to_string(k) +

@@ -73,6 +73,10 @@ struct MeshPartition {
   PartitionObjective objective = PartitionObjective::volume;  ///< as used (automatic resolved)
   double stretched_share = 0;  ///< share of stretched cells (computed for automatic only)
   ClusterSplit cluster_split = ClusterSplit::mesh;  ///< how the clusters were formed
+  /// METIS splits whose parts were in pieces or hinged: cells moved to a neighbouring part to
+  /// repair them (repair_parts), and splits redone by METIS with connected parts asked for.
+  long repaired_cells = 0;
+  int contiguous_splits = 0;
   /// The mesh's groups by subdomain, for extract_subdomain (built once by partition_mesh, so that
   /// extracting a subdomain costs its own size, not the groups' sizes): per subdomain and group
   /// (in the mesh's name order; groups the subdomain does not touch left out), the global node
@@ -83,6 +87,16 @@ struct MeshPartition {
   };
   std::vector<Groups> groups;  ///< per subdomain
 };
+
+/// A split whose parts are in pieces or hinged at a node or an edge, repaired by moving pieces:
+/// in every part the cells joined through facets form pieces, and all but the largest move to
+/// the part they share the most facets with. Returns the cells moved, or -1 (part unchanged)
+/// when a piece touches no other part through a facet, a part would grow beyond twice the mean,
+/// or more than max_share of the cells would move. partition_mesh repairs METIS's split this
+/// way when at most kRepairShare of the cells move, and otherwise asks METIS again for connected
+/// parts.
+constexpr double kRepairShare = 0.01;
+long repair_parts(const Mesh& mesh, std::vector<int>& part, double max_share);
 
 /// The share of the cells whose largest facet measure (area in 3D, length in 2D) is at least
 /// kStretchRatio times their smallest: elongated or flat cells (a graded structured mesh).

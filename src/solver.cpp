@@ -101,7 +101,7 @@ QpSolve solve_without_contact(DualProblem& dual, DualOperators& ops, Vec& lambda
   // Single-precision sweeps: PCG converged for the operator of the factors' copies; from here on
   // F is the factors' own, and PCG goes on from lambda with the same rtol (one product when
   // lambda already passes its test).
-  nlohmann::json single = nullptr;
+  nlohmann::json single_check = nullptr;
   if (dual.single_sweeps()) {
     dual.set_single_sweeps(false);
     if (out.converged) {
@@ -109,7 +109,8 @@ QpSolve solve_without_contact(DualProblem& dual, DualOperators& ops, Vec& lambda
       r = qp::projected_cg(qp, lambda, red, po, progress, ops.preconditioned ? &Z : nullptr);
       out.outer += r.iterations;
       out.converged = r.reason == qp::StopReason::converged;
-      single = {{"check_products", ops.F.count() - before}, {"check_iterations", r.iterations}};
+      single_check = {{"check_products", ops.F.count() - before},
+                      {"check_iterations", r.iterations}};
     }
   }
   // The accuracy refinement: PCG again from lambda (in lambda~ + Ker G~) with a smaller rtol.
@@ -123,7 +124,7 @@ QpSolve solve_without_contact(DualProblem& dual, DualOperators& ops, Vec& lambda
   out.solver = {{"algorithm", "pcg"},
                 {"projected_residual", r.projected_residual},
                 {"projected_rhs", r.projected_rhs}};
-  if (!single.is_null()) out.solver["single_sweeps"] = single;
+  if (!single_check.is_null()) out.solver["single_sweeps"] = single_check;
   if (steps.size() > 1) out.solver["accuracy_refinements"] = steps;
   return out;
 }

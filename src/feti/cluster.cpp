@@ -353,7 +353,7 @@ void Cluster::refactor(Ordering ordering, SubdomainCache* cache, bool as_setup) 
         subs_[i]->factorize_with_interface_last(interface_[i], cache, ordering);
       else
         subs_[i]->factorize(ordering, cache);
-      if (single_ && !explicit_) subs_[i]->make_single();
+      if (single_) subs_[i]->make_single();  // (single_: implicit only)
       subs_[i]->release_matrix();
     } catch (const std::exception& e) {
       failure.record(e);

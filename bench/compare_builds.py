@@ -12,6 +12,7 @@ Table 3 full size (n = 3168, N_s = 32) for m = 4 (about 10 GB and two minutes pe
 --cases picks among them and the METIS-split cubes of issue 32 (no VTU, so that the phases
 compare): metis40 (bench/cases/cube40_metis64.toml), metis80 (cube80_metis512.toml, one run:
 about a minute and 7 GB), metis80pre (the same with --mprgp-expansion preconditioned),
+metis40a20 and metis80a20 (the same cubes with the obstacle's amplitude A = 20, *_a20.toml),
 bracket (examples/bracket.toml, tet4). The builds take turns run by run, so that the drift of a
 shared machine falls on both alike. Each row keeps the phase timings of every run.
 Writes bench/results/compare_builds.json (or --out)."""
@@ -32,7 +33,8 @@ p.add_argument("--repeat", type=int, default=3)
 p.add_argument("--threads", type=int, default=2)
 p.add_argument("--full", action="store_true")
 p.add_argument("--cases", nargs="+",
-               choices=["membranes", "full", "metis40", "metis80", "metis80pre", "bracket"])
+               choices=["membranes", "full", "metis40", "metis80", "metis80pre", "metis40a20",
+                        "metis80a20", "bracket"])
 p.add_argument("--out", default="compare_builds.json")
 a = p.parse_args()
 
@@ -49,6 +51,11 @@ CASES = {
     "metis80pre": ("cube-obstacle 80^3 split by METIS into 512, preconditioned expansion (no VTU)",
                    [os.path.join(ROOT, "bench", "cases", "cube80_metis512.toml"),
                     "--mprgp-expansion", "preconditioned"], False, 1),
+    "metis40a20": ("cube-obstacle 40^3 split by METIS into 64, A = 20 (no VTU)",
+                   [os.path.join(ROOT, "bench", "cases", "cube40_metis64_a20.toml")], False,
+                   a.repeat),
+    "metis80a20": ("cube-obstacle 80^3 split by METIS into 512, A = 20 (no VTU)",
+                   [os.path.join(ROOT, "bench", "cases", "cube80_metis512_a20.toml")], False, 1),
     "bracket": ("bracket, tet4, 12 parts (no VTU)",
                 [os.path.join(ROOT, "examples", "bracket.toml")], False, a.repeat),
 }

@@ -303,7 +303,7 @@ void CoarseSpace::hessian_from_Fv(const Vec& v, const Vec& fv, double rho, Vec& 
   if (!image_.built) throw std::logic_error("hessian_from_Fv before build_coarse_image");
   auto& im = image_;
   const int nc = dimension(), n = m_.layout.n_owned();
-  // [G~ v; G~ F v]: the rank's rows in one pass over G~, then one reduction of both.
+  // [G~ v; G~ F v]: the rank's rows, a cluster at a time, then one reduction of both.
   const int ncl = local_clusters();
   m_.gather(v);
   im.ext_in_second.head(n) = fv;
@@ -313,12 +313,8 @@ void CoarseSpace::hessian_from_Fv(const Vec& v, const Vec& fv, double rho, Vec& 
   double* b = a + nc;
 #pragma omp parallel for schedule(dynamic, 16) if (outer_parallel_)
   for (int c = 0; c < ncl; ++c) {
-    const int base = first_[first_cluster_ + c];
-    for (size_t j = 0; j < rows_[c].size(); ++j) {
-      double s = 0, t = 0;
-      for (const auto& [k, g] : rows_[c][j]) s += g * m_.ext_in[k], t += g * im.ext_in_second[k];
-      a[base + static_cast<int>(j)] = s, b[base + static_cast<int>(j)] = t;
-    }
+    apply_rows(c, m_.ext_in.data(), a);
+    apply_rows(c, im.ext_in_second.data(), b);
   }
   comm_.sum_in_place(im.ab.data(), 2 * nc);
   im.z1 = im.ab.head(nc);
@@ -329,16 +325,11 @@ void CoarseSpace::hessian_from_Fv(const Vec& v, const Vec& fv, double rho, Vec& 
     im.z2[row] = s;
   }
   solve(im.z2);
-  // G~^T z1 (into m_.ext_out) and G~^T z2 (into ext_out_second) in one pass over G~.
+  // G~^T z1 (into m_.ext_out) and G~^T z2 (into ext_out_second), a cluster at a time.
 #pragma omp parallel for schedule(dynamic, 16) if (outer_parallel_)
   for (int c = 0; c < ncl; ++c) {
-    for (int p = pair_first_[c]; p < pair_first_[c + 1]; ++p)
-      pairs_[p] = 0.0, im.pairs_second[p] = 0.0;
-    const int base = first_[first_cluster_ + c];
-    for (size_t j = 0; j < row_pairs_[c].size(); ++j) {
-      const double s = im.z1[base + static_cast<int>(j)], t = im.z2[base + static_cast<int>(j)];
-      for (const auto& [p, g] : row_pairs_[c][j]) pairs_[p] += g * s, im.pairs_second[p] += g * t;
-    }
+    pairs_from_rows(c, im.z1.data(), pairs_.data());
+    pairs_from_rows(c, im.z2.data(), im.pairs_second.data());
   }
   cluster_sum_.combine(pairs_.data(), m_.ext_out.data());
   cluster_sum_.combine(im.pairs_second.data(), im.ext_out_second.data());

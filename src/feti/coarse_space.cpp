@@ -128,8 +128,10 @@ void CoarseSpace::set_up(const std::vector<std::unique_ptr<Cluster>>& clusters, 
   {  // G~^T by ordered sums over clusters: one pair per (cluster, multiplier)
     std::vector<int> pk;
     std::vector<long long> pc;
-    row_pairs_.resize(ncl);
     pair_first_.assign(ncl + 1, 0);
+    entry_first_.assign(ncl + 1, 0);
+    value_first_.assign(ncl + 1, 0);
+    entry_k_.clear(), entry_p_.clear(), entry_g_.clear();
     for (int c = 0; c < ncl; ++c) {
       std::vector<int> ks;
       for (const auto& row : rows_[c])
@@ -138,12 +140,28 @@ void CoarseSpace::set_up(const std::vector<std::unique_ptr<Cluster>>& clusters, 
       ks.erase(std::unique(ks.begin(), ks.end()), ks.end());
       const int base = static_cast<int>(pk.size());
       for (int k : ks) pk.push_back(k), pc.push_back(first_cluster_ + c);
-      row_pairs_[c].resize(rows_[c].size());
-      for (size_t j = 0; j < rows_[c].size(); ++j)
-        for (const auto& [k, g] : rows_[c][j])
-          row_pairs_[c][j].push_back(
-              {base + static_cast<int>(std::lower_bound(ks.begin(), ks.end(), k) - ks.begin()), g});
       pair_first_[c + 1] = static_cast<int>(pk.size());
+      // The entries in the global order of their multipliers (that of every row of rows_).
+      std::vector<int> order(ks);
+      std::sort(order.begin(), order.end(),
+                [&](int a, int b) { return m_.layout.global(a) < m_.layout.global(b); });
+      const int r = static_cast<int>(rows_[c].size());
+      const size_t e0 = entry_k_.size();
+      entry_g_.resize(entry_g_.size() + order.size() * r, 0.0);
+      for (int k : order) {
+        entry_k_.push_back(k);
+        entry_p_.push_back(
+            base + static_cast<int>(std::lower_bound(ks.begin(), ks.end(), k) - ks.begin()));
+      }
+      for (int j = 0; j < r; ++j) {
+        size_t e = e0;  // both in the global order
+        for (const auto& [k, g] : rows_[c][j]) {
+          while (entry_k_[e] != k) ++e;
+          entry_g_[value_first_[c] + (e - e0) * r + j] = g;
+        }
+      }
+      entry_first_[c + 1] = static_cast<int>(entry_k_.size());
+      value_first_[c + 1] = static_cast<long>(entry_g_.size());
     }
     cluster_sum_ = OrderedSum(comm_, m_.layout, pk, pc, m_.owner_rank);
     pairs_ = Vec::Zero(static_cast<int>(pk.size()));
@@ -153,33 +171,55 @@ void CoarseSpace::set_up(const std::vector<std::unique_ptr<Cluster>>& clusters, 
 
 // G~ and G~^T: every cluster has its own rows of the coarse vector and its own pairs of pairs_,
 // so threads take clusters and each value is formed in the same order as by one thread.
+// out[base + j] = row j of cluster c times x (extended), for every j: each row's sum in the
+// order of rows_[c][j] (the zeros between its entries add nothing).
+void CoarseSpace::apply_rows(int c, const double* x, double* out) const {
+  const int base = first_[first_cluster_ + c];
+  const int r = static_cast<int>(rows_[c].size());
+  const double* g = entry_g_.data() + value_first_[c];
+  const int e0 = entry_first_[c], e1 = entry_first_[c + 1];
+  if (r <= kFusedRows) {
+    double s[kFusedRows] = {};
+    for (int e = e0; e < e1; ++e, g += r) {
+      const double xk = x[entry_k_[e]];
+      for (int j = 0; j < r; ++j) s[j] += g[j] * xk;
+    }
+    for (int j = 0; j < r; ++j) out[base + j] = s[j];
+    return;
+  }
+  for (int j = 0; j < r; ++j) {
+    double s = 0;
+    for (int e = e0; e < e1; ++e) s += g[(e - e0) * static_cast<long>(r) + j] * x[entry_k_[e]];
+    out[base + j] = s;
+  }
+}
+
+// pairs[p] of every multiplier of cluster c = the sum over its rows j of g_j z[base + j], in the
+// order of j (as the sparse rows added them).
+void CoarseSpace::pairs_from_rows(int c, const double* z, double* pairs) const {
+  const double* zc = z + first_[first_cluster_ + c];
+  const int r = static_cast<int>(rows_[c].size());
+  const double* g = entry_g_.data() + value_first_[c];
+  for (int e = entry_first_[c]; e < entry_first_[c + 1]; ++e, g += r) {
+    double s = 0;
+    for (int j = 0; j < r; ++j) s += g[j] * zc[j];
+    pairs[entry_p_[e]] = s;
+  }
+}
+
 void CoarseSpace::apply_G(const Vec& lambda, Vec& coarse) {
   m_.gather(lambda);
   coarse.setZero(dimension());
   const int nc = local_clusters();
 #pragma omp parallel for schedule(dynamic, 16) if (outer_parallel_)
-  for (int c = 0; c < nc; ++c) {
-    const int base = first_[first_cluster_ + c];
-    for (size_t j = 0; j < rows_[c].size(); ++j) {
-      double s = 0;
-      for (const auto& [k, g] : rows_[c][j]) s += g * m_.ext_in[k];
-      coarse[base + static_cast<int>(j)] = s;
-    }
-  }
+  for (int c = 0; c < nc; ++c) apply_rows(c, m_.ext_in.data(), coarse.data());
   comm_.sum_in_place(coarse.data(), static_cast<int>(coarse.size()));
 }
 
 void CoarseSpace::gt_into_ext(const Vec& coarse) {
   const int nc = local_clusters();
 #pragma omp parallel for schedule(dynamic, 16) if (outer_parallel_)
-  for (int c = 0; c < nc; ++c) {
-    for (int p = pair_first_[c]; p < pair_first_[c + 1]; ++p) pairs_[p] = 0.0;
-    const int base = first_[first_cluster_ + c];
-    for (size_t j = 0; j < row_pairs_[c].size(); ++j) {
-      const double z = coarse[base + static_cast<int>(j)];
-      for (const auto& [p, g] : row_pairs_[c][j]) pairs_[p] += g * z;
-    }
-  }
+  for (int c = 0; c < nc; ++c) pairs_from_rows(c, coarse.data(), pairs_.data());
   cluster_sum_.combine(pairs_.data(), m_.ext_out.data());
 }
 

@@ -196,9 +196,11 @@ void add_qp_options(std::vector<OptionSpec>& t) {
       "solver", "mprgp_expansion", "--mprgp-expansion",
       "MPRGP's expansion step: gradient (fixed length 2 / ||H|| along the free gradient) | "
       "preconditioned (along the preconditioned free gradient with its optimal length, one "
-      "more product; fewer products on large METIS-split contact problems, more on some small "
-      "ones: docs/performance.md) | projected-cg (the whole CG step, projected; undone, at one "
-      "more product, where it would cost more than the feasible half step). Friction in 3D runs "
+      "more product) | projected-cg (the whole CG step, projected; undone, at one more "
+      "product, where it would cost more than the feasible half step). Both need fewer products "
+      "on METIS-split contact problems with many expansion steps and more on graded Hertz-like "
+      "ones (docs/performance.md); try them when solver.expansion_steps is a large share of the "
+      "MPRGP iterations. Friction in 3D runs "
       "MPGP, which has none of these: a variant asked for there is not used, and a warning says so",
       qp::kExpansionNames,
       +[](RunOptions& r) -> qp::Expansion& { return r.solve.smalbe.expansion; }));

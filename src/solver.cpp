@@ -461,34 +461,30 @@ SolveOutput solve(std::shared_ptr<const Model> model_ptr, const SolveOptions& op
     estimate = check_memory(model, feti, comm, resolve_cost);
   else
     resolve_cost(feti);
+  // Where the memory the check counted with came from, for its messages.
+  const char* memory_source =
+      feti.memory_limit_mb > 0 && estimate.available_mb == feti.memory_limit_mb
+          ? "of --memory-limit"
+          : "available";
   if (verbose && estimate.explicit_for_memory)
     std::fprintf(stderr,
                  "  memory: the implicit operator would need %.0f MB on this machine, more than "
                  "the %.0f MB %s; taking the explicit operator (estimated %.0f MB, factors freed "
                  "as memory runs short)\n",
-                 estimate.implicit_peak_mb, estimate.available_mb,
-                 feti.memory_limit_mb > 0 && estimate.available_mb == feti.memory_limit_mb
-                     ? "of --memory-limit"
-                     : "available",
+                 estimate.implicit_peak_mb, estimate.available_mb, memory_source,
                  estimate.machine_peak_mb);
   if (verbose && estimate.single_declined_for_memory)
     std::fprintf(stderr,
                  "  memory: the single-precision copies of the factors would not fit (%.0f MB "
                  "%s); the factor sweeps read the factors (double)\n",
-                 estimate.available_mb,
-                 feti.memory_limit_mb > 0 && estimate.available_mb == feti.memory_limit_mb
-                     ? "of --memory-limit"
-                     : "available");
+                 estimate.available_mb, memory_source);
   if (verbose && estimate.explicit_declined_for_memory && !estimate.explicit_for_memory)
     std::fprintf(stderr,
                  "  memory: the explicit operator would need %.0f MB on this machine, more than "
                  "%.0f%% of the %.0f MB %s; taking the implicit operator (estimated %.0f MB; "
                  "--explicit-budget sets a fixed budget for the F_i)\n",
                  estimate.explicit_peak_mb, 100 * kExplicitMemoryShare, estimate.available_mb,
-                 feti.memory_limit_mb > 0 && estimate.available_mb == feti.memory_limit_mb
-                     ? "of --memory-limit"
-                     : "available",
-                 estimate.machine_peak_mb);
+                 memory_source, estimate.machine_peak_mb);
   if (verbose && cost) std::fprintf(stderr, "  %s\n", describe_operator_cost(*cost).c_str());
   double t0 = seconds_now();
   if (verbose)

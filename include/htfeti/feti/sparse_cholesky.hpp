@@ -23,8 +23,9 @@ inline constexpr std::array<EnumName<Ordering>, 3> kOrderingNames{
     {{Ordering::amd, "amd"}, {Ordering::metis, "metis"}, {Ordering::automatic, "auto"}}};
 /// The values the implicit operator's sweeps read (FetiOptions::factor_precision): the factors
 /// in double, or their single-precision copies (sums in double; the solve then verified and, if
-/// need be, finished with the factors: docs/method.md, "Single-precision sweeps"). automatic:
-/// single where the operator is implicit and a cluster has no primal constraints (TFETI).
+/// need be, finished with the factors: docs/method.md, "Single-precision factor sweeps").
+/// automatic: single where the operator is implicit and a cluster has no primal constraints
+/// (TFETI).
 enum class FactorPrecision { automatic, double_, single };
 inline constexpr std::array<EnumName<FactorPrecision>, 3> kFactorPrecisionNames{
     {{FactorPrecision::automatic, "auto"},

@@ -12,7 +12,9 @@ nu = 0.3, own weight, clamped at x = 0, the obstacle u_z >= -A sin(pi x / 50) un
     1 rank x --ranks threads. Box split: (n/10)^3 subdomains; METIS split: the same number;
     each also with --mprgp-expansion preconditioned (MPRGP's expansion step along the
     preconditioned free gradient) and projected-cg (the projected CG step; splits
-    box_projected_cg and metis_projected_cg, not in the default list), and with
+    box_projected_cg and metis_projected_cg, not in the default list) and gradient (the
+    fixed-length gradient step, the default before --mprgp-expansion auto; splits box_gradient
+    and metis_gradient, not in the default list), and with
     --preconditioner dirichlet (splits box_dirichlet and metis_dirichlet, not in the default
     list), and with --factor-precision double (the factor sweeps in double instead of the
     automatic single-precision copies; splits box_double, metis_double and
@@ -52,7 +54,8 @@ p.add_argument("--check-energy", action="store_true")
 p.add_argument("--splits", nargs="+", default=["box", "metis", "box_preconditioned",
                                                "metis_preconditioned"],
                help="the htfeti rows to run (default: these four; also box_projected_cg, "
-                    "metis_projected_cg, box_dirichlet, metis_dirichlet)")
+                    "metis_projected_cg, box_gradient, metis_gradient, box_dirichlet, "
+                    "metis_dirichlet, box_double, metis_double, metis_dirichlet_double)")
 p.add_argument("--out", default="cube_obstacle_peer.json")
 a = p.parse_args()
 
@@ -134,6 +137,7 @@ with tempfile.TemporaryDirectory() as tmp:
                 "energy_error": err(r["objective"]), "contact_nodes": r["contact_nodes"]}}
             pre = ["--mprgp-expansion", "preconditioned"]
             pcg = ["--mprgp-expansion", "projected-cg"]
+            grd = ["--mprgp-expansion", "gradient"]
             dir_ = ["--preconditioner", "dirichlet"]
             dbl = ["--factor-precision", "double"]
             for split, sub, extra in (("box", f"[{ns}, {ns}, {ns}]", []),
@@ -145,6 +149,8 @@ with tempfile.TemporaryDirectory() as tmp:
                                       ("metis_preconditioned", str(ns ** 3), pre),
                                       ("box_projected_cg", f"[{ns}, {ns}, {ns}]", pcg),
                                       ("metis_projected_cg", str(ns ** 3), pcg),
+                                      ("box_gradient", f"[{ns}, {ns}, {ns}]", grd),
+                                      ("metis_gradient", str(ns ** 3), grd),
                                       ("box_dirichlet", f"[{ns}, {ns}, {ns}]", dir_),
                                       ("metis_dirichlet", str(ns ** 3), dir_)):
                 if split not in a.splits:
@@ -156,6 +162,7 @@ with tempfile.TemporaryDirectory() as tmp:
                 h = hr[0]
                 what = split.replace("_preconditioned", " split, preconditioned expansion")
                 what = what.replace("_projected_cg", " split, projected CG expansion")
+                what = what.replace("_gradient", " split, gradient expansion")
                 what = what.replace("_dirichlet", " split, Dirichlet preconditioner")
                 what = what.replace("_double", " split, double-precision factor sweeps")
                 what = what.replace("split split", "split")
@@ -184,7 +191,7 @@ with tempfile.TemporaryDirectory() as tmp:
             for split in a.splits:
                 row[f"ratio_{split}_to_peer"] = row[split]["wall_s"] / row["peer"]["wall_s"]
             for split in ("metis", "metis_preconditioned", "metis_projected_cg",
-                          "metis_dirichlet", "metis_double", "metis_dirichlet_double"):
+                          "metis_gradient", "metis_dirichlet", "metis_double", "metis_dirichlet_double"):
                 if split in row and "box" in row:
                     row[f"products_{split}_to_box"] = (row[split]["products"] /
                                                        row["box"]["products"])

@@ -197,11 +197,12 @@ void add_qp_options(std::vector<OptionSpec>& t) {
       "MPRGP's expansion step: gradient (fixed length 2 / ||H|| along the free gradient) | "
       "preconditioned (along the preconditioned free gradient with its optimal length, one "
       "more product) | projected-cg (the whole CG step, projected; undone, at one more "
-      "product, where it would cost more than the feasible half step). Both need fewer products "
-      "on METIS-split contact problems with many expansion steps and more on graded Hertz-like "
-      "ones (docs/performance.md); try them when solver.expansion_steps is a large share of the "
-      "MPRGP iterations. Friction in 3D runs "
-      "MPGP, which has none of these: a variant asked for there is not used, and a warning says so",
+      "product, where it would cost more than the feasible half step) | auto (projected-cg "
+      "where the whole CG step moves the multipliers at least twice as far as the fixed-length "
+      "step, else gradient). projected-cg and auto need fewer products where expansion steps are "
+      "many (METIS-split contact problems: the report's solver.expansion_steps), projected-cg "
+      "more on graded Hertz-like blocks (docs/performance.md). Friction in 3D runs MPGP, which "
+      "has none of these: a variant asked for there is not used, and a warning says so",
       qp::kExpansionNames,
       +[](RunOptions& r) -> qp::Expansion& { return r.solve.smalbe.expansion; }));
   t.push_back(choice(

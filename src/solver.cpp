@@ -207,7 +207,8 @@ QpSolve solve_with_contact(DualProblem& dual, DualOperators& ops, Vec& lambda,
   out.reason = to_string(r.reason);
   // The MPRGP steps of every solve (the report's counts add up to the inner iterations).
   int cg_steps = r.cg_steps, expansion_steps = r.expansion_steps,
-      cost_increases = r.expansion_cost_increases, proportioning_steps = r.proportioning_steps;
+      cost_increases = r.expansion_cost_increases, proportioning_steps = r.proportioning_steps,
+      projected_cg_expansions = r.projected_cg_expansions;
   int face_solves = r.face_solves, face_iterations = r.face_iterations,
       face_converged = r.face_converged, face_tries = r.face_tries;
   double face_seconds = r.face_seconds, face_set_seconds = r.face_set_seconds;
@@ -221,6 +222,7 @@ QpSolve solve_with_contact(DualProblem& dual, DualOperators& ops, Vec& lambda,
     cg_steps += r.cg_steps;
     expansion_steps += r.expansion_steps;
     cost_increases += r.expansion_cost_increases;
+    projected_cg_expansions += r.projected_cg_expansions;
     face_solves += r.face_solves;
     face_iterations += r.face_iterations;
     face_converged += r.face_converged;
@@ -307,6 +309,8 @@ QpSolve solve_with_contact(DualProblem& dual, DualOperators& ops, Vec& lambda,
                 {"cg_steps", cg_steps},
                 {"expansion_steps", expansion_steps},
                 {"expansion_cost_increases", cost_increases},
+                {"projected_cg_expansions", projected_cg_expansions},
+                {"mprgp_expansion", qp::to_string(so.expansion)},
                 {"proportioning_steps", proportioning_steps},
                 {"face_solves", face_solves},
                 {"face_iterations", face_iterations},
@@ -530,7 +534,8 @@ SolveOutput solve(std::shared_ptr<const Model> model_ptr, const SolveOptions& op
   // has no expansion step of MPRGP's kinds. A variant asked for is then not used: say so.
   const bool discs =
       contact && dual.layout().dim == 3 && comm.max(dual.has_friction() ? 1.0 : 0.0) > 0;
-  if (discs && options.smalbe.expansion != qp::Expansion::gradient && comm.rank() == 0)
+  if (discs && options.smalbe.expansion != qp::Expansion::gradient &&
+      options.smalbe.expansion != qp::Expansion::automatic && comm.rank() == 0)
     std::fprintf(stderr,
                  "htfeti: warning: --mprgp-expansion %s is not used: friction in 3D is solved "
                  "by MPGP, whose expansion step is the projected gradient step\n",

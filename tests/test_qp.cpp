@@ -183,7 +183,7 @@ TEST_P(MprgpConformance, MatchesEnumeratedActiveSets) {
   EXPECT_GT(Z.count(), 0);
   // The preconditioned and the projected CG expansion steps, with Z and without: the same
   // solution.
-  for (Expansion e : {Expansion::preconditioned, Expansion::projected_cg})
+  for (Expansion e : {Expansion::preconditioned, Expansion::projected_cg, Expansion::automatic})
     for (Operator* z : {static_cast<Operator*>(&Z), static_cast<Operator*>(nullptr)}) {
       opt.preconditioner = z;
       opt.expansion = e;
@@ -233,6 +233,16 @@ TEST(Mprgp, ProjectedCgExpansionIsUndoneWhereItRaisesTheCost) {
   ASSERT_EQ(r.reason, StopReason::converged);
   EXPECT_GE(r.expansion_cost_increases, 1);
   EXPECT_LT((x - (Vec(2) << 0.0, -0.8).finished()).norm(), 1e-10);
+  // automatic tries the same step: it would move x by 5.76, more than twice the fixed-length
+  // step's alpha ||phi|| = 2.07.
+  opt.expansion = Expansion::automatic;
+  Vec xa = (Vec(2) << 1.2, 0.9).finished(), ga(2);
+  const auto ra = mprgp(A, b, l, xa, ga, red, opt,
+                        [&](const Vec&, const Vec&, double gp) { return gp <= 1e-12; });
+  ASSERT_EQ(ra.reason, StopReason::converged);
+  EXPECT_GE(ra.projected_cg_expansions, 1);
+  EXPECT_GE(ra.expansion_cost_increases, 1);
+  EXPECT_LT((xa - (Vec(2) << 0.0, -0.8).finished()).norm(), 1e-10);
   EXPECT_LT(worst, 1e-12);
   // After the first iteration the cost is below the half step's -0.2952 (the undone step's 1.18
   // would be above it).
@@ -248,8 +258,8 @@ TEST(Mprgp, ProjectedCgExpansionIsUndoneWhereItRaisesTheCost) {
 //    expansion step costs one product more than a CG step, two when undone.
 TEST(Mprgp, ExpansionVariantsAreTakenAndReachTheSolution) {
   const int n = 10, bounded = 7;
-  for (Expansion e : {Expansion::preconditioned, Expansion::projected_cg}) {
-    int taken = 0, kept = 0;
+  for (Expansion e : {Expansion::preconditioned, Expansion::projected_cg, Expansion::automatic}) {
+    int taken = 0, kept = 0, tried = 0;
     for (unsigned seed = 1; seed < 17; ++seed) {
       Qp q = random_qp(n, bounded, 0, seed, false);
       q.b *= 2.0;
@@ -282,11 +292,45 @@ TEST(Mprgp, ExpansionVariantsAreTakenAndReachTheSolution) {
         EXPECT_EQ(products, 1 + r.iterations + r.expansion_steps + r.expansion_cost_increases)
             << what;
       }
+      if (e != Expansion::preconditioned)
+        EXPECT_LE(r.expansion_cost_increases, r.projected_cg_expansions) << what;
+      if (e == Expansion::projected_cg) EXPECT_EQ(r.projected_cg_expansions, r.expansion_steps);
       taken += r.expansion_steps;
       kept += r.expansion_steps - r.expansion_cost_increases;
+      tried += r.projected_cg_expansions;
     }
     EXPECT_GT(taken, 0) << to_string(e);
     EXPECT_GT(kept, 0) << to_string(e);
+    // automatic takes both kinds of expansion step in these cases.
+    if (e == Expansion::automatic) {
+      EXPECT_GT(tried, 0);
+      EXPECT_LT(tried, taken);
+    }
+  }
+}
+
+// By hand: min 1/2 x'x - b'x, x_1 >= 0, b = (-10, 0), from (0.5, 0). g = (10.5, 0) = phi, the CG
+// step along p = phi has length a_cg = 1 and leaves the bound after 0.5 / 10.5 of it: an
+// expansion step. The whole CG step moves x by a_cg ||p|| = 10.5, the fixed-length step by
+// alpha ||phi|| = 19.95 (alpha = 1.9, ||A|| = 1): less than twice as far, so automatic takes the
+// fixed-length step (x = P(0 - 1.9 * 0) = 0 after the half step) and projected_cg tries the CG
+// step. The solution is (0, 0) (g_1 = 10 >= 0).
+TEST(Mprgp, AutomaticExpansionTakesTheProjectedCgStepOnlyWhereItIsLong) {
+  const Vec b = (Vec(2) << -10.0, 0.0).finished();
+  const Vec l = (Vec(2) << 0.0, -inf).finished();
+  DenseOperator A(Eigen::MatrixXd::Identity(2, 2));
+  SerialReducer red;
+  for (Expansion e : {Expansion::automatic, Expansion::projected_cg}) {
+    MprgpOptions opt;
+    opt.alpha = 1.9;
+    opt.expansion = e;
+    Vec x = (Vec(2) << 0.5, 0.0).finished(), g(2);
+    const auto r = mprgp(A, b, l, x, g, red, opt,
+                         [&](const Vec&, const Vec&, double gp) { return gp <= 1e-12; });
+    ASSERT_EQ(r.reason, StopReason::converged) << to_string(e);
+    EXPECT_LT(x.norm(), 1e-12) << to_string(e);
+    EXPECT_EQ(r.expansion_steps, 1) << to_string(e);
+    EXPECT_EQ(r.projected_cg_expansions, e == Expansion::projected_cg ? 1 : 0) << to_string(e);
   }
 }
 
@@ -674,8 +718,9 @@ TEST_P(MprgpBoxConformance, MatchesEnumeratedActiveSets) {
   Vec xp = Vec::Zero(n), gp(n);
   ASSERT_EQ(mprgp(A, q.b, q.l, u, xp, gp, red, opt, stop).reason, StopReason::converged);
   EXPECT_LT((xp - exact).norm(), 1e-8);
-  // With the preconditioned and the projected CG expansion steps: the same solution.
-  for (Expansion e : {Expansion::preconditioned, Expansion::projected_cg}) {
+  // With the preconditioned, the projected CG and the automatic expansion steps: the same
+  // solution.
+  for (Expansion e : {Expansion::preconditioned, Expansion::projected_cg, Expansion::automatic}) {
     opt.expansion = e;
     Vec xe = Vec::Zero(n), ge(n);
     ASSERT_EQ(mprgp(A, q.b, q.l, u, xe, ge, red, opt, stop).reason, StopReason::converged);

@@ -1,6 +1,7 @@
 #include "htfeti/qp/mprgp.hpp"
 
 #include <algorithm>
+#include <cmath>
 #include <limits>
 #include <stdexcept>
 
@@ -138,7 +139,14 @@ MprgpResult mprgp(Operator& A, const Vec& b, const Vec& l, const Vec& u, Vec& x,
         p = zz - gamma_cg * p;
       } else {  // expansion step: feasible half step, then fixed-length projected gradient step
         ++res.expansion_steps;
-        if (opt.expansion == Expansion::projected_cg) {
+        // automatic: the projected CG step where it moves x at least kAutoCgStepRatio times as
+        // far as the fixed-length step would (a_cg ||p|| against alpha ||phi||).
+        const bool try_cg = opt.expansion == Expansion::projected_cg ||
+                            (opt.expansion == Expansion::automatic &&
+                             a_cg * std::sqrt(red.dot(p, p)) >=
+                                 kAutoCgStepRatio * opt.alpha * std::sqrt(red.dot(phi, phi)));
+        if (try_cg) {
+          ++res.projected_cg_expansions;
           // The whole CG step, projected onto the bounds: kept when its cost is below that of
           // the feasible half step x - a_f p (known without a product), else undone, and the
           // fixed-length step below is taken from the half step (its product resets T x).

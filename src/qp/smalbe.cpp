@@ -182,6 +182,7 @@ SmalbeResult smalbe(const QuadraticProgram& qp, double normA, Vec& x, const Redu
     res.cg_steps += inner.cg_steps;
     res.expansion_steps += inner.expansion_steps;
     res.expansion_cost_increases += inner.expansion_cost_increases;
+    res.projected_cg_expansions += inner.projected_cg_expansions;
     res.proportioning_steps += inner.proportioning_steps;
     res.outer_iterations = k + 1;
     res.projected_gradient = inner.projected_gradient;

@@ -38,6 +38,13 @@
 // product: f(x) - a_f g'p + a_f^2 p'Ap / 2); otherwise it is undone and the fixed-length step is
 // taken from the half step, so the cost never rises and the theory's decrease holds. Undone
 // steps are counted in expansion_cost_increases.
+// Expansion::automatic (the default) tries the projected CG step only where it is long: where
+// a_cg ||p|| >= kAutoCgStepRatio alpha ||phi||, the move of the whole CG step at least twice that
+// of the fixed-length gradient step; otherwise it takes the fixed-length step. With p
+// preconditioned the two lengths are what the steps would move x, whatever Z's scale. On
+// METIS-split cubes with many expansion steps it needs 0.6-0.7 of the gradient step's products,
+// and on the contact examples and graded Hertz blocks about as many (docs/performance.md,
+// "MPRGP's expansion step chosen by its length"). Costs two more reductions per expansion step.
 // Cost of one iteration: one application of A (two for an expansion step, three for a
 // preconditioned one or an undone projected CG one) and a few vector ops (and one of Z when
 // preconditioned).
@@ -58,11 +65,14 @@ namespace htfeti::qp {
 
 /// The expansion step (see above): the fixed-length step along the free gradient, the step
 /// along the preconditioned free gradient with its optimal length, or the projected CG step.
-enum class Expansion { gradient, preconditioned, projected_cg };
-inline constexpr std::array<EnumName<Expansion>, 3> kExpansionNames{
+/// automatic: the projected CG step where it is at least kAutoCgStepRatio times as long as the
+/// fixed-length one, else the fixed-length step (see above).
+enum class Expansion { gradient, preconditioned, projected_cg, automatic };
+inline constexpr std::array<EnumName<Expansion>, 4> kExpansionNames{
     {{Expansion::gradient, "gradient"},
      {Expansion::preconditioned, "preconditioned"},
-     {Expansion::projected_cg, "projected-cg"}}};
+     {Expansion::projected_cg, "projected-cg"},
+     {Expansion::automatic, "auto"}}};
 Expansion parse_expansion(const std::string& name);  // throws std::invalid_argument
 std::string to_string(Expansion kind);
 
@@ -72,6 +82,10 @@ struct TrackedImage {
   const Vec* last = nullptr;  ///< T v of the vector A was applied to last (written by A)
   Vec tx;                     ///< T x; on entry with gradient_given it must hold T x of the given x
 };
+
+/// Expansion::automatic: the projected CG step is tried where it moves x at least this many
+/// times as far as the fixed-length gradient step (see above).
+inline constexpr double kAutoCgStepRatio = 2.0;
 
 struct MprgpOptions {
   double gamma = 1.0;  ///< proportioning parameter Gamma > 0
@@ -91,7 +105,8 @@ struct MprgpResult {
   /// Preconditioned expansion steps that raised the cost (kept), or projected CG expansion steps
   /// that would have raised it above the half step's (undone).
   int expansion_cost_increases = 0;
-  double projected_gradient = 0;  ///< ||g^P|| at exit
+  int projected_cg_expansions = 0;  ///< expansion steps that tried the projected CG step
+  double projected_gradient = 0;    ///< ||g^P|| at exit
 };
 
 /// Work vectors of one MPRGP run; pass the same one to repeated runs (SMALBE-M's inner solves)

@@ -80,7 +80,7 @@ struct SmalbeOptions {
   double rho_update_late = 2.0;  ///< rho's factor in the late phase (step 4; 1: off)
   double norm_safety = 1.1;      ///< the expansion step is alpha = 2 / (norm_safety * ||H||_est)
   double gamma = 1.0;            ///< MPRGP proportioning parameter Gamma
-  Expansion expansion = Expansion::gradient;  ///< MPRGP's expansion step (mprgp.hpp)
+  Expansion expansion = Expansion::automatic;  ///< MPRGP's expansion step (mprgp.hpp)
   int max_outer = 200;
   int max_inner = 100000;       ///< total MPRGP iterations over all outer iterations
   int idle_count = kIdleCount;  ///< kIdleCount, or kWarmIdleCount for a warm-started solve
@@ -103,6 +103,7 @@ struct SmalbeResult {
   int inner_iterations = 0;
   int cg_steps = 0, expansion_steps = 0, proportioning_steps = 0;
   int expansion_cost_increases = 0;  ///< preconditioned expansion steps that raised the cost
+  int projected_cg_expansions = 0;   ///< expansion steps that tried the projected CG step
   long hessian_applications = 0;     ///< of H_rho (the products the paper counts)
   double projected_gradient = 0;     ///< ||g^P|| at exit
   double equality_residual = 0;      ///< ||G x|| at exit

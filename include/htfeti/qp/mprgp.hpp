@@ -22,7 +22,7 @@
 // restart, p = z - (z'Ap / p'Ap) p after a CG step; the step along p is the exact line search.
 // Expansion and proportioning steps and the proportionality test stay unpreconditioned, so the
 // convergence theory of the fixed-length projected gradient step is kept.
-// Expansion::preconditioned (an option; gradient is the default) takes the expansion step along
+// Expansion::preconditioned (an option) takes the expansion step along
 // the preconditioned free gradient d = D_F Z phi instead, with the length d'phi / d'Ad that
 // minimizes the cost along d before the projection (one more product with A). The projected
 // step can raise the cost; it is kept all the same, since what it buys is a better active set
@@ -38,9 +38,9 @@
 // product: f(x) - a_f g'p + a_f^2 p'Ap / 2); otherwise it is undone and the fixed-length step is
 // taken from the half step, so the cost never rises and the theory's decrease holds. Undone
 // steps are counted in expansion_cost_increases.
-// Expansion::automatic (the default) tries the projected CG step only where it is long: where
-// a_cg ||p|| >= kAutoCgStepRatio alpha ||phi||, the move of the whole CG step at least twice that
-// of the fixed-length gradient step; otherwise it takes the fixed-length step. With p
+// Expansion::automatic (SMALBE-M's default; MprgpOptions defaults to gradient) tries the
+// projected CG step only where it is long: where a_cg ||p|| >= kAutoCgStepRatio alpha ||phi||,
+// the move of the whole CG step at least twice that of the fixed-length gradient step; otherwise it takes the fixed-length step. With p
 // preconditioned the two lengths are what the steps would move x, whatever Z's scale. On
 // METIS-split cubes with many expansion steps it needs 0.6-0.7 of the gradient step's products,
 // and on the contact examples and graded Hertz blocks about as many (docs/performance.md,

@@ -40,11 +40,11 @@
 // steps are counted in expansion_cost_increases.
 // Expansion::automatic (SMALBE-M's default; MprgpOptions defaults to gradient) tries the
 // projected CG step only where it is long: where a_cg ||p|| >= kAutoCgStepRatio alpha ||phi||,
-// the move of the whole CG step at least twice that of the fixed-length gradient step; otherwise it takes the fixed-length step. With p
-// preconditioned the two lengths are what the steps would move x, whatever Z's scale. On
-// METIS-split cubes with many expansion steps it needs 0.6-0.7 of the gradient step's products,
-// and on the contact examples and graded Hertz blocks about as many (docs/performance.md,
-// "MPRGP's expansion step chosen by its length"). Costs two more reductions per expansion step.
+// the whole CG step moves x at least twice as far as the fixed-length gradient step; otherwise
+// it takes the fixed-length step. With p preconditioned both are lengths in x, whatever Z's
+// scale. On METIS-split cubes with many expansion steps it needs 0.6-0.9 of the gradient step's
+// products, and on the contact examples and graded Hertz blocks about as many (docs/performance.md,
+// "MPRGP's expansion step chosen by its length"). Two more reductions per expansion step.
 // Cost of one iteration: one application of A (two for an expansion step, three for a
 // preconditioned one or an undone projected CG one) and a few vector ops (and one of Z when
 // preconditioned).

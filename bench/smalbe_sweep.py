@@ -8,21 +8,27 @@ with partial contact (amplitude 20), ESPRESO's default cube at rtol 1e-10 and th
 inactive contact at rtol 1e-6; with --metis also the cube-obstacle at 40^3 split by METIS into
 64 parts (volume and cut objective, issue 32; and in clusters of 8, split from the mesh) and
 the contact pairs cylinder-, sphere- and
-punch-on-block. Robustness first: a setting is ranked by its failures (not converged within 200
+punch-on-block; with --hertz the four graded Hertz blocks (bench/hertz_cases.py, needs gmsh);
+with --friction the friction examples (2D Tresca, 3D Coulomb) and the Table 4 cube-obstacle
+1x1x1 with Coulomb friction (bench/table4_friction.py's problem, TFETI and H-TFETI-DP).
+Robustness first: a setting is ranked by its failures (not converged within 200
 outer iterations), then by the geometric mean over the cases of its Hessian products relative
 to the defaults' (rho 1.1, M_0 100, eta 0.1, late factor 2, the power method); with
 --norm-estimate the products of the norm estimate count too (they cost as much).
 
 Usage: bench/smalbe_sweep.py [--rho 1.1 3] [--M0 1 10 100] [--eta 0.01 0.1 1] [--late 2]
-       [--norm-estimate power lanczos] [--metis] [--threads 2]
+       [--norm-estimate power lanczos] [--metis] [--hertz] [--friction] [--threads 2]
        [--out smalbe_sweep.json]
 Writes bench/results/OUT and prints the settings best first."""
 import argparse
 import itertools
 import math
 import os
+import tempfile
 
 from common import ROOT, save, solve
+from hertz_cases import contact_problems
+from table4_friction_problem import PROBLEM as FRICTION_CUBE
 
 p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
 p.add_argument("--rho", type=float, nargs="+", default=[1.1, 3.0])
@@ -31,6 +37,8 @@ p.add_argument("--eta", type=float, nargs="+", default=[0.01, 0.1, 1.0])
 p.add_argument("--late", type=float, nargs="+", default=[2.0])
 p.add_argument("--norm-estimate", nargs="+", default=None)
 p.add_argument("--metis", action="store_true")
+p.add_argument("--hertz", action="store_true")
+p.add_argument("--friction", action="store_true")
 p.add_argument("--threads", type=int, default=2)
 p.add_argument("--out", default="smalbe_sweep.json")
 a = p.parse_args()
@@ -62,6 +70,17 @@ if a.metis:
                 8])]
     CASES += [(f"example {n}", [EX(n)])
               for n in ("cylinder-on-block", "sphere-on-block", "punch-on-block")]
+tmp = tempfile.TemporaryDirectory()  # removed at exit
+if a.hertz:
+    CASES += [(name, [path]) for name, path in contact_problems(tmp.name)]
+if a.friction:
+    CASES += [(f"example {n}", [EX(n)]) for n in ("friction-block", "friction-block-3d")]
+    for method, m in (("TFETI", 1), ("H-TFETI-DP", 4)):
+        path = os.path.join(tmp.name, f"coulomb{m}.toml")
+        with open(path, "w") as f:
+            f.write(FRICTION_CUBE.format(n=40, s=4, m=m, friction=(
+                'friction = { law = "coulomb", coefficient = 0.3 }')))
+        CASES += [(f"Table 4 1x1x1 {method}, Coulomb mu = 0.3", [path])]
 norms = a.norm_estimate or ["power"]
 count_norm = a.norm_estimate is not None
 settings = list(itertools.product(a.rho, a.M0, a.eta, a.late, norms))
@@ -106,5 +125,6 @@ for r in rows:
 cmd = (f"bench/smalbe_sweep.py --rho {' '.join(map(str, a.rho))} --M0 {' '.join(map(str, a.M0))}"
        f" --eta {' '.join(map(str, a.eta))} --late {' '.join(map(str, a.late))}"
        f" --norm-estimate {' '.join(norms)}{' --metis' if a.metis else ''}"
+       f"{' --hertz' if a.hertz else ''}{' --friction' if a.friction else ''}"
        f" --threads {a.threads}")
 print("\n" + save(a.out, {"command": cmd, "cases": [c[0] for c in CASES], "settings": rows}))

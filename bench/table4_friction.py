@@ -13,31 +13,8 @@ import os
 import tempfile
 
 from common import save, solve
+from table4_friction_problem import PROBLEM
 
-PROBLEM = """[mesh]
-generator = "box"
-size = [100.0, 100.0, 100.0]
-elements = [{n}, {n}, {n}]
-element = "hex8"
-[physics]
-type = "elasticity"
-young = 2.1e7
-poisson = 0.3
-density = 7850.0
-gravity = [0.0, 0.0, -9.8066]
-[[dirichlet]]
-group = "x0"
-[[contact]]
-group = "z0"
-direction = [0.0, 0.0, -1.0]
-gap = "sin(pi*x/50)"
-{friction}
-[decomposition]
-subdomains = [{s}, {s}, {s}]
-cluster_size = {m}
-[solver]
-preconditioner = "none"
-"""
 
 p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
 p.add_argument("--ks", type=int, nargs="+", default=[1, 2])

@@ -265,7 +265,7 @@ QpSolve solve_with_contact(DualProblem& dual, DualOperators& ops, Vec& lambda,
   // The accuracy refinement (solve_parts.hpp): SMALBE-M again from x and its multiplier with a
   // smaller rtol (with Coulomb friction on the bounds of the fixed point's last solve). The QP
   // is the same, so the refinement continues the last solve: its penalty rho and its M too
-  // (restarted from M_0 = 100 ||PFP||, the first inner solves stopped at once on the loose
+  // (restarted from M_0, then 100 ||PFP||, the first inner solves stopped at once on the loose
   // M test while only mu moved, by rho G x per outer iteration, and raised ||g^P|| several
   // times before M came down again: docs/method.md, "Accuracy refinement").
   const auto refine_again = [&]() {

@@ -74,7 +74,7 @@ inline constexpr double kFaceTolerance = 0.5;
 struct SmalbeOptions {
   double rtol = 1e-4;            ///< relative precision eps (paper: 1e-4)
   double rho_factor = 1.1;       ///< rho = rho_factor * ||A|| (theory: rho close to ||F~||)
-  double M0_factor = 100.0;      ///< M_0 = M0_factor * ||A||
+  double M0_factor = 1.0;        ///< M_0 = M0_factor * ||A|| (docs/performance.md)
   double eta_factor = 0.1;       ///< eta = eta_factor * ||b||
   double beta = 2.0;             ///< M is divided by beta when the Lagrangian grows too little
   double rho_update_late = 2.0;  ///< rho's factor in the late phase (step 4; 1: off)

@@ -7,6 +7,7 @@
 #include <optional>
 
 #include "helpers.hpp"
+#include "htfeti/feti/dual_reducer.hpp"
 #include "htfeti/feti/input.hpp"
 #include "htfeti/feti/operator_cost.hpp"
 
@@ -77,6 +78,38 @@ TEST_P(DualOperators, ProjectorIsSymmetricIdempotentOntoKerG) {
   Eigen::VectorXd gl;
   dual->apply_G(dual->lambda_tilde(), gl);
   EXPECT_LT((gl - dual->e()).norm(), 1e-12 * (1 + dual->e().norm()));
+}
+
+TEST_P(DualOperators, FusedReductionsEqualTheSeparateOnes) {
+  // DualProblem::dots forms several dot products and sums in one allreduce; each must be the
+  // number dot() and sum() give, bit for bit (MPRGP's counts and results must not move), also
+  // with more terms than the work array holds at first (kDotsReserved).
+  const Eigen::VectorXd x = test::pseudo_random(*dual, 1.0), y = test::pseudo_random(*dual, 2.0);
+  const Eigen::VectorXd ones = Eigen::VectorXd::Ones(dual->n_owned());
+  const int terms = kDotsReserved + 2;
+  std::vector<const Eigen::VectorXd*> a(terms), b(terms);
+  for (int k = 0; k < terms; ++k) {
+    a[k] = k % 2 ? &x : &y;
+    b[k] = k % 3 == 2 ? nullptr : (k % 2 ? &y : &x);
+  }
+  b[1] = &ones;
+  std::vector<double> out(terms);
+  dual->dots(terms, a.data(), b.data(), out.data());
+  for (int k = 0; k < terms; ++k)
+    EXPECT_EQ(out[k], b[k] ? dual->dot(*a[k], *b[k]) : dual->sum(*a[k])) << "term " << k;
+  // A hand-checkable one: ones'ones and the entries of ones sum to the dual dimension.
+  const Eigen::VectorXd* oa[2] = {&ones, &ones};
+  const Eigen::VectorXd* ob[2] = {&ones, nullptr};
+  double counts[2];
+  dual->dots(2, oa, ob, counts);
+  EXPECT_EQ(counts[0], static_cast<double>(dual->dual_dimension()));
+  EXPECT_EQ(counts[1], static_cast<double>(dual->dual_dimension()));
+  // Through the reducer MPRGP uses.
+  const DualReducer red(comm, *dual);
+  double via[2];
+  red.dots(2, oa, ob, via);
+  EXPECT_EQ(via[0], counts[0]);
+  EXPECT_EQ(via[1], counts[1]);
 }
 
 TEST_P(DualOperators, FIsSymmetricPositiveSemidefinite) {

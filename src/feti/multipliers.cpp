@@ -166,6 +166,7 @@ std::vector<std::vector<Subdomain::BEntry>> Multipliers::number(
     subdomain_sum = OrderedSum(c, layout, pk, pc, owner_rank);
     pairs = Vec::Zero(static_cast<int>(pk.size()));
     partial.assign(fl.num_clusters, 0.0);
+    partial_terms.assign(static_cast<size_t>(kDotsReserved) * fl.num_clusters, 0.0);
   }
   ext_in = Vec::Zero(n_ext);
   ext_out = Vec::Zero(n_ext);
@@ -247,6 +248,33 @@ double Multipliers::dot(const Vec& a, const Vec& b) const {
   std::fill(partial.begin(), partial.end(), 0.0);
   for (Eigen::Index i = 0; i < a.size(); ++i) partial[owner_cluster[i]] += a[i] * b[i];
   return reduce_clusters(partial);
+}
+
+void Multipliers::dots(int count, const Vec* const* a, const Vec* const* b, double* out) const {
+  // The terms' per-cluster partial sums side by side, formed as dot() and sum() form them, and
+  // reduced over the ranks in one allreduce (exact zeros added, as in reduce_clusters).
+  const size_t nc = partial.size(), all = static_cast<size_t>(count) * nc;
+  if (partial_terms.size() < all) partial_terms.resize(all);  // only beyond kDotsReserved terms
+  std::fill_n(partial_terms.begin(), all, 0.0);
+  for (int k = 0; k < count; ++k) {
+    double* pk = partial_terms.data() + static_cast<size_t>(k) * nc;
+    const Vec& ak = *a[k];
+    if (b[k]) {
+      const Vec& bk = *b[k];
+      for (Eigen::Index i = 0; i < ak.size(); ++i) pk[owner_cluster[i]] += ak[i] * bk[i];
+    } else {
+      for (Eigen::Index i = 0; i < ak.size(); ++i) pk[owner_cluster[i]] += ak[i];
+    }
+  }
+  if (comm->size() > 1)
+    MPI_Allreduce(MPI_IN_PLACE, partial_terms.data(), static_cast<int>(all), MPI_DOUBLE, MPI_SUM,
+                  comm->raw());
+  for (int k = 0; k < count; ++k) {
+    const double* pk = partial_terms.data() + static_cast<size_t>(k) * nc;
+    double s = 0;
+    for (size_t c = 0; c < nc; ++c) s += pk[c];
+    out[k] = s;
+  }
 }
 
 double Multipliers::sum(const Vec& v) const {

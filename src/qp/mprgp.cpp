@@ -76,6 +76,14 @@ MprgpResult mprgp(Operator& A, const Vec& b, const Vec& l, const Vec& u, Vec& x,
       if (!(x[i] > l[i]) || (upper && !(x[i] < u[i]))) z[i] = 0.0;
     return z;
   };
+  // x'g - x'b (twice the cost f = 1/2 x'(g - b)) in one reduction, each dot as red.dot forms it.
+  auto cost_terms = [&red](const Vec& xv, const Vec& gv, const Vec& bv) {
+    const Vec* ca[2] = {&xv, &xv};
+    const Vec* cb[2] = {&gv, &bv};
+    double d[2];
+    red.dots(2, ca, cb, d);
+    return d[0] - d[1];
+  };
   TrackedImage* T = opt.image;
   // T x after x -= a v, where A was applied to v last; T x = T v after A was applied to x.
   auto image_step = [&](double a) {
@@ -94,8 +102,25 @@ MprgpResult mprgp(Operator& A, const Vec& b, const Vec& l, const Vec& u, Vec& x,
   p = precondition();
   for (int it = 0;; ++it) {
     res.iterations = it;
-    res.projected_gradient = std::sqrt(red.dot(phi, phi) + red.dot(beta, beta));
-    if (stop(x, g, res.projected_gradient)) {
+    // For the proportionality test ||beta||^2 <= Gamma^2 phi~'phi below: Ap is free here (both
+    // branches compute it before use) and takes the entries of phi~'phi.
+    // phi~_i = min((x_i - l_i) / alpha, phi_i) for phi_i > 0, max((x_i - u_i) / alpha, phi_i)
+    // for phi_i < 0 (the lower-bound form alone when there are no upper bounds).
+    for (Eigen::Index i = 0; i < n; ++i)
+      Ap[i] = phi[i] == 0.0           ? 0.0
+              : upper && phi[i] < 0.0 ? std::max((x[i] - u[i]) / opt.alpha, phi[i]) * phi[i]
+                                      : std::min((x[i] - l[i]) / opt.alpha, phi[i]) * phi[i];
+    // One reduction: phi'phi, beta'beta, phi~'phi and, with a tracked image, ||T x||^2 for the
+    // caller's stopping test (TrackedImage::norm).
+    const Vec* ta[4] = {&phi, &beta, &Ap, T ? &T->tx : nullptr};
+    const Vec* tb[4] = {&phi, &beta, nullptr, T ? &T->tx : nullptr};
+    double sums[4];
+    red.dots(T ? 4 : 3, ta, tb, sums);
+    if (T) T->norm = std::sqrt(sums[3]);
+    res.projected_gradient = std::sqrt(sums[0] + sums[1]);
+    const bool converged = stop(x, g, res.projected_gradient);
+    if (T) T->norm = -1.0;  // valid inside stop() only
+    if (converged) {
       res.reason = StopReason::converged;
       return res;
     }
@@ -103,24 +128,20 @@ MprgpResult mprgp(Operator& A, const Vec& b, const Vec& l, const Vec& u, Vec& x,
       res.reason = StopReason::max_iterations;
       return res;
     }
-    // Proportionality test ||beta||^2 <= Gamma^2 phi~'phi.
-    // Ap is free here (both branches below compute it before use): the entries of phi~'phi.
-    // phi~_i = min((x_i - l_i) / alpha, phi_i) for phi_i > 0, max((x_i - u_i) / alpha, phi_i)
-    // for phi_i < 0 (the lower-bound form alone when there are no upper bounds).
-    for (Eigen::Index i = 0; i < n; ++i)
-      Ap[i] = phi[i] == 0.0           ? 0.0
-              : upper && phi[i] < 0.0 ? std::max((x[i] - u[i]) / opt.alpha, phi[i]) * phi[i]
-                                      : std::min((x[i] - l[i]) / opt.alpha, phi[i]) * phi[i];
-    const double beta2 = red.dot(beta, beta);
-    const double phi_red_phi = red.sum_entries(Ap);
+    const double beta2 = sums[1];
+    const double phi_red_phi = sums[2];
     if (beta2 <= opt.gamma * opt.gamma * phi_red_phi) {
       A.apply(p, Ap);
-      const double pAp = red.dot(p, Ap);
+      const Vec* ca[2] = {&p, &g};
+      const Vec* cb[2] = {&Ap, &p};
+      double pair[2];  // p'Ap, g'p
+      red.dots(2, ca, cb, pair);
+      const double pAp = pair[0], g_p = pair[1];
       if (!(pAp > 0)) {
         res.reason = StopReason::breakdown;
         return res;
       }
-      const double a_cg = red.dot(g, p) / pAp;
+      const double a_cg = g_p / pAp;
       double a_f = inf;  // largest feasible step along -p
       for (Eigen::Index i = 0; i < n; ++i) {
         if (p[i] > 0 && l[i] > -inf) a_f = std::min(a_f, (x[i] - l[i]) / p[i]);
@@ -141,18 +162,20 @@ MprgpResult mprgp(Operator& A, const Vec& b, const Vec& l, const Vec& u, Vec& x,
         ++res.expansion_steps;
         // automatic: the projected CG step where it moves x at least kAutoCgStepRatio times as
         // far as the fixed-length step would (a_cg ||p|| against alpha ||phi||).
-        const bool try_cg = opt.expansion == Expansion::projected_cg ||
-                            (opt.expansion == Expansion::automatic &&
-                             a_cg * std::sqrt(red.dot(p, p)) >=
-                                 kAutoCgStepRatio * opt.alpha * std::sqrt(red.dot(phi, phi)));
+        bool try_cg = opt.expansion == Expansion::projected_cg;
+        if (opt.expansion == Expansion::automatic) {
+          const Vec* ea[2] = {&p, &phi};
+          double lengths[2];  // p'p, phi'phi
+          red.dots(2, ea, ea, lengths);
+          try_cg =
+              a_cg * std::sqrt(lengths[0]) >= kAutoCgStepRatio * opt.alpha * std::sqrt(lengths[1]);
+        }
         if (try_cg) {
           ++res.projected_cg_expansions;
           // The whole CG step, projected onto the bounds: kept when its cost is below that of
           // the feasible half step x - a_f p (known without a product), else undone, and the
           // fixed-length step below is taken from the half step (its product resets T x).
-          const double g_p = red.dot(g, p);
-          const double f_half =
-              0.5 * (red.dot(x, g) - red.dot(x, b)) - a_f * g_p + 0.5 * a_f * a_f * pAp;
+          const double f_half = 0.5 * cost_terms(x, g, b) - a_f * g_p + 0.5 * a_f * a_f * pAp;
           w.x_old = x;
           w.g_old = g;
           x -= a_cg * p;
@@ -160,7 +183,7 @@ MprgpResult mprgp(Operator& A, const Vec& b, const Vec& l, const Vec& u, Vec& x,
           A.apply(x, g);
           image_reset();
           g -= b;
-          if (0.5 * (red.dot(x, g) - red.dot(x, b)) < f_half) {
+          if (0.5 * cost_terms(x, g, b) < f_half) {
             split_gradient(x, g, l, u, phi, beta);
             p = precondition();
             continue;
@@ -180,7 +203,7 @@ MprgpResult mprgp(Operator& A, const Vec& b, const Vec& l, const Vec& u, Vec& x,
           // active set faster), but after kMaxCostIncreases such steps in this run the
           // remaining expansion steps are the fixed-length gradient steps of the theory, so
           // the run ends as MPRGP does.
-          const double f_before = 0.5 * (red.dot(x, g) - red.dot(x, b));
+          const double f_before = 0.5 * cost_terms(x, g, b);
           const Vec& d = precondition();
           A.apply(d, Ap);
           const double dAd = red.dot(d, Ap);
@@ -191,7 +214,7 @@ MprgpResult mprgp(Operator& A, const Vec& b, const Vec& l, const Vec& u, Vec& x,
             image_reset();
             g -= b;
             done = true;
-            if (!(0.5 * (red.dot(x, g) - red.dot(x, b)) < f_before)) {
+            if (!(0.5 * cost_terms(x, g, b) < f_before)) {
               ++cost_increases;
               ++res.expansion_cost_increases;
             }
@@ -210,12 +233,16 @@ MprgpResult mprgp(Operator& A, const Vec& b, const Vec& l, const Vec& u, Vec& x,
     } else {  // proportioning step along the chopped gradient
       ++res.proportioning_steps;
       A.apply(beta, Ap);
-      const double dAd = red.dot(beta, Ap);
+      const Vec* pa[2] = {&beta, &g};
+      const Vec* pb[2] = {&Ap, &beta};
+      double pair[2];  // beta'A beta, g'beta
+      red.dots(2, pa, pb, pair);
+      const double dAd = pair[0];
       if (!(dAd > 0)) {
         res.reason = StopReason::breakdown;
         return res;
       }
-      double a_cg = red.dot(g, beta) / dAd;
+      double a_cg = pair[1] / dAd;
       if (any_upper) {
         // With both bounds the line search along -beta can carry a component from one bound past
         // the other: the step stops at the first bound it reaches (a descent step still).

@@ -110,7 +110,7 @@ SmalbeResult smalbe(const QuadraticProgram& qp, double normA, Vec& x, const Redu
   // The inner stopping test with ||G x|| = ||Q x|| from the tracked image (no projection); the
   // inner solve's last x is checked with Q x applied afresh below.
   const MprgpStop stop = [&](const Vec&, const Vec&, double gp) {
-    const double q = red.norm(image.tx);
+    const double q = image.norm >= 0 ? image.norm : red.norm(image.tx);
     return (gp <= grad_tol && q <= eq_tol) || gp <= std::min(M * q, eta);
   };
   // The face solve: CG on the face of x's active set with G x = 0 held exactly. It either ends

@@ -222,6 +222,10 @@ class DualProblem {
   /// lowest subdomain a multiplier touches) a partial sum over its entries in global order, the
   /// partial sums combined in cluster order. Collective.
   double dot(const Vec& a, const Vec& b) const { return multipliers_.dot(a, b); }
+  /// Several dot products and sums in one reduction (Multipliers::dots).
+  void dots(int count, const Vec* const* a, const Vec* const* b, double* out) const {
+    multipliers_.dots(count, a, b, out);
+  }
   double sum(const Vec& v) const { return multipliers_.sum(v); }
   /// coarse = G~ lambda (all clusters, on every rank).
   void apply_G(const Vec& lambda, Vec& coarse) { coarse_.apply_G(lambda, coarse); }

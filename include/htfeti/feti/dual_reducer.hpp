@@ -16,6 +16,10 @@ class DualReducer final : public qp::Reducer {
   double min(double v) const override { return c_.min(v); }
   double dot(const qp::Vec& a, const qp::Vec& b) const override { return d_.dot(a, b); }
   double sum_entries(const qp::Vec& v) const override { return d_.sum(v); }
+  void dots(int count, const qp::Vec* const* a, const qp::Vec* const* b,
+            double* out) const override {
+    d_.dots(count, a, b, out);
+  }
 
  private:
   const Comm& c_;

@@ -47,6 +47,9 @@ struct BRowEntry {
 };
 static_assert(sizeof(BRowEntry) == 24);
 
+/// Terms of Multipliers::dots whose work array is allocated with the numbering (more grow it once).
+inline constexpr int kDotsReserved = 5;
+
 struct Multipliers {
   using Vec = Eigen::VectorXd;
 
@@ -74,6 +77,9 @@ struct Multipliers {
   /// Global sums in a fixed order (per owner cluster, then in cluster order). Collective.
   double dot(const Vec& a, const Vec& b) const;
   double sum(const Vec& v) const;
+  /// out[k] = dot(*a[k], *b[k]), or sum(*a[k]) where b[k] is null, bit for bit, with one
+  /// allreduce for all count terms. Collective.
+  void dots(int count, const Vec* const* a, const Vec* const* b, double* out) const;
   /// Sums per-cluster partial sums (each non-zero on one rank) over ranks, then in cluster order.
   double reduce_clusters(std::vector<double>& partial_sums) const;
 
@@ -118,7 +124,8 @@ struct Multipliers {
 
   // Work vectors (allocated by number()): one value per pair; extended dual vectors.
   Vec pairs, ext_in, ext_out;
-  mutable std::vector<double> partial;  // per cluster (all clusters): dot() and sum()
+  mutable std::vector<double> partial;        // per cluster (all clusters): dot() and sum()
+  mutable std::vector<double> partial_terms;  // per term and cluster: dots() (kDotsReserved)
 };
 
 }  // namespace htfeti

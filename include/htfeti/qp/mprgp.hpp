@@ -44,10 +44,13 @@
 // it takes the fixed-length step. With p preconditioned both are lengths in x, whatever Z's
 // scale. On METIS-split cubes with many expansion steps it needs 0.6-0.9 of the gradient step's
 // products, and on the contact examples and graded Hertz blocks about as many (docs/performance.md,
-// "MPRGP's expansion step chosen by its length"). Two more reductions per expansion step.
+// "MPRGP's expansion step chosen by its length"). One more reduction per expansion step.
 // Cost of one iteration: one application of A (two for an expansion step, three for a
 // preconditioned one or an undone projected CG one) and a few vector ops (and one of Z when
-// preconditioned).
+// preconditioned). Global reductions (Reducer::dots fuses what is known at the same time): a CG
+// step makes four, ||g^P||, phi~'phi and the tracked image's norm in one, p'Ap with g'p in
+// one, the feasible step's minimum and the conjugation's zz'Ap; a proportioning step two (three
+// with upper bounds).
 // A tracked linear image t = T x (MprgpOptions::image): x changes by x -= a v after A v was formed,
 // or is reset where A x itself is formed, so T x follows from the images T v that A's
 // application leaves behind, at the cost of one axpy. SMALBE-M uses it for ||G x|| = ||Q x|| at
@@ -81,6 +84,9 @@ std::string to_string(Expansion kind);
 struct TrackedImage {
   const Vec* last = nullptr;  ///< T v of the vector A was applied to last (written by A)
   Vec tx;                     ///< T x; on entry with gradient_given it must hold T x of the given x
+  /// ||T x||, formed by MPRGP in the reduction of ||g^P|| just before each call of its stopping
+  /// test and valid inside that call only (negative otherwise: the test then forms it itself).
+  double norm = -1.0;
 };
 
 /// Expansion::automatic: the projected CG step is tried where it moves x at least this many

@@ -60,6 +60,13 @@ class Reducer {
   /// The sum of all entries of a distributed vector.
   virtual double sum_entries(const Vec& v) const { return sum(v.sum()); }
   double norm(const Vec& a) const { return std::sqrt(dot(a, a)); }
+  /// Several reductions at once: out[k] = a[k]' b[k], or the sum of a[k]'s entries where b[k]
+  /// is null, each the same number dot() or sum_entries() gives. A reducer over ranks overrides
+  /// it with one global reduction for all count terms (DualReducer); this default makes one per
+  /// term.
+  virtual void dots(int count, const Vec* const* a, const Vec* const* b, double* out) const {
+    for (int k = 0; k < count; ++k) out[k] = b[k] ? dot(*a[k], *b[k]) : sum_entries(*a[k]);
+  }
 };
 
 /// One process: the reductions are the identity.

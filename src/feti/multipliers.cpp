@@ -165,7 +165,7 @@ std::vector<std::vector<Subdomain::BEntry>> Multipliers::number(
     }
     subdomain_sum = OrderedSum(c, layout, pk, pc, owner_rank);
     pairs = Vec::Zero(static_cast<int>(pk.size()));
-    partial.assign(fl.num_clusters, 0.0);
+    num_clusters = fl.num_clusters;
     partial_terms.assign(static_cast<size_t>(kDotsReserved) * fl.num_clusters, 0.0);
   }
   ext_in = Vec::Zero(n_ext);
@@ -233,27 +233,27 @@ void Multipliers::combine_row_entries(const std::vector<std::vector<double>>& pe
   combine_subdomains();
 }
 
-double Multipliers::reduce_clusters(std::vector<double>& partial_sums) const {
-  // Every cluster's partial sum is non-zero on one rank only, so the allreduce adds exact zeros;
-  // the partial sums are then added in cluster order on every rank.
-  if (comm->size() > 1)
-    MPI_Allreduce(MPI_IN_PLACE, partial_sums.data(), static_cast<int>(partial_sums.size()),
-                  MPI_DOUBLE, MPI_SUM, comm->raw());
-  double s = 0;
-  for (double v : partial_sums) s += v;
-  return s;
+double Multipliers::dot(const Vec& a, const Vec& b) const {
+  const Vec* pa = &a;
+  const Vec* pb = &b;
+  double out;
+  dots(1, &pa, &pb, &out);
+  return out;
 }
 
-double Multipliers::dot(const Vec& a, const Vec& b) const {
-  std::fill(partial.begin(), partial.end(), 0.0);
-  for (Eigen::Index i = 0; i < a.size(); ++i) partial[owner_cluster[i]] += a[i] * b[i];
-  return reduce_clusters(partial);
+double Multipliers::sum(const Vec& v) const {
+  const Vec* pa = &v;
+  const Vec* none = nullptr;
+  double out;
+  dots(1, &pa, &none, &out);
+  return out;
 }
 
 void Multipliers::dots(int count, const Vec* const* a, const Vec* const* b, double* out) const {
-  // The terms' per-cluster partial sums side by side, formed as dot() and sum() form them, and
-  // reduced over the ranks in one allreduce (exact zeros added, as in reduce_clusters).
-  const size_t nc = partial.size(), all = static_cast<size_t>(count) * nc;
+  // Per term, a partial sum per owner cluster in entry order; every cluster's partial sum is
+  // non-zero on one rank only, so the one allreduce of all terms adds exact zeros; each term's
+  // partial sums are then added in cluster order on every rank.
+  const size_t nc = static_cast<size_t>(num_clusters), all = static_cast<size_t>(count) * nc;
   if (partial_terms.size() < all) partial_terms.resize(all);  // only beyond kDotsReserved terms
   std::fill_n(partial_terms.begin(), all, 0.0);
   for (int k = 0; k < count; ++k) {
@@ -275,12 +275,6 @@ void Multipliers::dots(int count, const Vec* const* a, const Vec* const* b, doub
     for (size_t c = 0; c < nc; ++c) s += pk[c];
     out[k] = s;
   }
-}
-
-double Multipliers::sum(const Vec& v) const {
-  std::fill(partial.begin(), partial.end(), 0.0);
-  for (Eigen::Index i = 0; i < v.size(); ++i) partial[owner_cluster[i]] += v[i];
-  return reduce_clusters(partial);
 }
 
 }  // namespace htfeti

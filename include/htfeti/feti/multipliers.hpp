@@ -77,11 +77,10 @@ struct Multipliers {
   /// Global sums in a fixed order (per owner cluster, then in cluster order). Collective.
   double dot(const Vec& a, const Vec& b) const;
   double sum(const Vec& v) const;
-  /// out[k] = dot(*a[k], *b[k]), or sum(*a[k]) where b[k] is null, bit for bit, with one
-  /// allreduce for all count terms. Collective.
+  /// out[k] = a[k]' b[k], or the sum of a[k]'s entries where b[k] is null, each formed as dot()
+  /// and sum() form it (they are its one-term cases), with one allreduce for all count terms.
+  /// Collective.
   void dots(int count, const Vec* const* a, const Vec* const* b, double* out) const;
-  /// Sums per-cluster partial sums (each non-zero on one rank) over ranks, then in cluster order.
-  double reduce_clusters(std::vector<double>& partial_sums) const;
 
   const Comm* comm = nullptr;
   DualLayout layout;
@@ -124,7 +123,7 @@ struct Multipliers {
 
   // Work vectors (allocated by number()): one value per pair; extended dual vectors.
   Vec pairs, ext_in, ext_out;
-  mutable std::vector<double> partial;        // per cluster (all clusters): dot() and sum()
+  int num_clusters = 0;                       // all clusters (every rank's): dots()
   mutable std::vector<double> partial_terms;  // per term and cluster: dots() (kDotsReserved)
 };
 

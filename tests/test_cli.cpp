@@ -1200,9 +1200,10 @@ TEST_F(Cli, RefusingAProblemThatCannotFitCostsNothing) {
 
 // A tight precision on the semicoercive membranes with TFETI (Table 3 reduced, m = 1): with rho
 // fixed, ||G lambda|| fell by about 10% per outer iteration and the run stopped at the iteration
-// limit (exit 3); SMALBE-M's late penalty update (smalbe.hpp, step 4) lets it converge. Its
-// energy is checked against H-TFETI-DP's (m = 4, another coarse space and dual operator) at the
-// same precision.
+// limit (exit 3); SMALBE-M's late penalty update (smalbe.hpp, step 4) lets it converge, and so
+// does a face solve that holds G lambda = 0 exactly (since face solves are tried on every
+// settled active set: 9 outer iterations instead of 107). Its energy is checked against
+// H-TFETI-DP's (m = 4, another coarse space and dual operator) at the same precision.
 TEST_F(Cli, SemicoerciveMembranesConvergeAtTightPrecision) {
   const std::string args =
       " solve --problem membranes -n 512 --subdomains 32 --rtol 1e-10 --no-vtu";
@@ -1210,7 +1211,7 @@ TEST_F(Cli, SemicoerciveMembranesConvergeAtTightPrecision) {
   ASSERT_EQ(run(bin + args + " -m 4 --report h.json"), 0) << stderr_text();
   std::ifstream ft("t.json"), fh("h.json");
   const auto t = nlohmann::json::parse(ft), h = nlohmann::json::parse(fh);
-  EXPECT_GT(t["solver"]["rho_updates"].get<int>(), 0);
+  EXPECT_GT(t["solver"]["rho_updates"].get<int>() + t["solver"]["face_converged"].get<int>(), 0);
   const double et = t["objective"], eh = h["objective"];
   EXPECT_LT(std::abs(et - eh), 1e-10 * std::abs(eh)) << et << " vs " << eh;
 }

@@ -63,6 +63,47 @@ TEST_P(DualOperators, CoarseFactorInvertsGGt) {
   for (int c = 0; c < nc; ++c) EXPECT_NEAR(gx[c], dot(cols[c], x), 1e-12);
 }
 
+TEST_P(DualOperators, FaceCorrectionEqualsTheDenseFaceMatrix) {
+  // set_face forms G~ D G~^T from a fixed part (the rows never held) kept from its first call
+  // and the bounded rows times free: its correction G~^T (G~ D G~^T)^{-1} G~ v must be the one
+  // of the dense matrix formed from apply_Gt's columns, for a face with held contact rows and
+  // then (the kept fixed part reused) for the face with none held, where it is v - P v.
+  const auto bounds = dual->constraint_set();
+  const auto* lb = dynamic_cast<const qp::LowerBounds*>(bounds.get());
+  if (!lb) GTEST_SKIP() << "no contact rows";
+  const int n = dual->n_owned(), nc = dual->coarse_dimension();
+  std::vector<Eigen::VectorXd> cols(nc);
+  for (int c = 0; c < nc; ++c) {
+    Eigen::VectorXd e = Eigen::VectorXd::Zero(nc);
+    e[c] = 1;
+    dual->apply_Gt(e, cols[c]);
+  }
+  Eigen::VectorXd held_some = Eigen::VectorXd::Ones(n);
+  int bounded = 0;
+  for (int i = 0; i < n; ++i)
+    if (lb->lower()[i] > -1e300 && bounded++ % 3 == 0) held_some[i] = 0.0;  // a contact row
+  const Eigen::VectorXd v = test::pseudo_random(*dual, 3.0);
+  for (const Eigen::VectorXd& free : {held_some, Eigen::VectorXd(Eigen::VectorXd::Ones(n))}) {
+    Eigen::MatrixXd GDGt(nc, nc);
+    for (int a = 0; a < nc; ++a)
+      for (int b = 0; b < nc; ++b) GDGt(a, b) = dot(cols[a], free.cwiseProduct(cols[b]));
+    if (GDGt.ldlt().rcond() < 1e-12) continue;  // a rigid motion held by held rows alone
+    ASSERT_TRUE(dual->set_face(free));
+    Eigen::VectorXd y, gv, ref;
+    dual->face_correction(v, y);
+    dual->apply_G(v, gv);
+    const Eigen::VectorXd z = GDGt.ldlt().solve(gv);
+    dual->apply_Gt(z, ref);
+    EXPECT_LT(std::sqrt(dot(y - ref, y - ref)), 1e-10 * std::sqrt(dot(ref, ref)));
+    if (comm.sum(static_cast<double>((free.array() == 0.0).count())) == 0) {
+      // no row held (on any rank): the projector's complement
+      Eigen::VectorXd pv;
+      dual->project(v, pv);
+      EXPECT_LT(std::sqrt(dot(y - (v - pv), y - (v - pv))), 1e-10 * std::sqrt(dot(v, v)));
+    }
+  }
+}
+
 TEST_P(DualOperators, ProjectorIsSymmetricIdempotentOntoKerG) {
   const Eigen::VectorXd x = test::pseudo_random(*dual, 1.0), y = test::pseudo_random(*dual, 2.0);
   Eigen::VectorXd px, ppx, py, gpx;

@@ -561,6 +561,45 @@ TEST(Smalbe, FaceSolveReachesTheEnumeratedSolutions) {
   EXPECT_GE(taken, finished);
 }
 
+// A warm start (a multiplier given) tries the face solve first: started at the solution, with
+// any multiplier, the face solve finds the face's own multiplier and ends the solve before any
+// inner solve; started at zero, the same solution as a cold start. A face solve that stops on a
+// bound is kept (the outer loop restarts there): across the suite some are, and every run still
+// reaches the enumerated solution.
+TEST(Smalbe, WarmStartTriesTheFaceFirst) {
+  int at_start = 0, kept = 0;
+  for (unsigned seed = 1; seed <= 12; ++seed) {
+    const int n = 10, bounded = 6, me = 2;
+    const Qp q = random_qp(n, bounded, me, seed, seed % 2 == 0);
+    const Vec xs = exact_solution(q, bounded);
+    DenseOperator A(q.A);
+    SerialReducer red;
+    const double normA = estimate_norm(A, Vec::Ones(n), red, 200, 1e-10);
+    const QuadraticProgram qp = qp_of(A, q, true);
+    DenseFace face{q.G, {}, 0};
+    SmalbeHooks hooks;
+    hooks.face = face.hooks();
+    SmalbeOptions opt;
+    opt.rtol = 1e-10;
+    for (int start = 0; start < 2; ++start) {
+      Vec x = start ? xs : Vec::Zero(n);
+      Vec mu = Vec::Zero(n);
+      const auto r = smalbe(qp, normA, x, red, opt, hooks, {}, &mu);
+      ASSERT_EQ(r.reason, StopReason::converged) << seed << start;
+      EXPECT_LT((x - xs).norm(), 1e-7) << seed << start;
+      expect_kkt(q, x, 1e-7);
+      if (start && r.outer_iterations == 0) {
+        ++at_start;
+        EXPECT_EQ(r.face_converged, 1);
+        EXPECT_EQ(r.inner_iterations, 0);
+      }
+      kept += r.face_solves - r.face_converged;
+    }
+  }
+  EXPECT_GT(at_start, 6);  // strict complementarity holds for most seeds
+  EXPECT_GT(kept, 0);
+}
+
 // A continuation (the accuracy refinement): a loose solve, then SMALBE-M again from its x, its
 // equality multiplier, its rho and its M with a tight rtol, reaches the solution; M never grows
 // and rho never falls from where the continuation started (so the start values were taken).

@@ -244,7 +244,36 @@ int CoarseSpace::solve_weighted(const std::vector<double>& weight, Vec& coarse) 
 }
 
 bool CoarseSpace::set_face(const Vec& free) {
-  face_set_ = assemble(std::vector<double>(free.data(), free.data() + free.size()), face_, true);
+  // G~ D G~^T = (the rows that are never held: gluing and Dirichlet) + (the bounded rows times
+  // free). The first part is the same for every face: formed once, its entries summed, and kept
+  // with the bounded rows' items of G~ (few: the contact and friction rows), so that a face costs
+  // the bounded rows' products, one small gather and the sparse factorization, not a pass over
+  // all of G~'s items (1.9 s per face at 80^3 with 512 METIS parts). Both parts are summed in a
+  // fixed order (cluster order, then fixed part before the bounded rows), so the result does
+  // not depend on the rank count.
+  if (!face_cached_) {
+    std::vector<GItem> items = g_columns_at_owners();
+    std::vector<double> fixed(m_.layout.n_owned(), 1.0);
+    for (int k = 0; k < m_.layout.n_owned(); ++k)
+      if (m_.kind[k] == MultiplierKind::contact || m_.kind[k] == MultiplierKind::friction)
+        fixed[k] = 0.0;
+    std::vector<CoarseTriplet> all = weighted_triplets(items, fixed);
+    face_fixed_.clear();
+    for (const CoarseTriplet& t : all) {  // sorted by (a, b, cluster): sum each entry in order
+      if (face_fixed_.empty() || face_fixed_.back().a != t.a || face_fixed_.back().b != t.b)
+        face_fixed_.push_back({-1, t.a, t.b, 0.0});
+      face_fixed_.back().v += t.v;
+    }
+    face_items_.clear();
+    for (const GItem& it : items)
+      if (fixed[m_.layout.ext_index(it.k)] == 0.0) face_items_.push_back(it);
+    face_cached_ = true;
+  }
+  std::vector<CoarseTriplet> all = face_fixed_;
+  const std::vector<CoarseTriplet> bounded =
+      weighted_triplets(face_items_, std::vector<double>(free.data(), free.data() + free.size()));
+  all.insert(all.end(), bounded.begin(), bounded.end());
+  face_set_ = factor_triplets(std::move(all), face_, true);
   return face_set_;
 }
 
@@ -419,10 +448,19 @@ std::vector<CoarseSpace::CoarseTriplet> CoarseSpace::owner_cluster_sums(
 
 bool CoarseSpace::assemble(const std::vector<double>& weight, Factor& factor,
                            bool fail_if_singular) {
+  std::vector<CoarseTriplet> all;
+  {
+    const std::vector<GItem> items = g_columns_at_owners();  // freed before the factorization
+    all = weighted_triplets(items, weight);
+  }
+  return factor_triplets(std::move(all), factor, fail_if_singular);
+}
+
+std::vector<CoarseSpace::CoarseTriplet> CoarseSpace::weighted_triplets(
+    const std::vector<GItem>& rbuf, const std::vector<double>& weight) const {
   // (G~ W G~^T)_{ab} = sum_k w_k g_ak g_bk. The owners of the multipliers form the products and
   // sum equal entries; the summed triplets are shared (every rank factors the coarse matrix).
   using Triplet = CoarseTriplet;
-  std::vector<GItem> rbuf = g_columns_at_owners();
   std::vector<Triplet> mine =
       owner_cluster_sums(rbuf, [&](size_t i, size_t j, std::vector<Triplet>& products) {
         const double w = weight[m_.layout.ext_index(rbuf[i].k)];
@@ -434,11 +472,13 @@ bool CoarseSpace::assemble(const std::vector<double>& weight, Factor& factor,
               products.push_back({rbuf[i].k, ca, cb, w * rbuf[a].g * rbuf[b].g});
             }
       });
-  rbuf = {};
-  // Sum each entry's partial sums in cluster order whatever rank formed them (k: the cluster);
-  // on the ranks that factor (coarse_ranks), the others have none.
-  std::vector<Triplet> all = gather_to_factor_ranks(mine);
-  mine = {};
+  // Each entry's partial sums in cluster order whatever rank formed them (k: the cluster); on
+  // the ranks that factor (coarse_ranks), the others have none.
+  return gather_to_factor_ranks(mine);
+}
+
+bool CoarseSpace::factor_triplets(std::vector<CoarseTriplet> all, Factor& factor,
+                                  bool fail_if_singular) {
   Eigen::SparseMatrix<double> GGt(dimension(), dimension());
   const auto build = [&]() {
     std::vector<Eigen::Triplet<double>> trip;

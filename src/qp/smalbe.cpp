@@ -91,6 +91,7 @@ SmalbeResult smalbe(const QuadraticProgram& qp, double normA, Vec& x, const Redu
   Vec held = Vec::Constant(use_face ? n : 0, -1.0), fg(use_face ? n : 0), fnu(use_face ? n : 0);
   FaceWorkspace face_work;
   bool face_tried = false;  // on the active set of the last inner exit
+  bool face_kept = false;   // the last face solve's point was kept (the outer loop restarts)
   const bool has_upper = u.size() == n;
   // 1 where the active set differs from held (updating held): reduced over the ranks.
   const auto active_set_changed = [&]() {
@@ -101,6 +102,17 @@ SmalbeResult smalbe(const QuadraticProgram& qp, double normA, Vec& x, const Redu
     }
     return red.max(changed) > 0;
   };
+  // A warm start (the multiplier given: a continuation of an earlier solve): the start point's
+  // active set is the one the first inner exit is compared with.
+  // x is put onto the bounds first, as MPRGP does (Coulomb's next solves have new bounds).
+  // Agreed over the ranks: a rank that owns no entries cannot tell a warm start from a cold one.
+  const bool warm = red.max(multiplier && n > 0 && multiplier->size() == n ? 1.0 : 0.0) > 0;
+  if (use_face && warm) {
+    x = x.cwiseMax(l);
+    if (has_upper) x = x.cwiseMin(u);
+    for (Eigen::Index i = 0; i < n; ++i)
+      held[i] = !(x[i] > l[i]) || (has_upper && !(x[i] < u[i])) ? 1.0 : 0.0;
+  }
   double L_prev = 0;
   double qnorm = 0, qnorm_prev = 0;
   int stalls = 0;  // consecutive stalled outer iterations (step 4)
@@ -114,8 +126,9 @@ SmalbeResult smalbe(const QuadraticProgram& qp, double normA, Vec& x, const Redu
     return (gp <= grad_tol && q <= eq_tol) || gp <= std::min(M * q, eta);
   };
   // The face solve: CG on the face of x's active set with G x = 0 held exactly. It either ends
-  // the solve (x and the face's multiplier pass the global test: true) or is undone, so that
-  // the outer loop goes on as if it had not been tried (only its products are spent). One try
+  // the solve (x and the face's multiplier pass the global test: true) or SMALBE-M restarts
+  // from where it stopped: x (inside the bounds, G x = 0) with the face's multiplier as mu, M
+  // and rho kept (face_kept). Only a breakdown or a face not taken leaves x as it was. One try
   // per active set: a face that did not finish is not tried again until the set changes.
   // Needs g = H x - (b - nu) at x.
   const auto face_attempt = [&]() {
@@ -154,6 +167,19 @@ SmalbeResult smalbe(const QuadraticProgram& qp, double normA, Vec& x, const Redu
       }
       grad_tol = grad_tol_old, eq_tol = eq_tol_old;
     }
+    if (fr.outcome != FaceOutcome::breakdown) {
+      // Kept: x is feasible with G x = 0 and the face's CG steps lowered the cost there, and
+      // the face's multiplier is what the outer loop's updates of mu approach on this face. At
+      // most kMaxFaceSolves restarts, so the convergence is SMALBE-M's from the last one on.
+      nu = fnu;
+      g = fg + fnu;
+      Q.apply(x, qx);  // G x = 0 up to round-off: the tracked image starts afresh
+      qnorm = red.norm(qx);
+      image.tx = qx;
+      face_kept = true;
+      set_tolerances();
+      return false;
+    }
     x = face_work.x_save;  // undone: g, nu, Q x and the tracked image are those of x
     set_tolerances();
     return false;
@@ -164,13 +190,28 @@ SmalbeResult smalbe(const QuadraticProgram& qp, double normA, Vec& x, const Redu
     res.face_seconds += seconds_now() - t0;
     return done;
   };
-  for (int k = 0;; ++k) {
+  // A warm start tries the face solve first, on the start point's face (one product for the
+  // gradient): a continuation (the single-precision check, the accuracy refinement, Coulomb's
+  // next solves) mostly starts on the face of the solution.
+  bool gradient_given = false, done_at_start = false;
+  if (use_face && warm) {
+    H.apply(x, g);
+    g -= b - nu;
+    Q.apply(x, qx);
+    image.tx = qx;
+    gradient_given = true;
+    done_at_start = face_finishes();
+    face_kept = false;  // no multiplier update is pending: the loop starts from the face's point
+    res.M = M;
+  }
+  for (int k = 0; !done_at_start; ++k) {
     rhs = b - nu;
     mo.max_iterations = opt.max_inner - res.inner_iterations - res.face_iterations;
     // After the first outer iteration g = H x - (b - nu) is kept up to date below.
-    const MprgpResult inner = separable
-                                  ? mpgp(H, rhs, *separable, x, g, red, mo, stop, k > 0, &work)
-                                  : mprgp(H, rhs, l, u, x, g, red, mo, stop, k > 0, &work);
+    gradient_given = gradient_given || k > 0;
+    const MprgpResult inner =
+        separable ? mpgp(H, rhs, *separable, x, g, red, mo, stop, gradient_given, &work)
+                  : mprgp(H, rhs, l, u, x, g, red, mo, stop, gradient_given, &work);
     // Q x afresh at the inner solve's exit: the outer update and the global test use it, and the
     // next inner solve starts its tracked image from it (round-off of the updates does not carry).
     Q.apply(x, qx);
@@ -202,13 +243,19 @@ SmalbeResult smalbe(const QuadraticProgram& qp, double normA, Vec& x, const Redu
       break;
     }
     // The face solve (face_cg.hpp), once two inner solves in a row have ended on the same active
-    // set and an inner solve has met the gradient test (only the equality is left); at most
-    // kMaxFaceSolves taken per run.
+    // set; at most kMaxFaceSolves taken per run. A kept face point restarts the outer loop: no
+    // multiplier update (mu is the face's), and the M test compares with L there.
     const bool set_changed = use_face && active_set_changed();
     if (set_changed) face_tried = false;
     if (use_face && !set_changed && !face_tried && res.face_solves < kMaxFaceSolves &&
-        (late || inner.projected_gradient <= grad_tol) && face_finishes())
+        face_finishes())
       break;
+    if (face_kept) {
+      face_kept = false;
+      lag = g - b + nu;
+      L_prev = 0.5 * red.dot(x, lag);
+      continue;
+    }
     // L(x^k, mu^k) = 1/2 x'(g - b + nu) with g = H x - b + nu.
     lag = g - b + nu;  // (into a vector of the solve: nothing is allocated per iteration)
     const double L = 0.5 * red.dot(x, lag);

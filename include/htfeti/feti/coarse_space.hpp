@@ -176,6 +176,13 @@ class CoarseSpace {
   // appends the products of gcol[i, j) (one multiplier's items), which are summed per (a, b)
   // over each owner cluster's multipliers in multiplier order (key: the owner cluster).
   using ProductsOf = std::function<void(size_t, size_t, std::vector<CoarseTriplet>&)>;
+  // G~ W G~^T's partial sums from G~'s items at the owners (W = diag(weight) on the owned
+  // multipliers), gathered to the ranks that factor. Collective.
+  std::vector<CoarseTriplet> weighted_triplets(const std::vector<GItem>& items,
+                                               const std::vector<double>& weight) const;
+  // Factors the coarse matrix of the summed triplets (upper triangle; duplicates summed in
+  // order) into factor: see assemble. Collective.
+  bool factor_triplets(std::vector<CoarseTriplet> all, Factor& factor, bool fail_if_singular);
   std::vector<CoarseTriplet> owner_cluster_sums(const std::vector<GItem>& gcol,
                                                 const ProductsOf& products_of) const;
   // build_image's steps 1 and 4 (coarse_image.cpp).
@@ -209,6 +216,11 @@ class CoarseSpace {
   Factor factor_;
   Factor face_;  // G~ D G~^T of the last set_face
   bool face_set_ = false;
+  // set_face's parts that do not depend on the face (set at its first call): the summed entries
+  // of the never-held rows' G~ W G~^T (on the ranks that factor) and the bounded rows' items.
+  bool face_cached_ = false;
+  std::vector<CoarseTriplet> face_fixed_;
+  std::vector<GItem> face_items_;
   // The ranks that hold the coarse factor (FetiOptions::coarse_ranks): every rank (subset_
   // false), or the first rank of each group of consecutive ranks (leader_): group_comm_ is the
   // group (its first rank is rank 0 in it), leader_comm_ the groups' first ranks

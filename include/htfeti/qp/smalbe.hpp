@@ -91,9 +91,10 @@ struct SmalbeOptions {
   /// bound kMaxRhoGrowth stays relative to rho_factor ||A||.
   double rho_start = 0, M_start = 0;
   /// The face solve (face_cg.hpp; needs SmalbeHooks::face and bounds, not a SeparableSet):
-  /// once an inner solve has met the gradient test, after an outer iteration whose inner solve
-  /// ended on the same active set as the one before: CG on that face with G x = 0 held exactly,
-  /// and the face's equality multiplier.
+  /// after an outer iteration whose inner solve ended on the same active set as the one before,
+  /// and first of all in a warm start (multiplier given): CG on that face with G x = 0 held
+  /// exactly, and the face's equality multiplier. It ends the solve when its point passes the
+  /// global test; else the outer loop restarts from its point and multiplier.
   bool face_solve = true;
 };
 

@@ -24,12 +24,10 @@ Writes bench/results/OUT and prints the settings best first."""
 import argparse
 import itertools
 import math
-import os
 import tempfile
 
-from common import ROOT, save, solve
-from hertz_cases import contact_problems
-from table4_friction_problem import PROBLEM as FRICTION_CUBE
+from common import save, solve
+from contact_cases import contact_cases
 
 p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
 p.add_argument("--rho", type=float, nargs="+", default=[1.1, 3.0])
@@ -44,44 +42,8 @@ p.add_argument("--threads", type=int, default=2)
 p.add_argument("--out", default="smalbe_sweep.json")
 a = p.parse_args()
 
-EX = lambda name: os.path.join(ROOT, "examples", name + ".toml")  # noqa: E731
-CASES = [(f"Table 3 reduced m = {m}",
-          ["--problem", "membranes", "-n", 512, "--subdomains", 32, "-m", m]) for m in (1, 2, 4, 8)]
-CASES += [("Table 4 1x1x1 TFETI", ["--problem", "cube-obstacle", "--elements", 40, "--subdomains",
-                                   4, "--cluster-size", 1, "--preconditioner", "none"]),
-          ("Table 4 1x1x1 H-TFETI-DP", ["--problem", "cube-obstacle", "--elements", 40,
-                                        "--subdomains", 4, "--cluster-size", 4,
-                                        "--preconditioner", "none"]),
-          ("example membranes", [EX("membranes")]),
-          ("example membranes-coercive", [EX("membranes-coercive")]),
-          ("cube-obstacle amplitude 20", ["--problem", "cube-obstacle", "--obstacle-amplitude",
-                                          20]),
-          ("cube-obstacle 10x20x10 rtol 1e-10", ["--problem", "cube-obstacle", "--elements",
-                                                 "10,20,10", "--subdomains", "2,4,2", "--rtol",
-                                                 1e-10]),
-          ("plate hole inactive contact rtol 1e-6",
-           [os.path.join(ROOT, "bench", "cases", "plate_hole_inactive_contact.toml")])]
-
-if a.metis:
-    CASES += [(f"cube-obstacle 40^3 METIS 64 ({o})",
-               [os.path.join(ROOT, "bench", "cases", "cube40_metis64.toml"),
-                "--partition-objective", o]) for o in ("volume", "cut")]
-    CASES += [("cube-obstacle 40^3 METIS 64, clusters of 8 (H-TFETI-DP)",
-               [os.path.join(ROOT, "bench", "cases", "cube40_metis64.toml"), "--cluster-size",
-                8])]
-    CASES += [(f"example {n}", [EX(n)])
-              for n in ("cylinder-on-block", "sphere-on-block", "punch-on-block")]
 tmp = tempfile.TemporaryDirectory()  # removed at exit
-if a.hertz:
-    CASES += [(name, [path]) for name, path in contact_problems(tmp.name)]
-if a.friction:
-    CASES += [(f"example {n}", [EX(n)]) for n in ("friction-block", "friction-block-3d")]
-    for method, m in (("TFETI", 1), ("H-TFETI-DP", 4)):
-        path = os.path.join(tmp.name, f"coulomb{m}.toml")
-        with open(path, "w") as f:
-            f.write(FRICTION_CUBE.format(n=40, s=4, m=m, friction=(
-                'friction = { law = "coulomb", coefficient = 0.3 }')))
-        CASES += [(f"Table 4 1x1x1 {method}, Coulomb mu = 0.3", [path])]
+CASES = contact_cases(tmp.name, metis=a.metis, hertz=a.hertz, friction=a.friction)
 norms = a.norm_estimate or ["power"]
 count_norm = a.norm_estimate is not None
 settings = list(itertools.product(a.rho, a.M0, a.eta, a.late, norms))

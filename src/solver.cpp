@@ -195,6 +195,7 @@ QpSolve solve_with_contact(DualProblem& dual, DualOperators& ops, Vec& lambda,
   // The face solve: the coarse matrix of the free rows (CoarseSpace::set_face).
   hooks.face.set = [&](const Vec& free) { return dual.set_face(free); };
   hooks.face.correction = [&](const Vec& v, Vec& y) { dual.face_correction(v, y); };
+  hooks.face.cheap = [&]() { return dual.face_cheap(); };
   Vec x = Vec::Zero(n);
   Vec nu;  // the equality's multiplier: each Coulomb solve starts from the last one's
   auto r = qp::smalbe(qp, normA, x, red, so, hooks, progress, &nu);

@@ -93,6 +93,8 @@ SmalbeResult smalbe(const QuadraticProgram& qp, double normA, Vec& x, const Redu
   bool face_tried = false;  // on the active set of the last inner exit
   bool face_kept = false;   // the last face solve's point was kept (the outer loop restarts)
   const bool has_upper = u.size() == n;
+  // Faces are tried early (before the late phase, and in a warm start) only where they are cheap.
+  const auto face_cheap = [&]() { return !hooks.face.cheap || hooks.face.cheap(); };
   // 1 where the active set differs from held (updating held): reduced over the ranks.
   const auto active_set_changed = [&]() {
     double changed = 0;
@@ -194,7 +196,7 @@ SmalbeResult smalbe(const QuadraticProgram& qp, double normA, Vec& x, const Redu
   // gradient): a continuation (the single-precision check, the accuracy refinement, Coulomb's
   // next solves) mostly starts on the face of the solution.
   bool gradient_given = false, done_at_start = false;
-  if (use_face && warm) {
+  if (use_face && warm && face_cheap()) {
     H.apply(x, g);
     g -= b - nu;
     Q.apply(x, qx);
@@ -243,12 +245,13 @@ SmalbeResult smalbe(const QuadraticProgram& qp, double normA, Vec& x, const Redu
       break;
     }
     // The face solve (face_cg.hpp), once two inner solves in a row have ended on the same active
-    // set; at most kMaxFaceSolves taken per run. A kept face point restarts the outer loop: no
+    // set (before the late phase only where faces are cheap: FaceHooks::cheap); at most
+    // kMaxFaceSolves taken per run. A kept face point restarts the outer loop: no
     // multiplier update (mu is the face's), and the M test compares with L there.
     const bool set_changed = use_face && active_set_changed();
     if (set_changed) face_tried = false;
     if (use_face && !set_changed && !face_tried && res.face_solves < kMaxFaceSolves &&
-        face_finishes())
+        (late || inner.projected_gradient <= grad_tol || face_cheap()) && face_finishes())
       break;
     if (face_kept) {
       face_kept = false;

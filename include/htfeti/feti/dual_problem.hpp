@@ -245,6 +245,7 @@ class DualProblem {
   /// free is 1 on the owned multipliers not held at a bound. Collective.
   bool set_face(const Vec& free) { return coarse_.set_face(free); }
   void face_correction(const Vec& v, Vec& y) { coarse_.face_correction(v, y); }
+  bool face_cheap() const { return coarse_.face_cheap(); }
 
   /// The coarse image of F, for one coarse step per Hessian product (docs/method.md, "One
   /// coarse step per Hessian product"): E = F G~^T, stored by owned rows, and the coarse matrix

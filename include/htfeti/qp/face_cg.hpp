@@ -37,6 +37,9 @@ struct FaceHooks {
   std::function<bool(const Vec& free)> set;
   /// y = G'(G D G')^{-1} G v for the face last set. Collective.
   std::function<void(const Vec& v, Vec& y)> correction;
+  /// Whether setting a face costs little beside a product (none given: it does). SMALBE-M tries
+  /// a face before its late phase, and in a warm start, only then. The same on every rank.
+  std::function<bool()> cheap;
   explicit operator bool() const { return set && correction; }
 };
 

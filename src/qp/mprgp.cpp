@@ -23,12 +23,12 @@ bool has_upper(const Vec& u, Eigen::Index n) {
 // Preconditioned expansion steps that may raise the cost in one MPRGP run (then gradient ones).
 constexpr int kMaxCostIncreases = 10;
 
-// x <- the projection of x onto [l, u].
+}  // namespace
+
 void clamp(Vec& x, const Vec& l, const Vec& u) {
   x = x.cwiseMax(l);
   if (u.size() == x.size()) x = x.cwiseMin(u);
 }
-}  // namespace
 
 void split_gradient(const Vec& x, const Vec& g, const Vec& l, const Vec& u, Vec& phi, Vec& beta) {
   const bool upper = u.size() == x.size();

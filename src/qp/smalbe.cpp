@@ -110,8 +110,7 @@ SmalbeResult smalbe(const QuadraticProgram& qp, double normA, Vec& x, const Redu
   // Agreed over the ranks: a rank that owns no entries cannot tell a warm start from a cold one.
   const bool warm = red.max(multiplier && n > 0 && multiplier->size() == n ? 1.0 : 0.0) > 0;
   if (use_face && warm) {
-    x = x.cwiseMax(l);
-    if (has_upper) x = x.cwiseMin(u);
+    clamp(x, l, u);
     for (Eigen::Index i = 0; i < n; ++i)
       held[i] = !(x[i] > l[i]) || (has_upper && !(x[i] < u[i])) ? 1.0 : 0.0;
   }

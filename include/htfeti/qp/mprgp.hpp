@@ -145,6 +145,8 @@ inline MprgpResult mprgp(Operator& A, const Vec& b, const Vec& lower, Vec& x, Ve
 /// a lower bound, max(g, 0) at an upper one, 0 where both hold and off the bounds) of g at x
 /// (u empty: no upper bounds); phi and beta must have x's size. Allocates nothing.
 void split_gradient(const Vec& x, const Vec& g, const Vec& l, const Vec& u, Vec& phi, Vec& beta);
+/// x <- the projection of x onto [l, u] (u empty: no upper bounds).
+void clamp(Vec& x, const Vec& l, const Vec& u);
 
 /// The projected gradient g^P = phi + beta of min 1/2 x'Ax - b'x, l <= x <= u, for the gradient
 /// g at x (upper empty: no upper bounds).

@@ -17,6 +17,7 @@
 #include "htfeti/feti/constraints.hpp"
 #include "htfeti/linalg/orthonormal.hpp"
 #include "htfeti/linalg/packed_symmetric.hpp"
+#include "htfeti/parallel/fresh_pages.hpp"
 
 using namespace htfeti;
 
@@ -189,6 +190,49 @@ TEST(Subdomain, GeneralizedInverseAndKernel) {
     const Eigen::VectorXd u = Eigen::VectorXd::LinSpaced(K.rows(), -1.0, 2.0);
     EXPECT_NEAR(sd.energy(u), 0.5 * u.dot(K * u) - sd.f().dot(u), 1e-12);  // element-wise energy
   }
+}
+
+// populate() (parallel/fresh_pages.hpp) makes pages resident and leaves what they hold as it
+// was: a block written before, unaligned at both ends, read back the same; blocks below the
+// threshold and empty ranges are left alone. The factors of a matrix given uncompressed and
+// with explicit entries below the diagonal (the upper triangle is copied into resident arrays)
+// solve as those of the same matrix compressed.
+TEST(FreshPages, PopulateKeepsTheContents) {
+  const std::size_t bytes = 3 * kPopulateBytes + 123;
+  std::vector<unsigned char> block(bytes + 7);
+  for (std::size_t i = 0; i < block.size(); ++i) block[i] = static_cast<unsigned char>(i * 31 + 7);
+  const std::vector<unsigned char> copy = block;
+  populate(block.data() + 3, bytes);
+  populate(block.data() + 1, 100);
+  populate(block.data(), 0);
+  EXPECT_EQ(block, copy);
+  std::vector<double> fresh;
+  fresh.reserve(kPopulateBytes);  // not written yet: made resident, then written
+  populate(fresh.data(), kPopulateBytes * sizeof(double));
+  fresh.assign(kPopulateBytes, 2.5);
+  EXPECT_EQ(std::count(fresh.begin(), fresh.end(), 2.5), static_cast<long>(kPopulateBytes));
+}
+
+TEST(FreshPages, UncompressedMatrixFactorsAsCompressed) {
+  const int n = 40;
+  Eigen::SparseMatrix<double> A(n, n);  // a 1D Laplacian plus the identity, built by insert
+  A.reserve(Eigen::VectorXi::Constant(n, 4));
+  for (int j = 0; j < n; ++j) {
+    A.insert(j, j) = 3.0;
+    if (j > 0) A.insert(j - 1, j) = -1.0, A.insert(j, j - 1) = -1.0;
+  }
+  ASSERT_FALSE(A.isCompressed());
+  Eigen::SparseMatrix<double> C = A;
+  C.makeCompressed();
+  const Eigen::VectorXd b = Eigen::VectorXd::LinSpaced(n, -1.0, 1.0);
+  SparseCholesky a, c;
+  a.factorize(A);
+  c.factorize(C);
+  Eigen::VectorXd xa = b, xc = b;
+  a.solve(xa.data(), xa.data());
+  c.solve(xc.data(), xc.data());
+  EXPECT_EQ(xa, xc);
+  EXPECT_LT((C * xc - b).norm(), 1e-13 * b.norm());
 }
 
 TEST(Subdomain, NotPositiveDefiniteIsAnError) {

@@ -75,6 +75,13 @@ TEST(LocalPreconditioner, MatchesTheDenseSchurComplement) {
     LocalPreconditioner lumped(K, b, PreconditionerKind::lumped, false, Ordering::amd);
     lumped.apply(x.data(), y.data());
     EXPECT_LT((y - Kbb * x).norm(), 1e-13 * (Kbb * x).norm());
+    {  // K_bb in the order of an interface given unsorted (reversed): P K_bb P^T
+      const std::vector<int> rb(b.rbegin(), b.rend());
+      LocalPreconditioner reversed(K, rb, PreconditionerKind::lumped, false, Ordering::amd);
+      reversed.apply(x.data(), y.data());
+      const Eigen::VectorXd expect = (Kbb * x.reverse()).reverse();
+      EXPECT_LT((y - expect).norm(), 1e-13 * expect.norm());
+    }
     for (bool dense : {true, false}) {
       LocalPreconditioner dir(K, b, PreconditionerKind::dirichlet, dense, Ordering::amd);
       EXPECT_EQ(dir.dense(), dense);

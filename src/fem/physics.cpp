@@ -9,6 +9,7 @@
 
 #include "htfeti/expression.hpp"
 #include "htfeti/fem/grid_offsets.hpp"
+#include "htfeti/parallel/fresh_pages.hpp"
 
 namespace htfeti {
 
@@ -251,9 +252,8 @@ Eigen::SparseMatrix<double> assemble_stiffness(const SubdomainMesh& mesh, const 
     count[c] = unique;
     nnz += unique;
   }
-  Eigen::SparseMatrix<double> K(n, n);
-  K.makeCompressed();
-  K.resizeNonZeros(nnz);
+  Eigen::SparseMatrix<double> K;
+  resize_resident(K, n, n, nnz);  // (parallel/fresh_pages.hpp)
   int* outer = K.outerIndexPtr();
   int* inner = K.innerIndexPtr();
   double* value = K.valuePtr();

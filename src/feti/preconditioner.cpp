@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <stdexcept>
 
+#include "htfeti/parallel/fresh_pages.hpp"
+
 extern "C" void dlauum_(const char* uplo, const int* n, double* a, const int* lda, int* info);
 
 namespace htfeti {
@@ -31,30 +33,51 @@ LocalPreconditioner::LocalPreconditioner(const Eigen::SparseMatrix<double>& K,
   int ni = 0;
   for (int d = 0; d < n; ++d)
     if (pos[d] < 0) pos[d] = -(ni++) - 2;
-  std::vector<Eigen::Triplet<double>> tbb, tib, tii;
+  // K_bb straight into its compressed columns (no list of triplets: its growth touched fresh
+  // pages for every subdomain), in two passes over the interface columns: count, then fill.
+  // Within a column the rows come in K's order; the interface positions follow it where the
+  // interface is sorted (the caller's), else the column is sorted by insertion.
   double sigma = 0;
-  // Lumped needs K_bb only: the interface columns (the interior ones, most of K, are skipped).
+  {
+    Eigen::Index nnz = 0;
+    for (int pc = 0; pc < nb; ++pc)
+      for (Eigen::SparseMatrix<double>::InnerIterator it(K, interface_[pc]); it; ++it)
+        if (pos[it.row()] >= 0) ++nnz;
+    resize_resident(Kbb_, nb, nb, nnz);  // (parallel/fresh_pages.hpp)
+    int* outer = Kbb_.outerIndexPtr();
+    int* inner = Kbb_.innerIndexPtr();
+    double* value = Kbb_.valuePtr();
+    Eigen::Index k = 0;
+    outer[0] = 0;
+    for (int pc = 0; pc < nb; ++pc) {
+      const Eigen::Index first = k;
+      for (Eigen::SparseMatrix<double>::InnerIterator it(K, interface_[pc]); it; ++it) {
+        const int pr = pos[it.row()];
+        if (pr < 0) continue;
+        Eigen::Index q = k++;
+        for (; q > first && inner[q - 1] > pr; --q)
+          inner[q] = inner[q - 1], value[q] = value[q - 1];
+        inner[q] = pr, value[q] = it.value();
+        if (pr == pc) sigma = std::max(sigma, it.value());
+      }
+      outer[pc + 1] = static_cast<int>(k);
+    }
+  }
+  // Lumped needs K_bb only; the other kinds also K_ib and K_ii.
   const bool lumped = kind == PreconditionerKind::lumped || nb == 0;
+  if (lumped) return;
+  std::vector<Eigen::Triplet<double>> tib, tii;
   for (int col = 0; col < n; ++col) {
-    if (lumped && pos[col] < 0) continue;
     for (Eigen::SparseMatrix<double>::InnerIterator it(K, col); it; ++it) {
       const int row = static_cast<int>(it.row());
       const int pr = pos[row], pc = pos[col];
-      if (pr >= 0 && pc >= 0) {
-        tbb.emplace_back(pr, pc, it.value());
-        if (pr == pc) sigma = std::max(sigma, it.value());
-      } else if (lumped) {
-        continue;
-      } else if (pr < 0 && pc >= 0) {
+      if (pr < 0 && pc >= 0) {
         tib.emplace_back(-pr - 2, pc, it.value());
       } else if (pr < 0 && pc < 0 && row <= col) {
         tii.emplace_back(-pr - 2, -pc - 2, it.value());  // upper triangle (CHOLMOD reads it)
       }
     }
   }
-  Kbb_.resize(nb, nb);
-  Kbb_.setFromTriplets(tbb.begin(), tbb.end());
-  if (lumped) return;
   if (kernel && kernel->cols() > 0) {  // Q: orthonormal basis of R restricted to the interface
     Eigen::MatrixXd Rb(nb, kernel->cols());
     for (int i = 0; i < nb; ++i) Rb.row(i) = kernel->row(interface_[i]);

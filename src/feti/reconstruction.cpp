@@ -209,9 +209,9 @@ DualProblem::ContactData DualProblem::contact_data(const std::vector<Vec>& u, co
     if (multipliers_.kind[k] == MultiplierKind::contact) {
       const double s = multipliers_.contact_scale[k] * multipliers_.contact_weight[k];
       const auto& p = multipliers_.contact_point[k];
-      mine.insert(mine.end(), {p[0], p[1], p[2], v.u_a[k] / s, v.u_b[k] / s,
-                               multipliers_.contact_gap[k], s * lambda[k], v.pressure[k],
-                               v.tangential[k], v.slip[k], v.state[k]});
+      mine.insert(mine.end(),
+                  {p[0], p[1], p[2], v.u_a[k] / s, v.u_b[k] / s, multipliers_.contact_gap[k],
+                   s * lambda[k], v.pressure[k], v.tangential[k], v.slip[k], v.state[k]});
     }
   constexpr int W = 11;
   const int P = comm_.size();
@@ -328,7 +328,7 @@ std::vector<DualProblem::ContactSummary> DualProblem::contact_summary(const std:
 }
 
 DualProblem::ContactFields DualProblem::contact_fields(const std::vector<Vec>& u,
-                                                      const Vec& lambda) {
+                                                       const Vec& lambda) {
   // The per-row values of contact_data (the same formulas), spread to the ranks that touch the
   // rows and put on the node each row is keyed by.
   const ContactRowValues v = contact_row_values(u, lambda);

@@ -10,6 +10,7 @@
 #include <stdexcept>
 
 #include "htfeti/parallel/blas_buffers.hpp"
+#include "htfeti/parallel/fresh_pages.hpp"
 
 extern "C" void dpotri_(const char* uplo, const int* n, double* a, const int* lda, int* info);
 
@@ -34,6 +35,29 @@ std::string to_string(Ordering value) { return name_of(kOrderingNames, value); }
 
 namespace {
 // A CHOLMOD view (no copy) of the upper triangle `upper` (compressed here), stype = 1.
+// The upper triangle of A (rows <= column), column by column, into arrays made resident in one
+// call each (parallel/fresh_pages.hpp): the matrix of A.triangularView<Eigen::Upper>().
+Eigen::SparseMatrix<double> upper_triangle(const Eigen::SparseMatrix<double>& A) {
+  using It = Eigen::SparseMatrix<double>::InnerIterator;
+  const Eigen::Index n = A.cols();
+  Eigen::Index nnz = 0;
+  for (Eigen::Index c = 0; c < n; ++c)
+    for (It it(A, c); it; ++it) nnz += it.row() <= c;
+  Eigen::SparseMatrix<double> U;
+  resize_resident(U, A.rows(), n, nnz);
+  int* outer = U.outerIndexPtr();
+  int* inner = U.innerIndexPtr();
+  double* value = U.valuePtr();
+  Eigen::Index k = 0;
+  outer[0] = 0;
+  for (Eigen::Index c = 0; c < n; ++c) {
+    for (It it(A, c); it; ++it)
+      if (it.row() <= c) inner[k] = static_cast<int>(it.row()), value[k++] = it.value();
+    outer[c + 1] = static_cast<int>(k);
+  }
+  return U;
+}
+
 cholmod_sparse upper_view(Eigen::SparseMatrix<double>& upper) {
   upper.makeCompressed();
   cholmod_sparse view{};
@@ -250,6 +274,7 @@ struct SparseCholesky::Impl {
   std::vector<double> sy, st;  // solve_single(): permuted vector, rows below a supernode
 
   explicit Impl(Ordering ordering) : method(ordering == Ordering::amd ? 0 : 1) {
+    populate_cholmod_allocations();  // the factors' pages in one call each (fresh_pages.hpp)
     cholmod_start(&common);
     common.print = 0;
     common.error_handler = nullptr;
@@ -363,7 +388,7 @@ void SparseCholesky::factorize_impl(const Eigen::SparseMatrix<double>& A,
   using clock = std::chrono::steady_clock;
   const auto t0 = clock::now();
   auto& c = impl_->common;
-  Eigen::SparseMatrix<double> upper = A.triangularView<Eigen::Upper>();
+  Eigen::SparseMatrix<double> upper = upper_triangle(A);
   cholmod_sparse view = upper_view(upper);
   impl_->drop_factor();
   impl_->slot.reset();
@@ -656,7 +681,11 @@ void SparseCholesky::make_single() {
   if (!L || !L->is_super) throw std::logic_error("make_single: no supernodal factor");
   const auto copy = [L]() {
     const double* Lx = static_cast<const double*>(L->x);
-    return std::make_shared<const std::vector<float>>(Lx, Lx + L->xsize);
+    auto xs = std::make_shared<std::vector<float>>();
+    xs->reserve(L->xsize);
+    populate(xs->data(), L->xsize * sizeof(float));  // (parallel/fresh_pages.hpp)
+    xs->assign(Lx, Lx + L->xsize);
+    return std::shared_ptr<const std::vector<float>>(std::move(xs));
   };
   if (impl_->slot) {  // a factor shared through the numeric cache: one copy for all holders
     std::lock_guard<std::mutex> lock(impl_->slot->mutex);

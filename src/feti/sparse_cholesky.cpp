@@ -34,7 +34,17 @@ Ordering parse_ordering(const std::string& name) {
 std::string to_string(Ordering value) { return name_of(kOrderingNames, value); }
 
 namespace {
-// A CHOLMOD view (no copy) of the upper triangle `upper` (compressed here), stype = 1.
+// A is its own upper triangle: compressed, with no entry below the diagonal (Subdomain's K_rr).
+bool is_upper_triangle(const Eigen::SparseMatrix<double>& A) {
+  if (!A.isCompressed()) return false;
+  const int* p = A.outerIndexPtr();
+  const int* i = A.innerIndexPtr();
+  for (Eigen::Index c = 0; c < A.cols(); ++c)
+    for (int k = p[c]; k < p[c + 1]; ++k)
+      if (i[k] > c) return false;
+  return true;
+}
+
 // The upper triangle of A (rows <= column), column by column, into arrays made resident in one
 // call each (parallel/fresh_pages.hpp): the matrix of A.triangularView<Eigen::Upper>().
 Eigen::SparseMatrix<double> upper_triangle(const Eigen::SparseMatrix<double>& A) {
@@ -58,14 +68,16 @@ Eigen::SparseMatrix<double> upper_triangle(const Eigen::SparseMatrix<double>& A)
   return U;
 }
 
-cholmod_sparse upper_view(Eigen::SparseMatrix<double>& upper) {
-  upper.makeCompressed();
+// A CHOLMOD view (no copy) of the upper triangle `upper` (compressed), stype = 1. CHOLMOD's
+// analysis and factorization read the matrix only.
+cholmod_sparse upper_view(const Eigen::SparseMatrix<double>& upper) {
+  if (!upper.isCompressed()) throw std::logic_error("upper_view: the matrix is not compressed");
   cholmod_sparse view{};
   view.nrow = view.ncol = static_cast<size_t>(upper.rows());
   view.nzmax = static_cast<size_t>(upper.nonZeros());
-  view.p = upper.outerIndexPtr();
-  view.i = upper.innerIndexPtr();
-  view.x = upper.valuePtr();
+  view.p = const_cast<int*>(upper.outerIndexPtr());
+  view.i = const_cast<int*>(upper.innerIndexPtr());
+  view.x = const_cast<double*>(upper.valuePtr());
   view.stype = 1;  // upper triangle stored
   view.itype = CHOLMOD_INT;
   view.xtype = CHOLMOD_REAL;
@@ -388,7 +400,11 @@ void SparseCholesky::factorize_impl(const Eigen::SparseMatrix<double>& A,
   using clock = std::chrono::steady_clock;
   const auto t0 = clock::now();
   auto& c = impl_->common;
-  Eigen::SparseMatrix<double> upper = upper_triangle(A);
+  // K_rr comes as its upper triangle already (Subdomain::reduced_matrix): read in place.
+  const bool in_place = is_upper_triangle(A);
+  const Eigen::SparseMatrix<double> copy =
+      in_place ? Eigen::SparseMatrix<double>() : upper_triangle(A);
+  const Eigen::SparseMatrix<double>& upper = in_place ? A : copy;
   cholmod_sparse view = upper_view(upper);
   impl_->drop_factor();
   impl_->slot.reset();
@@ -854,6 +870,7 @@ SparseCholesky::SymbolicStats SparseCholesky::symbolic_stats(const Eigen::Sparse
   SparseCholesky chol(ordering);
   auto& c = chol.impl_->common;
   Eigen::SparseMatrix<double> upper = A.triangularView<Eigen::Upper>();
+  upper.makeCompressed();
   cholmod_sparse view = upper_view(upper);
   {
     std::lock_guard<std::mutex> lock(metis_mutex);  // (METIS: see metis_mutex)

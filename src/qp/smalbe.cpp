@@ -111,8 +111,7 @@ SmalbeResult smalbe(const QuadraticProgram& qp, double normA, Vec& x, const Redu
   const bool warm = red.max(multiplier && n > 0 && multiplier->size() == n ? 1.0 : 0.0) > 0;
   if (use_face && warm) {
     clamp(x, l, u);
-    for (Eigen::Index i = 0; i < n; ++i)
-      held[i] = !(x[i] > l[i]) || (has_upper && !(x[i] < u[i])) ? 1.0 : 0.0;
+    active_set_changed();  // held = the start point's active set (collective: warm is agreed)
   }
   double L_prev = 0;
   double qnorm = 0, qnorm_prev = 0;

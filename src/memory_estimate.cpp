@@ -125,8 +125,17 @@ MemoryEstimate estimate_memory(const Model& model, const FetiOptions& options, c
   bool one_per_cluster = true;
   for (int c = c0; c < c1; ++c)
     one_per_cluster = one_per_cluster && layout.cluster_first[c + 1] - layout.cluster_first[c] == 1;
-  if (!is_explicit && one_per_cluster && options.factor_precision != FactorPrecision::double_)
+  if (!is_explicit && one_per_cluster && options.factor_precision != FactorPrecision::double_) {
     e.single_mb = 0.5 * e.factors_mb;
+    // Subdomains that do not repeat (SubdomainSystem::repeats) keep the copy alone and K_rr
+    // for the refinement (about K_i's lower triangle: matrices_mb); the double values exist
+    // only while each thread factors one.
+    if (model.mesh(s0).uniform_period == 0) {
+      const double working = std::min(subdomains, static_cast<double>(omp_get_max_threads()));
+      e.factors_working_mb = e.factors_mb * working / subdomains;
+      e.factors_held_mb = e.matrices_mb;
+    }
+  }
   if (is_explicit) {
     e.explicit_mb = explicit_bytes / kMiB;
     // The factors of the clusters set up at one time (threads x the rank's largest cluster).

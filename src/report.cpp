@@ -185,7 +185,19 @@ void report_timings_and_memory(nlohmann::json& rep, DualProblem& dual, const Com
   // The subdomain factorizations in core-seconds (summed over subdomains and ranks): the
   // symbolic part (forming K_rr, ordering, analysis or its copy from the cache) and the numeric
   // one; and the symbolic analyses done and reused (FetiOptions::symbolic_cache_patterns).
+  // Subdomains whose factor is held in single precision alone (Subdomain::SingleCopy), the double
+  // solves refined with their K_rr, the refinement steps, and the factors made again in double.
+  long long single_only = 0, refined = 0, steps = 0, refactored = 0;
+  for (const auto& sd : dual.subdomains()) {
+    const SparseCholesky::RefinementStats rs = sd->refinement_stats();
+    single_only += sd->single_only() || rs.refactored ? 1 : 0;
+    refined += rs.solves, steps += rs.steps, refactored += rs.refactored ? 1 : 0;
+  }
   rep["factorization"] = {
+      {"single_only", comm.sum(single_only)},
+      {"refined_solves", comm.sum(refined)},
+      {"refinement_steps", comm.sum(steps)},
+      {"refactored_in_double", comm.sum(refactored)},
       {"symbolic_core_s", comm.sum(st.factor_symbolic)},
       {"numeric_core_s", comm.sum(st.factor_numeric)},
       {"symbolic_analyses", comm.sum(static_cast<long long>(st.symbolic_analyses))},
@@ -210,6 +222,7 @@ void report_timings_and_memory(nlohmann::json& rep, DualProblem& dual, const Com
       {"factor_mb", comm.sum(st.factor_mb)},
       {"distinct_factor_mb", comm.sum(st.distinct_factor_mb)},
       {"single_factor_mb", comm.sum(st.single_factor_mb)},
+      {"refinement_mb", comm.sum(st.refinement_mb)},
       {"shared_matrices", comm.sum(static_cast<long long>(st.shared_matrices))},
       // The estimate made before setup (0 with check_memory off); sums over ranks.
       {"estimate_mb",

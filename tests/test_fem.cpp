@@ -1,5 +1,6 @@
 // Tiny hand-checkable cases: element matrices, loads, subdomain generalized inverses, B~ and the
 // cluster generalized inverse.
+#include <SuiteSparse_config.h>
 #include <gtest/gtest.h>
 
 #include <Eigen/Dense>
@@ -233,6 +234,29 @@ TEST(FreshPages, UncompressedMatrixFactorsAsCompressed) {
   c.solve(xc.data(), xc.data());
   EXPECT_EQ(xa, xc);
   EXPECT_LT((C * xc - b).norm(), 1e-13 * b.norm());
+}
+
+// CHOLMOD's large blocks go through the block pool (populate_cholmod_allocations): a freed block
+// serves the next allocation; its contents survive a realloc that grows it, and calloc hands
+// back zeros from a block that held other values.
+TEST(FreshPages, PooledBlocksKeepTheirContents) {
+  populate_cholmod_allocations();
+  const std::size_t n = 2 * kPopulateBytes / sizeof(double);
+  auto* a = static_cast<double*>(SuiteSparse_config.malloc_func(n * sizeof(double)));
+  ASSERT_NE(a, nullptr);
+  for (std::size_t i = 0; i < n; ++i) a[i] = static_cast<double>(i);
+  auto* b = static_cast<double*>(SuiteSparse_config.realloc_func(a, 3 * n * sizeof(double)));
+  ASSERT_NE(b, nullptr);
+  bool same = true;
+  for (std::size_t i = 0; i < n; ++i) same = same && b[i] == static_cast<double>(i);
+  EXPECT_TRUE(same);
+  for (std::size_t i = 0; i < 3 * n; ++i) b[i] = 1.5;
+  SuiteSparse_config.free_func(b);
+  auto* c = static_cast<double*>(SuiteSparse_config.calloc_func(3 * n, sizeof(double)));
+  ASSERT_NE(c, nullptr);
+  EXPECT_EQ(std::count(c, c + 3 * n, 0.0), static_cast<long>(3 * n));
+  SuiteSparse_config.free_func(c);
+  release_idle_blocks();
 }
 
 TEST(Subdomain, NotPositiveDefiniteIsAnError) {
@@ -827,21 +851,29 @@ TEST(Decomposition, ClusterMajorNumberingRoundTrips) {
 // solve with the rounded factor L_s, so on a well-conditioned matrix its residual is of the order
 // of single precision (not of double: the copy is read), its result agrees with solve() to that
 // order, and holders of a factor shared through the numeric cache share one copy.
-TEST(SparseCholesky, SingleCopySolvesWithTheRoundedFactor) {
-  const int n = 12;
+namespace {
+// The 7-point stencil on an n^3 grid with diagonal `diagonal` + 0.01 (i % 7): positive definite
+// for diagonal > 6.
+Eigen::SparseMatrix<double> grid_matrix(int n, double diagonal) {
   std::vector<Eigen::Triplet<double>> t;
   for (int z = 0; z < n; ++z)
     for (int y = 0; y < n; ++y)
       for (int x = 0; x < n; ++x) {
         const int i = (z * n + y) * n + x;
-        t.emplace_back(i, i, 7.0 + 0.01 * (i % 7));
+        t.emplace_back(i, i, diagonal + 0.01 * (i % 7));
         if (x + 1 < n) t.emplace_back(i, i + 1, -1.0), t.emplace_back(i + 1, i, -1.0);
         if (y + 1 < n) t.emplace_back(i, i + n, -1.0), t.emplace_back(i + n, i, -1.0);
         if (z + 1 < n) t.emplace_back(i, i + n * n, -1.0), t.emplace_back(i + n * n, i, -1.0);
       }
-  const int N = n * n * n;
-  Eigen::SparseMatrix<double> A(N, N);
+  Eigen::SparseMatrix<double> A(n * n * n, n * n * n);
   A.setFromTriplets(t.begin(), t.end());
+  return A;
+}
+}  // namespace
+
+TEST(SparseCholesky, SingleCopySolvesWithTheRoundedFactor) {
+  const int N = 12 * 12 * 12;
+  const Eigen::SparseMatrix<double> A = grid_matrix(12, 7.0);
   for (Ordering ordering : {Ordering::amd, Ordering::metis}) {
     SCOPED_TRACE(to_string(ordering));
     SparseCholesky chol(ordering);
@@ -872,4 +904,101 @@ TEST(SparseCholesky, SingleCopySolvesWithTheRoundedFactor) {
   for (auto& c : f) c.make_single();
   EXPECT_EQ(f[1].single_data(), f[2].single_data());
   EXPECT_NE(f[1].single_data(), nullptr);
+}
+
+namespace {
+Eigen::SparseMatrix<double> upper_of(const Eigen::SparseMatrix<double>& A) {
+  Eigen::SparseMatrix<double> U = A.triangularView<Eigen::Upper>();
+  U.makeCompressed();
+  return U;
+}
+}  // namespace
+
+// The single-precision copy alone (SparseCholesky::keep_single_only): the double values are
+// freed and solve() refines the single-precision solve with A to a double solve's residual. The
+// result agrees with the double factor's solve to round-off, solve_many gives each column as
+// solve() does, and a factor shared through the numeric cache keeps its double values.
+TEST(SparseCholesky, SingleCopyAloneSolvesAsTheDoubleFactor) {
+  const int N = 12 * 12 * 12;
+  const Eigen::SparseMatrix<double> A = grid_matrix(12, 6.001);  // cond(A) about 70
+  const Eigen::VectorXd b = Eigen::VectorXd::LinSpaced(N, -1.0, 2.0).array().sin();
+  SparseCholesky chol(Ordering::metis);
+  chol.factorize(A);
+  Eigen::VectorXd xd(N);
+  chol.solve(b.data(), xd.data());
+  EXPECT_FALSE(chol.keep_single_only(upper_of(A)));  // no single-precision copy yet
+  chol.make_single();
+  EXPECT_EQ(chol.refinement_bytes(), 0);
+  ASSERT_TRUE(chol.keep_single_only(upper_of(A)));
+  EXPECT_FALSE(chol.has_double());
+  EXPECT_TRUE(chol.has_single());
+  EXPECT_TRUE(chol.refines());
+  EXPECT_GT(chol.refinement_bytes(), 0);
+  Eigen::VectorXd x = b;
+  chol.solve(x.data(), x.data());                          // in place
+  EXPECT_LE((A * x - b).norm(), 2 * (A * xd - b).norm());  // as accurate as the double solve
+  EXPECT_LT((x - xd).norm(), 1e-14 * xd.norm());
+  const SparseCholesky::RefinementStats st = chol.refinement_stats();
+  EXPECT_EQ(st.solves, 1);
+  EXPECT_GE(st.steps, 1);
+  EXPECT_FALSE(st.refactored);
+  Eigen::MatrixXd X(N, 3);
+  X.col(0) = b, X.col(1) = b.array().cos(), X.col(2) = -b;
+  Eigen::MatrixXd Y = X;
+  chol.solve_many(Y.data(), 3);
+  for (int j = 0; j < 3; ++j) {
+    Eigen::VectorXd y(N);
+    chol.solve(X.col(j).data(), y.data());
+    EXPECT_EQ((Y.col(j) - y).cwiseAbs().maxCoeff(), 0.0);
+  }
+  EXPECT_FALSE(chol.refinement_stats().refactored);
+  // A factor shared through the numeric cache keeps its values and refines all the same: its
+  // solves are those of the unshared factor, bit for bit.
+  SubdomainCache cache(64, 1e9);
+  std::vector<SparseCholesky> f(3);
+  for (auto& c : f) c.factorize(A, &cache);
+  ASSERT_TRUE(f[2].factor_shared());
+  for (auto& c : f) {
+    c.make_single();
+    ASSERT_TRUE(c.keep_single_only(upper_of(A)));
+  }
+  EXPECT_TRUE(f[2].has_double());
+  EXPECT_FALSE(f[0].has_double());  // (its own factor: analysed, not kept by the cache)
+  Eigen::VectorXd xf(N), x0(N);
+  f[2].solve(b.data(), xf.data());
+  f[0].solve(b.data(), x0.data());
+  EXPECT_EQ((xf - x0).cwiseAbs().maxCoeff(), 0.0);
+  chol.factorize(A);  // a new factorization holds double values again
+  EXPECT_TRUE(chol.has_double());
+  EXPECT_FALSE(chol.refines());
+}
+
+// Where single precision is too coarse for the matrix (a free 1D Laplacian of 1,000 unknowns
+// shifted by 1e-12: cond(A) about 4e12, far beyond the 1 / 6e-8 a rounded factor resolves),
+// the refinement does not converge and the matrix is factored again in double: the solve is
+// then the double factor's, bit for bit.
+TEST(SparseCholesky, SingleCopyAloneFactorsAgainWhereRefinementFails) {
+  const int N = 1000;
+  const double shift = 1e-12;
+  std::vector<Eigen::Triplet<double>> t;
+  for (int i = 0; i < N; ++i) {
+    t.emplace_back(i, i, (i == 0 || i + 1 == N ? 1.0 : 2.0) + shift);
+    if (i + 1 < N) t.emplace_back(i, i + 1, -1.0), t.emplace_back(i + 1, i, -1.0);
+  }
+  Eigen::SparseMatrix<double> A(N, N);
+  A.setFromTriplets(t.begin(), t.end());
+  SparseCholesky chol(Ordering::amd);
+  chol.factorize(A);
+  chol.make_single();
+  ASSERT_TRUE(chol.keep_single_only(upper_of(A)));
+  const Eigen::VectorXd b = Eigen::VectorXd::LinSpaced(N, -1.0, 2.0).array().sin();
+  Eigen::VectorXd x(N), xd(N);
+  chol.solve(b.data(), x.data());
+  EXPECT_TRUE(chol.refinement_stats().refactored);
+  EXPECT_TRUE(chol.has_double());
+  EXPECT_FALSE(chol.refines());
+  SparseCholesky plain(Ordering::amd);
+  plain.factorize(A);
+  plain.solve(b.data(), xd.data());
+  EXPECT_EQ((x - xd).cwiseAbs().maxCoeff(), 0.0);
 }

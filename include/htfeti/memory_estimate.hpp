@@ -76,7 +76,8 @@ struct MemoryEstimate {
   double machine_peak_mb = 0;
   /// Set by check_memory: the memory compared with (the smallest over the machines; MiB).
   double available_mb = 0;
-  /// Explicit operator: the factors of the clusters set up at one time.
+  /// Explicit operator, and factors kept in single precision alone (factors_held_mb is then
+  /// their K_rr): the factors of the clusters set up at one time.
   double factors_working_mb = 0;
   /// K_i is freed once factored, so the matrices of the clusters still to be set up and what
   /// those done keep (their factors, and the explicit operator's F_i) are in memory together:

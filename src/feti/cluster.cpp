@@ -182,8 +182,7 @@ Cluster::Cluster(int id, std::vector<Subdomain*> subs, std::vector<std::vector<C
         ex->V_[i] = Eigen::MatrixXd::Zero(nmult[i], subs_[i]->kernel_dimension());
         for (const auto& e : b[i]) ex->V_[i].row(e.mult) += e.value * subs_[i]->kernel().row(e.dof);
       } else {
-        subs_[i]->factorize(ordering, cache);
-        if (single_) subs_[i]->make_single();
+        subs_[i]->factorize(ordering, cache, single_copy(*subs_[i]));
       }
     } catch (const std::exception& e) {
       failure.record(e, "subdomain " + std::to_string(subs_[i]->id()) + ": ");
@@ -352,8 +351,7 @@ void Cluster::refactor(Ordering ordering, SubdomainCache* cache, bool as_setup) 
       if (explicit_ && as_setup)
         subs_[i]->factorize_with_interface_last(interface_[i], cache, ordering);
       else
-        subs_[i]->factorize(ordering, cache);
-      if (single_) subs_[i]->make_single();  // (single_: implicit only)
+        subs_[i]->factorize(ordering, cache, single_copy(*subs_[i]));  // (single_: implicit only)
       subs_[i]->release_matrix();
     } catch (const std::exception& e) {
       failure.record(e);
@@ -494,21 +492,33 @@ void Cluster::solve_interface(std::vector<Eigen::VectorXd>& x) {
   for (int i = 0; i < s; ++i) subs_[i]->apply_pinv_single(x[i].data(), x[i].data());
 }
 
+// x_i <- K_i^+ x_i for every subdomain. A solve can throw (CHOLMOD's work arrays, made on the
+// first solve, or a factor made again in double when a refinement fails): the exception is
+// carried out of the parallel region, not left to end the process.
+void Cluster::solve_each(std::vector<Eigen::VectorXd>& x) {
+  const int s = static_cast<int>(subs_.size());
+  RegionError failure;
+#pragma omp parallel for schedule(dynamic) if (!omp_in_parallel() && s > 1)
+  for (int i = 0; i < s; ++i) {
+    try {
+      subs_[i]->apply_pinv(x[i].data(), x[i].data());
+    } catch (const std::exception& e) {
+      failure.record(e, "subdomain " + std::to_string(subs_[i]->id()) + ": ");
+    }
+  }
+  failure.rethrow();
+}
+
 void Cluster::solve(std::vector<Eigen::VectorXd>& x) {
   const int s = static_cast<int>(subs_.size());
-  if (rhs_.size() == 0) {
-#pragma omp parallel for schedule(dynamic) if (!omp_in_parallel() && s > 1)
-    for (int i = 0; i < s; ++i) subs_[i]->apply_pinv(x[i].data(), x[i].data());
-    return;
-  }
+  if (rhs_.size() == 0) return solve_each(x);
   rhs_.setZero();
   for (int i = 0; i < s; ++i)
     for (int q = 0; q < subs_[i]->kernel_dimension(); ++q) {
       const int bi = beta_index_[beta_offset_[i] + q];
       if (bi >= 0) rhs_[bi] = -subs_[i]->kernel().col(q).dot(x[i]);
     }
-#pragma omp parallel for schedule(dynamic) if (!omp_in_parallel() && s > 1)
-  for (int i = 0; i < s; ++i) subs_[i]->apply_pinv(x[i].data(), x[i].data());  // x_i <- K_i^+ x_i
+  solve_each(x);               // x_i <- K_i^+ x_i
   for (int i = 0; i < s; ++i)  // C K^+ x, summed in a fixed order
     for (const auto& e : c_of_sub_[i]) rhs_[e.constraint] += e.value * x[i][e.dof];
   solve_saddle();

@@ -17,6 +17,7 @@
 #include "dual_setup.hpp"
 #include "htfeti/clock.hpp"
 #include "htfeti/errors.hpp"
+#include "htfeti/parallel/fresh_pages.hpp"
 #include "htfeti/parallel/key_numbering.hpp"
 #include "htfeti/parallel/memory.hpp"
 
@@ -338,6 +339,7 @@ void DualProblem::set_up_clusters(Setup& st) {
       error = e.what();
     }
   }
+  release_idle_blocks();  // the factorizations' freed blocks (parallel/fresh_pages.hpp)
   comm_.agree(error, input_error);
   if (factor_cache()) setup_.distinct_factor_mb += cache_->kept_factor_bytes() / 1048576.0;
   if (explicit_) {  // every thread frees its F_i work arrays (they are kept between subdomains)
@@ -354,6 +356,9 @@ void DualProblem::set_up_clusters(Setup& st) {
       any = std::max(any, c->single_sweeps() ? 1.0 : 0.0);
     }
     setup_.single_factor_mb = single / 1048576.0;
+    double kept = 0;
+    for (const auto& sd : subs_) kept += static_cast<double>(sd->refinement_bytes());
+    setup_.refinement_mb = kept / 1048576.0;
     single_sweeps_ = comm_.max(any) > 0;
   }
   if (factor_cache()) {

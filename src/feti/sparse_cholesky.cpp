@@ -4,9 +4,11 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <condition_variable>
 #include <cstdint>
 #include <cstring>
+#include <limits>
 #include <stdexcept>
 
 #include "htfeti/parallel/blas_buffers.hpp"
@@ -284,6 +286,15 @@ struct SparseCholesky::Impl {
   std::shared_ptr<cholmod_factor> shared;        // set when `factor` is a numeric cache entry's
   std::shared_ptr<const std::vector<float>> xs;  // make_single(): L's values, single precision
   std::vector<double> sy, st;  // solve_single(): permuted vector, rows below a supernode
+  // keep_single_only(): the factor's values dropped (L symbolic again; a shared factor keeps
+  // them), A's upper triangle kept for the refinement of double solves, its infinity norm, and
+  // the refinement's work arrays.
+  bool refine = false;
+  Eigen::SparseMatrix<double> a;
+  double anorm = 0;
+  std::vector<double> rb, rr;
+  long refined_solves = 0, refinement_steps = 0;
+  bool refactored = false;
 
   explicit Impl(Ordering ordering) : method(ordering == Ordering::amd ? 0 : 1) {
     populate_cholmod_allocations();  // the factors' pages in one call each (fresh_pages.hpp)
@@ -304,6 +315,9 @@ struct SparseCholesky::Impl {
   }
   void drop_factor() {
     xs.reset();
+    Eigen::SparseMatrix<double>().swap(a);
+    std::vector<double>().swap(rb), std::vector<double>().swap(rr);
+    refine = refactored = false;
     if (shared)
       factor = nullptr, shared.reset();
     else
@@ -562,6 +576,7 @@ void SparseCholesky::factorize_impl(const Eigen::SparseMatrix<double>& A,
 }
 
 void SparseCholesky::solve(const double* b, double* out) {
+  if (impl_->refine) return solve_refined(b, out);
   if (impl_->slot && impl_->memo_solves) {  // a shared interface-last factor: the memo
     if (out != b) std::memmove(out, b, sizeof(double) * impl_->n);
     solve_many(out, 1);
@@ -583,6 +598,13 @@ void SparseCholesky::solve(const double* b, double* out) {
 
 void SparseCholesky::solve_many(double* X, int ncols) {
   if (ncols <= 0) return;
+  if (impl_->refine) {  // (setup work only: column by column)
+    for (int j = 0; j < ncols; ++j) {
+      double* x = X + static_cast<long>(impl_->n) * j;
+      solve_refined(x, x);
+    }
+    return;
+  }
   // A factor shared through the numeric cache looks the right-hand side up among those already
   // solved with it (equal subdomains with equal constraints: the columns of K_i^+ C_i^T repeat).
   const long total = static_cast<long>(impl_->n) * ncols;
@@ -719,6 +741,116 @@ void SparseCholesky::make_single() {
 
 bool SparseCholesky::has_single() const { return impl_->xs != nullptr; }
 
+bool SparseCholesky::has_double() const {
+  return impl_->factor != nullptr && impl_->factor->xtype != CHOLMOD_PATTERN;
+}
+
+bool SparseCholesky::keep_single_only(Eigen::SparseMatrix<double>&& A) {
+  Impl& m = *impl_;
+  if (!m.factor || !m.xs || m.memo_solves || m.refine || !has_double()) return false;
+  if (!A.isCompressed() || !is_upper_triangle(A) || A.rows() != m.n)
+    throw std::logic_error("keep_single_only: not the factored upper triangle");
+  m.a.swap(A);
+  std::vector<double> row_sum(m.n, 0.0);  // ||A||_inf of the symmetric A from its upper half
+  for (int col = 0; col < m.n; ++col)
+    for (Eigen::SparseMatrix<double>::InnerIterator it(m.a, col); it; ++it) {
+      row_sum[it.row()] += std::abs(it.value());
+      if (it.row() != col) row_sum[col] += std::abs(it.value());
+    }
+  m.anorm = m.n > 0 ? *std::max_element(row_sum.begin(), row_sum.end()) : 0.0;
+  m.rb.assign(m.n, 0.0), m.rr.assign(m.n, 0.0);
+  m.refine = true;
+  if (m.shared) return true;  // the holders of a shared factor keep its values
+  // Supernodal numeric -> supernodal symbolic: frees L's values (to the block pool), keeps the
+  // supernodes, permutation and row indices that solve_single() reads.
+  if (!cholmod_change_factor(CHOLMOD_PATTERN, 1, 1, 1, 1, m.factor, &m.common))
+    cholmod_failed(m.common, "CHOLMOD: cannot drop the factor's values");
+  return true;
+}
+
+bool SparseCholesky::refines() const { return impl_->refine; }
+
+long SparseCholesky::refinement_bytes() const {
+  const Impl& m = *impl_;
+  if (!m.refine) return 0;
+  return static_cast<long>(m.a.nonZeros()) * static_cast<long>(sizeof(double) + sizeof(int)) +
+         static_cast<long>(m.n + 1) * static_cast<long>(sizeof(int)) +
+         static_cast<long>(m.rb.size() + m.rr.size()) * static_cast<long>(sizeof(double));
+}
+
+SparseCholesky::RefinementStats SparseCholesky::refinement_stats() const {
+  return {impl_->refined_solves, impl_->refinement_steps, impl_->refactored};
+}
+
+// Mixed-precision iterative refinement (as LAPACK's dsposv): z = (L_s L_s^T)^{-1} b, then
+// z += (L_s L_s^T)^{-1} (b - A z) while the updates shrink (each at most half the last) and
+// the residual is above ||z||_inf ||A||_inf eps, i.e. to the accuracy of the double solve
+// itself; a residual that stops shrinking is accepted at dsposv's level of a backward-stable
+// solve, ||b - A z||_inf <= ||z||_inf ||A||_inf eps sqrt(n). Each step: one product with A's
+// upper triangle (both halves from it) and one single-precision solve; steps contract the
+// error by about cond(A) times single precision. Where they do not reach dsposv's level (a
+// matrix too ill-conditioned for the rounded factor, or 30 steps), A is factored again in
+// double and solved with that from then on.
+void SparseCholesky::solve_refined(const double* b, double* out) {
+  Impl& m = *impl_;
+  if (m.a.rows() != m.n) throw std::logic_error("SparseCholesky: solve without a factor");
+  const int n = m.n;
+  double* rb = m.rb.data();
+  double* r = m.rr.data();
+  std::memcpy(rb, b, sizeof(double) * n);  // (b and out may alias)
+  solve_single(rb, out);
+  const double tight = m.anorm * std::numeric_limits<double>::epsilon();
+  const double loose = tight * std::sqrt(static_cast<double>(n));
+  const int* outer = m.a.outerIndexPtr();
+  const int* inner = m.a.innerIndexPtr();
+  const double* value = m.a.valuePtr();
+  constexpr int kMaxSteps = 30;
+  double last_update = std::numeric_limits<double>::infinity();
+  bool stalled = false;
+  ++m.refined_solves;
+  for (int step = 0;; ++step) {
+    std::memcpy(r, rb, sizeof(double) * n);  // r = b - A z
+    for (int col = 0; col < n; ++col) {
+      const double zc = out[col];
+      double acc = 0.0;
+      for (int p = outer[col]; p < outer[col + 1]; ++p) {
+        const int row = inner[p];
+        r[row] -= value[p] * zc;
+        if (row != col) acc += value[p] * out[row];
+      }
+      r[col] -= acc;
+    }
+    double rnorm = 0.0, znorm = 0.0;
+    for (int k = 0; k < n; ++k)
+      rnorm = std::max(rnorm, std::abs(r[k])), znorm = std::max(znorm, std::abs(out[k]));
+    if (rnorm <= znorm * tight) return;
+    if (stalled || step == kMaxSteps || !std::isfinite(rnorm)) {
+      if (rnorm <= znorm * loose) return;  // (false for NaN)
+      break;
+    }
+    solve_single(r, r);
+    double update = 0.0;
+    for (int k = 0; k < n; ++k) out[k] += r[k], update = std::max(update, std::abs(r[k]));
+    ++m.refinement_steps;
+    stalled = step > 0 && !(update < 0.5 * last_update);
+    last_update = update;
+  }
+  // The single-precision copy is too coarse for this matrix: its double factor again (a shared
+  // one is still there; either is the factor its analysis and values give, bit for bit).
+  m.refactored = true;
+  m.refine = false;
+  if (has_double()) return solve(rb, out);
+  cholmod_sparse view = upper_view(m.a);
+  {
+    const BlasOnOneThread one;
+    cholmod_factorize(&view, m.factor, &m.common);
+  }
+  if (m.common.status < 0 || m.factor->minor < m.factor->n)
+    cholmod_failed(m.common, "CHOLMOD factorization failed");
+  cholmod_free_work(&m.common);
+  solve(rb, out);
+}
+
 const void* SparseCholesky::single_data() const { return impl_->xs.get(); }
 
 long SparseCholesky::single_bytes() const {
@@ -793,7 +925,8 @@ void SparseCholesky::solve_single(const double* b, double* x) {
 void SparseCholesky::schur_factor(Eigen::MatrixXd& Ls, std::vector<int>& order) const {
   const cholmod_factor* L = impl_->factor;
   const int n = impl_->n, nb = impl_->nlast, p0 = n - nb;
-  if (!L || nb == 0) throw std::logic_error("schur_factor: factorize(A, last) was not called");
+  if (!L || nb == 0 || !has_double())
+    throw std::logic_error("schur_factor: factorize(A, last) was not called");
   const int* perm = static_cast<const int*>(L->Perm);
   order.resize(nb);
   for (int i = 0; i < nb; ++i) order[i] = perm[p0 + i];
@@ -845,7 +978,7 @@ std::shared_ptr<const SparseCholesky::SchurInverse> SparseCholesky::schur_invers
 }
 
 double SparseCholesky::rcond() const {
-  if (!impl_->factor) return 0;
+  if (!impl_->factor || !has_double()) return 0;
   return cholmod_rcond(impl_->factor, &impl_->common);
 }
 

@@ -51,8 +51,8 @@ void Subdomain::release_factor() {
   work_ = Eigen::VectorXd();
 }
 
-void Subdomain::factorize(Ordering ordering, SubdomainCache* cache) {
-  factorize_impl(ordering, nullptr, cache);
+void Subdomain::factorize(Ordering ordering, SubdomainCache* cache, SingleCopy single) {
+  factorize_impl(ordering, nullptr, cache, single);
 }
 
 void Subdomain::factorize_with_interface_last(const std::vector<int>& interface_dofs,
@@ -161,9 +161,9 @@ Eigen::SparseMatrix<double> Subdomain::reduced_matrix() {
 }
 
 void Subdomain::factorize_impl(Ordering ordering, const std::vector<int>* interface_dofs,
-                               SubdomainCache* cache) {
+                               SubdomainCache* cache, SingleCopy single) {
   const double t0 = seconds_now();
-  const Eigen::SparseMatrix<double> Krr = reduced_matrix();
+  Eigen::SparseMatrix<double> Krr = reduced_matrix();
   const double t_reduce = seconds_now() - t0;
   chol_ = SparseCholesky(ordering);
   if (interface_dofs) {
@@ -177,6 +177,8 @@ void Subdomain::factorize_impl(Ordering ordering, const std::vector<int>* interf
   symbolic_seconds_ = t_reduce + chol_.symbolic_seconds();
   factor_nonzeros_ = chol_.factor_nonzeros();
   work_.resize(Krr.rows());
+  if (single != SingleCopy::none) chol_.make_single();
+  if (single == SingleCopy::instead_of_double) chol_.keep_single_only(std::move(Krr));
 }
 
 void Subdomain::apply_pinv_with(const double* x, double* y, bool single) {

@@ -45,6 +45,7 @@ SubdomainInput Model::input(int s) const {
   in.system.f = std::move(a.f);
   in.system.R = std::move(a.R);
   in.system.fixed_dofs = std::move(a.fixed_dofs);
+  in.system.repeats = m.uniform_period > 0;
   const Physics ph = physics_;
   const Model* self = this;
   in.system.assemble = [self, ph, s]() { return assemble_stiffness(self->mesh(s), ph); };

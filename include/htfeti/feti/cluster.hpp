@@ -241,7 +241,8 @@ class Cluster {
     int dof;
     double value;
   };
-  void solve_saddle();  // sol_ = S^{-1} rhs_ with the equilibration
+  void solve_saddle();                               // sol_ = S^{-1} rhs_ with the equilibration
+  void solve_each(std::vector<Eigen::VectorXd>& x);  // x_i <- K_i^+ x_i, exceptions carried out
   int id_;
   int nc_ = 0;  // primal constraints
   std::vector<Subdomain*> subs_;
@@ -259,7 +260,16 @@ class Cluster {
   Eigen::VectorXd rhs_, sol_, dscale_;
   friend class ExplicitClusterOperator;  // uses the saddle-point system
   bool explicit_ = false;
-  bool single_ = false, use_single_ = false;   // single sweeps set up / in use
+  bool single_ = false, use_single_ = false;  // single sweeps set up / in use
+  // With single sweeps each subdomain keeps the single-precision copy alone, its double solves
+  // refined with K_rr (Subdomain::SingleCopy): half the factors' memory and of the pages that
+  // the setup makes new.
+  // Subdomains of a generated grid (SubdomainSystem::repeats) share factors: they keep double.
+  Subdomain::SingleCopy single_copy(const Subdomain& sd) const {
+    return !single_       ? Subdomain::SingleCopy::none
+           : sd.repeats() ? Subdomain::SingleCopy::beside_double
+                          : Subdomain::SingleCopy::instead_of_double;
+  }
   std::unique_ptr<ClusterDualOperator> dual_;  // F on this cluster
   std::vector<std::vector<int>> interface_;    // explicit: the dofs ordered last (refactor())
   double setup_seconds_ = 0;

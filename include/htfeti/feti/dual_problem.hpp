@@ -169,6 +169,8 @@ struct SetupTimings {
   double distinct_factor_mb = 0;
   /// The single-precision copies of the factors (a shared copy counted once).
   double single_factor_mb = 0;
+  /// The K_rr kept to refine double solves where a factor is kept in single precision alone.
+  double refinement_mb = 0;
   /// Subdomains whose assembled K_i equals an earlier one's and shares its storage.
   long shared_matrices = 0;
   double peak_mb_assembly = 0, peak_mb_constraints = 0, peak_mb_factorization = 0,

@@ -42,6 +42,11 @@ struct SubdomainSystem {
   Eigen::VectorXd f;
   Eigen::MatrixXd R;            ///< orthonormal kernel basis, one column per rigid mode
   std::vector<int> fixed_dofs;  ///< R.cols() dofs set to zero by K^+ (sorted)
+  /// A subdomain of a generated grid, whose matrix is expected to equal others' (their factors
+  /// are shared through the numeric cache): its factor keeps its double values beside a
+  /// single-precision copy (Subdomain::SingleCopy). A property of the subdomain alone, so that
+  /// which solves are refined does not depend on how subdomains are spread over the ranks.
+  bool repeats = false;
 };
 
 struct DofSharing {

@@ -122,7 +122,8 @@ class SparseCholesky {
     std::vector<int> order;
   };
   std::shared_ptr<const SchurInverse> schur_inverse() const;
-  /// x = A^{-1} b; x and b may alias. Work arrays are kept between calls, so a solve allocates
+  /// x = A^{-1} b; x and b may alias (after keep_single_only(), by refinement of the
+  /// single-precision solve). Work arrays are kept between calls, so a solve allocates
   /// nothing once the first one has run. Not safe to call concurrently on one object. A factor
   /// shared through the numeric cache (interface-last factors of the explicit operator, which
   /// solve only in the setup and the reconstruction, never in the iterations) goes through
@@ -149,6 +150,32 @@ class SparseCholesky {
   /// Needs the supernodal factor; setup work (allocates). A new factorization drops the copy.
   void make_single();
   bool has_single() const;
+  /// Keeps the single-precision copy alone: the factor's values are freed (their pages go to
+  /// the block pool of parallel/fresh_pages.hpp, for the next factorization) and A, the upper
+  /// triangle that was factored (moved in), is kept instead, about a quarter of the values'
+  /// bytes in 3D. solve() and solve_many() then refine the single-precision solve with A to the
+  /// accuracy of a double solve (solve_refined); a matrix for which that does not converge is
+  /// factored again in double and solved with that from then on. A factor shared through the
+  /// numeric cache keeps its values (its other holders solve with them) but refines all the
+  /// same, so that its solves are those of an unshared one. Needs make_single(); false (nothing
+  /// changed) without the copy, or for a factor with rows ordered last (the explicit operator's,
+  /// whose solves go through the memo). factor_bytes() still counts the values as built.
+  bool keep_single_only(Eigen::SparseMatrix<double>&& A);
+  /// Whether the double-precision values are held (false after keep_single_only(), unless
+  /// shared or factored again).
+  bool has_double() const;
+  /// Bytes kept for the refinement (A and two work vectors; 0 without keep_single_only()).
+  long refinement_bytes() const;
+  /// Whether solve() refines (keep_single_only(), until a matrix is factored again in double).
+  bool refines() const;
+  /// The refined solves since keep_single_only(), their refinement steps in all (each one
+  /// product with A and one single-precision solve), and whether the matrix had to be factored
+  /// in double again.
+  struct RefinementStats {
+    long solves = 0, steps = 0;
+    bool refactored = false;
+  };
+  RefinementStats refinement_stats() const;
   /// Bytes of the single-precision copy (0 without one).
   long single_bytes() const;
   const void* single_data() const;  ///< identifies a shared copy (nullptr without one)
@@ -182,6 +209,7 @@ class SparseCholesky {
  private:
   void factorize_impl(const Eigen::SparseMatrix<double>& A, const std::vector<int>* last,
                       SubdomainCache* cache);
+  void solve_refined(const double* b, double* x);
   struct Impl;
   std::unique_ptr<Impl> impl_;
 };

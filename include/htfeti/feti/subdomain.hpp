@@ -51,8 +51,15 @@ class Subdomain {
   int kernel_dimension() const { return static_cast<int>(sys_.R.cols()); }
   const std::vector<int>& fixed_dofs() const { return sys_.fixed_dofs; }
 
+  /// What factorize() keeps for the solves: the double-precision factor; that and its
+  /// single-precision copy (apply_pinv_single); or the copy alone with K_rr
+  /// (SparseCholesky::keep_single_only: apply_pinv refines the single-precision solve to a double
+  /// one; a factor shared with equal subdomains keeps its double values, and refines all the
+  /// same, so that the result does not depend on which subdomains share).
+  enum class SingleCopy { none, beside_double, instead_of_double };
   /// With a cache, the symbolic analysis is shared with subdomains of the same pattern.
-  void factorize(Ordering ordering, SubdomainCache* cache = nullptr);
+  void factorize(Ordering ordering, SubdomainCache* cache = nullptr,
+                 SingleCopy single = SingleCopy::none);
   /// Factors with the given dofs (the interface) ordered last, so that the Schur complement of
   /// K_rr onto them is available for dual_block() (explicit dual operator). Fixed dofs among
   /// them are left out (K^+ is zero there).
@@ -85,8 +92,14 @@ class Subdomain {
   static void release_dual_block_work();
   /// y = K^+ x (x and y of length size(); they may alias). Allocates nothing.
   void apply_pinv(const double* x, double* y) { apply_pinv_with(x, y, false); }
-  /// A single-precision copy of the factor for apply_pinv_single() (SparseCholesky::make_single).
-  void make_single() { chol_.make_single(); }
+  /// SubdomainSystem::repeats.
+  bool repeats() const { return sys_.repeats; }
+  /// Whether apply_pinv() refines single-precision solves (SingleCopy::instead_of_double).
+  bool single_only() const { return chol_.refines(); }
+  /// Bytes kept for the refinement (SparseCholesky::refinement_bytes).
+  long refinement_bytes() const { return chol_.refinement_bytes(); }
+  /// The refined solves (SparseCholesky::refinement_stats).
+  SparseCholesky::RefinementStats refinement_stats() const { return chol_.refinement_stats(); }
   long single_bytes() const { return chol_.single_bytes(); }
   const void* single_data() const { return chol_.single_data(); }
   /// apply_pinv() with the single-precision copy of the factor (SparseCholesky::solve_single):
@@ -128,7 +141,7 @@ class Subdomain {
  private:
   void apply_pinv_with(const double* x, double* y, bool single);
   void factorize_impl(Ordering ordering, const std::vector<int>* interface_dofs,
-                      SubdomainCache* cache);
+                      SubdomainCache* cache, SingleCopy single = SingleCopy::none);
   Eigen::SparseMatrix<double> reduced_matrix();
   SubdomainSystem sys_;
   std::shared_ptr<const Eigen::SparseMatrix<double>> shared_K_;  // K_i when interned (sys_.K empty)

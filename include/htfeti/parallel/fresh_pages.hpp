@@ -31,8 +31,15 @@ inline void resize_resident(Eigen::SparseMatrix<double>& M, Eigen::Index rows, E
   populate(M.innerIndexPtr(), sizeof(int) * static_cast<std::size_t>(nnz));
 }
 
-/// Routes CHOLMOD's allocations (SuiteSparse_config's malloc, calloc and realloc) through
-/// populate(). Called once before the first factorization; idempotent and thread-safe.
+/// Routes CHOLMOD's allocations (SuiteSparse_config's malloc, calloc, realloc and free)
+/// through populate() and, for blocks of kPopulateBytes and more, a pool that keeps freed
+/// blocks (up to 256 MiB) for the next ones, so that the blocks one factorization frees serve
+/// the next with pages already resident (off under AddressSanitizer). Called once before the
+/// first factorization; idempotent and thread-safe.
 void populate_cholmod_allocations();
+
+/// Returns the pool's idle blocks to the system (after the factorizations of a setup).
+/// Thread-safe.
+void release_idle_blocks();
 
 }  // namespace htfeti

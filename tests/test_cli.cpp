@@ -1376,7 +1376,7 @@ TEST_F(Cli, AllocationFailureWhileRankZeroSendsTheMeshEndsEveryRank) {
 // so (the limit named, or "out of memory"), and leaves no output behind.
 TEST_F(Cli, AddressSpaceLimitEndsEveryRankWithoutHanging) {
   int refused = 0, solved = 0;
-  for (int mib = 600; mib <= 1400; mib += 100) {
+  for (int mib = 600; mib <= 1200; mib += 100) {
     const std::string cmd = "ulimit -v " + std::to_string(mib * 1024) + " && timeout 120 " +
                             mpiexec + " -n 2 " + bin +
                             " solve --problem membranes -n 1024 --subdomains 8 --report r.json "

@@ -7,6 +7,7 @@
 #include <atomic>
 #include <chrono>
 #include <cmath>
+#include <cstdlib>
 #include <cstring>
 #include <numeric>
 #include <thread>
@@ -257,6 +258,28 @@ TEST(FreshPages, PooledBlocksKeepTheirContents) {
   EXPECT_EQ(std::count(c, c + 3 * n, 0.0), static_cast<long>(3 * n));
   SuiteSparse_config.free_func(c);
   release_idle_blocks();
+}
+
+// rand() and srand() have one state per thread (sparse_cholesky.cpp: METIS orders on several
+// threads at once): the C library's sequence for a seed (glibc's first values for seed 1), and
+// two threads drawing at once each get their seed's sequence.
+TEST(SparseCholesky, RandomNumbersPerThreadFollowTheirSeed) {
+  std::srand(1);
+  EXPECT_EQ(std::rand(), 1804289383);
+  EXPECT_EQ(std::rand(), 846930886);
+  const auto draws = [](unsigned seed) {
+    std::srand(seed);
+    std::vector<int> v(1000000);  // long enough for the two threads to overlap
+    for (int& x : v) x = std::rand();
+    return v;
+  };
+  const std::vector<int> a = draws(4321), b = draws(77);
+  std::vector<int> ta, tb;
+  std::thread t1([&] { ta = draws(4321); }), t2([&] { tb = draws(77); });
+  t1.join(), t2.join();
+  EXPECT_EQ(ta, a);
+  EXPECT_EQ(tb, b);
+  EXPECT_NE(a, b);
 }
 
 TEST(Subdomain, NotPositiveDefiniteIsAnError) {

@@ -103,9 +103,9 @@ std::optional<OperatorCost> estimate_operator_cost(const Model& model, const Fet
   // nonzero per slot, so every rank gets the same values whatever the number of ranks.
   constexpr int kFields = 6;
   std::vector<double> slots(kCostSamples * kFields, 0.0);
-  // The samples of a rank side by side on its threads (assembly and analysis; METIS itself is
-  // serialized, see metis_mutex): 0.15-0.17 -> 0.09-0.13 s on the METIS-split 40^3 cube, two
-  // threads.
+  // The samples of a rank side by side on its threads (assembly and analysis; METIS's random
+  // numbers are per thread, see sparse_cholesky.cpp): 0.15-0.17 -> 0.09-0.13 s on the
+  // METIS-split 40^3 cube, two threads (measured while METIS calls were still serialized).
   int failed = 0;
   const int count = static_cast<int>(ids.size());
 #pragma omp parallel for schedule(dynamic) reduction(max : failed)

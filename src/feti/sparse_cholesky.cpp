@@ -1,6 +1,7 @@
 #include "htfeti/feti/sparse_cholesky.hpp"
 
 #include <cholmod.h>
+#include <stdlib.h>  // random_r, initstate_r (glibc)
 
 #include <algorithm>
 #include <chrono>
@@ -265,11 +266,39 @@ std::shared_ptr<cholmod_factor> share_factor(cholmod_factor* L) {
 }
 }  // namespace
 
-// METIS keeps its random number generator in global state (GKlib), reseeded at the start of
-// every call: two threads ordering at once interleave it and get orderings that depend on the
-// timing, and so results that depend on the number of threads. METIS calls are serialized (with
-// the symbolic cache they are few: one per distinct pattern).
-static std::mutex metis_mutex;
+// METIS draws its random numbers from the C library's rand(), reseeded (srand) at the start of
+// every call: with the C library's one state for the process, two threads ordering at once would
+// interleave their draws and get orderings that depend on the timing. The program defines rand()
+// and srand() itself, with the C library's generator (random_r over a 128-byte state: the
+// TYPE_3 generator of glibc's rand(), which starts as if seeded with 1) and one state per
+// thread, so that every METIS call draws the sequence its own seed gives whatever runs beside
+// it: the same orderings and partitions as from glibc's rand(), bit for bit, and the orderings
+// of several threads at once.
+namespace {
+struct ThreadRandom {
+  random_data data{};
+  char state[128] = {};
+  bool seeded = false;
+  void seed(unsigned s) {
+    data = random_data{};
+    initstate_r(s, state, sizeof state, &data);
+    seeded = true;
+  }
+};
+thread_local ThreadRandom thread_random;
+}  // namespace
+}  // namespace htfeti
+
+extern "C" int rand() noexcept {
+  htfeti::ThreadRandom& r = htfeti::thread_random;
+  if (!r.seeded) r.seed(1);
+  std::int32_t value = 0;
+  random_r(&r.data, &value);
+  return value;
+}
+extern "C" void srand(unsigned seed) noexcept { htfeti::thread_random.seed(seed); }
+
+namespace htfeti {
 
 struct SparseCholesky::Impl {
   cholmod_common common;
@@ -373,7 +402,6 @@ static cholmod_factor* analyze_with_last(cholmod_sparse& view,
     cholmod_sparse vi = upper_view(Aii);
     std::vector<int> pi(ni);
     if (ni > 0) {
-      std::lock_guard<std::mutex> lock(metis_mutex);
       // The matrix is a valid symmetric pattern built here, so METIS fails only when its own
       // allocations do (it reports METIS_ERROR, which CHOLMOD passes on as CHOLMOD_INVALID):
       // out of memory, as measured under an address-space limit.
@@ -525,9 +553,6 @@ void SparseCholesky::factorize_impl(const Eigen::SparseMatrix<double>& A,
     // the cached analysis is the one this pattern would get
   } else if (last) {
     impl_->factor = analyze_with_last(view, upper, *last, impl_->method, c);
-  } else if (impl_->method == 1) {
-    std::lock_guard<std::mutex> lock(metis_mutex);
-    impl_->factor = cholmod_analyze(&view, &c);
   } else {
     impl_->factor = cholmod_analyze(&view, &c);
   }
@@ -1005,10 +1030,7 @@ SparseCholesky::SymbolicStats SparseCholesky::symbolic_stats(const Eigen::Sparse
   Eigen::SparseMatrix<double> upper = A.triangularView<Eigen::Upper>();
   upper.makeCompressed();
   cholmod_sparse view = upper_view(upper);
-  {
-    std::lock_guard<std::mutex> lock(metis_mutex);  // (METIS: see metis_mutex)
-    chol.impl_->factor = cholmod_analyze(&view, &c);
-  }
+  chol.impl_->factor = cholmod_analyze(&view, &c);
   if (!chol.impl_->factor) cholmod_failed(c, "CHOLMOD analysis failed");
   const cholmod_factor* L = chol.impl_->factor;
   SymbolicStats st;

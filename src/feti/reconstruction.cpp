@@ -105,8 +105,16 @@ double DualProblem::energy(const std::vector<Vec>& u) const {
   // the sum below is in subdomain order, so the result does not depend on the thread count.
   std::vector<double> e(layout_.num_subdomains, 0.0);
   const int n = static_cast<int>(subs_.size());
+  RegionError failure;  // (rebuilding K_i allocates: carried out of the region)
 #pragma omp parallel for schedule(dynamic)
-  for (int s = 0; s < n; ++s) e[subs_[s]->id()] = subs_[s]->energy(u[s]);
+  for (int s = 0; s < n; ++s) {
+    try {
+      e[subs_[s]->id()] = subs_[s]->energy(u[s]);
+    } catch (const std::exception& ex) {
+      failure.record(ex);
+    }
+  }
+  failure.rethrow();
   if (comm_.size() > 1)
     MPI_Allreduce(MPI_IN_PLACE, e.data(), static_cast<int>(e.size()), MPI_DOUBLE, MPI_SUM,
                   comm_.raw());

@@ -460,27 +460,19 @@ void DualProblem::set_single_sweeps(bool on) {
 
 void DualProblem::apply_F(const Vec& lambda, Vec& y) {
   multipliers_.gather(lambda);
-  const int nc = static_cast<int>(clusters_.size());
   // A solve can throw (out of memory when a refined solve's matrix is factored again in double,
-  // or CHOLMOD's first work arrays): carried out of the region, not left to end the process.
-  RegionError failure;
-#pragma omp parallel for schedule(dynamic) if (outer_parallel_)
-  for (int c = 0; c < nc; ++c) {
-    try {
-      for (int i = 0; i < members(c); ++i) {  // the cluster's part of lambda
-        const auto& mult = multipliers_.of_subdomain[sub_of(c, i)];
-        Vec& l = lam_[c][i];
-        for (size_t j = 0; j < mult.size(); ++j) l[j] = multipliers_.ext_in[mult[j]];
-      }
-      clusters_[c]->apply_dual(lam_[c], out_[c]);  // the bottleneck
-      for (int i = 0; i < members(c); ++i)  // each subdomain's own segment of multipliers_.pairs
-        multipliers_.pairs.segment(multipliers_.pair_first[sub_of(c, i)], out_[c][i].size()) =
-            out_[c][i];
-    } catch (const std::exception& e) {
-      failure.record(e);
+  // or CHOLMOD's first work arrays): for_each_cluster carries it out of the parallel region.
+  for_each_cluster([&](int c) {
+    for (int i = 0; i < members(c); ++i) {  // the cluster's part of lambda
+      const auto& mult = multipliers_.of_subdomain[sub_of(c, i)];
+      Vec& l = lam_[c][i];
+      for (size_t j = 0; j < mult.size(); ++j) l[j] = multipliers_.ext_in[mult[j]];
     }
-  }
-  failure.rethrow();
+    clusters_[c]->apply_dual(lam_[c], out_[c]);  // the bottleneck
+    for (int i = 0; i < members(c); ++i)  // each subdomain's own segment of multipliers_.pairs
+      multipliers_.pairs.segment(multipliers_.pair_first[sub_of(c, i)], out_[c][i].size()) =
+          out_[c][i];
+  });
   multipliers_.combine_subdomains();  // F lambda, summed over subdomains in a fixed order
   y = multipliers_.ext_out.head(multipliers_.layout.n_owned());
 }

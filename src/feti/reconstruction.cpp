@@ -17,22 +17,6 @@
 
 namespace htfeti {
 
-// OpenMP over the rank's clusters; an exception inside is carried out of the region.
-template <class Body>
-void DualProblem::for_each_cluster(Body body) {
-  const int nc = static_cast<int>(clusters_.size());
-  RegionError failure;
-#pragma omp parallel for schedule(dynamic) if (outer_parallel_)
-  for (int c = 0; c < nc; ++c) {
-    try {
-      body(c);
-    } catch (const std::exception& e) {
-      failure.record(e);
-    }
-  }
-  failure.rethrow();
-}
-
 void DualProblem::apply_B(const std::vector<Vec>& u, Vec& out) {
   multipliers_.pairs.setZero();
   for (size_t s = 0; s < subs_.size(); ++s)

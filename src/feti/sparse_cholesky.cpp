@@ -90,6 +90,20 @@ cholmod_sparse upper_view(const Eigen::SparseMatrix<double>& upper) {
   return view;
 }
 
+// The numeric factorization of `view` into the analysed L (its values made or overwritten), with
+// BLAS on one thread (the same bits on any number of threads, blas_buffers.hpp); CHOLMOD's
+// workspace freed after (O(n) per factor: not kept). Throws if A is not positive definite.
+void factor_numeric(cholmod_sparse& view, cholmod_factor* L, cholmod_common& c) {
+  {
+    const BlasOnOneThread one;
+    cholmod_factorize(&view, L, &c);
+  }
+  if (c.status == CHOLMOD_NOT_POSDEF || L->minor < L->n)
+    throw std::runtime_error("CHOLMOD: matrix is not positive definite");
+  if (c.status < 0) cholmod_failed(c, "CHOLMOD factorization failed");
+  cholmod_free_work(&c);
+}
+
 // The key of a right-hand side for the memos below: its nonzeros (position, value) and their
 // FNV-1a hash. Keys are compared in full (positions and values), not only by the hash.
 std::uint64_t nonzero_key(const double* x, long n, std::vector<long>& at,
@@ -568,15 +582,8 @@ void SparseCholesky::factorize_impl(const Eigen::SparseMatrix<double>& A,
     }
   }
   const auto t1 = clock::now();
-  {
-    const BlasOnOneThread one;  // the same bits on any number of threads (blas_buffers.hpp)
-    cholmod_factorize(&view, impl_->factor, &c);
-  }
-  if (c.status == CHOLMOD_NOT_POSDEF || impl_->factor->minor < impl_->factor->n)
-    throw std::runtime_error("CHOLMOD: matrix is not positive definite");
-  if (c.status < 0) cholmod_failed(c, "CHOLMOD factorization failed");
+  factor_numeric(view, impl_->factor, c);
   impl_->n = static_cast<int>(A.rows());
-  cholmod_free_work(&c);  // the analysis workspace is O(n) per factor: do not keep it
   const auto t2 = clock::now();
   // A repeated pattern (its analysis was reused): keep this numeric factor for equal matrices.
   if (cache && reused && cache->numeric_bytes_ > 0) {
@@ -861,19 +868,18 @@ void SparseCholesky::solve_refined(const double* b, double* out) {
     last_update = update;
   }
   // The single-precision copy is too coarse for this matrix: its double factor again (a shared
-  // one is still there; either is the factor its analysis and values give, bit for bit).
+  // one is still there; either is the factor its analysis and values give, bit for bit). The
+  // kept triangle is not needed after that.
+  if (!has_double()) {
+    cholmod_sparse view = upper_view(m.a);
+    factor_numeric(view, m.factor, m.common);
+  }
   m.refactored = true;
   m.refine = false;
-  if (has_double()) return solve(rb, out);
-  cholmod_sparse view = upper_view(m.a);
-  {
-    const BlasOnOneThread one;
-    cholmod_factorize(&view, m.factor, &m.common);
-  }
-  if (m.common.status < 0 || m.factor->minor < m.factor->n)
-    cholmod_failed(m.common, "CHOLMOD factorization failed");
-  cholmod_free_work(&m.common);
+  Eigen::SparseMatrix<double>().swap(m.a);
+  std::vector<double>().swap(m.rr);
   solve(rb, out);
+  std::vector<double>().swap(m.rb);
 }
 
 const void* SparseCholesky::single_data() const { return impl_->xs.get(); }
@@ -1027,8 +1033,7 @@ SparseCholesky::SymbolicStats SparseCholesky::symbolic_stats(const Eigen::Sparse
                                                              Ordering ordering) {
   SparseCholesky chol(ordering);
   auto& c = chol.impl_->common;
-  Eigen::SparseMatrix<double> upper = A.triangularView<Eigen::Upper>();
-  upper.makeCompressed();
+  const Eigen::SparseMatrix<double> upper = upper_triangle(A);
   cholmod_sparse view = upper_view(upper);
   chol.impl_->factor = cholmod_analyze(&view, &c);
   if (!chol.impl_->factor) cholmod_failed(c, "CHOLMOD analysis failed");

@@ -263,8 +263,8 @@ class Cluster {
   bool single_ = false, use_single_ = false;  // single sweeps set up / in use
   // With single sweeps each subdomain keeps the single-precision copy alone, its double solves
   // refined with K_rr (Subdomain::SingleCopy): half the factors' memory and of the pages that
-  // the setup makes new.
-  // Subdomains of a generated grid (SubdomainSystem::repeats) share factors: they keep double.
+  // the setup makes new. Subdomains of a generated grid (SubdomainSystem::repeats) share their
+  // factors, and keep the double values beside the copy.
   Subdomain::SingleCopy single_copy(const Subdomain& sd) const {
     return !single_       ? Subdomain::SingleCopy::none
            : sd.repeats() ? Subdomain::SingleCopy::beside_double

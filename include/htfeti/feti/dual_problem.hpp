@@ -39,6 +39,7 @@
 #include <optional>
 #include <vector>
 
+#include "htfeti/errors.hpp"
 #include "htfeti/feti/cluster.hpp"
 #include "htfeti/feti/coarse_space.hpp"
 #include "htfeti/feti/constraints.hpp"
@@ -514,5 +515,22 @@ class DualProblem {
   bool outer_parallel_ = false;  // threads over clusters (true) or inside each cluster
   Ordering ordering_ = Ordering::amd;
 };
+
+// OpenMP over the rank's clusters; an exception inside is carried out of the region (the
+// other clusters still run; RegionError rethrows the first one after it).
+template <class Body>
+void DualProblem::for_each_cluster(Body body) {
+  const int nc = static_cast<int>(clusters_.size());
+  RegionError failure;
+#pragma omp parallel for schedule(dynamic) if (outer_parallel_)
+  for (int c = 0; c < nc; ++c) {
+    try {
+      body(c);
+    } catch (const std::exception& e) {
+      failure.record(e);
+    }
+  }
+  failure.rethrow();
+}
 
 }  // namespace htfeti

@@ -151,10 +151,11 @@ struct ProblemArgs {
                     cluster_split = "mesh";
   std::string elements = "128", subdomains = "8";
   int cluster_size = 1;
+  int seed = kDefaultPartitionSeed;
   double amplitude = 1.0;
   CLI::Option *o_problem = nullptr, *o_elements = nullptr, *o_subdomains = nullptr, *o_m = nullptr,
               *o_glue = nullptr, *o_element = nullptr, *o_amplitude = nullptr,
-              *o_objective = nullptr, *o_cluster_split = nullptr;
+              *o_objective = nullptr, *o_cluster_split = nullptr, *o_seed = nullptr;
 };
 
 void add_problem_args(CLI::App* cmd, ProblemArgs& p) {
@@ -193,6 +194,12 @@ void add_problem_args(CLI::App* cmd, ProblemArgs& p) {
                                   "the cells are stretched, largest facet >= 2.5 x smallest; else "
                                   "volume) [decomposition.objective]")
                       ->capture_default_str();
+  p.o_seed = cmd->add_option("--partition-seed", p.seed,
+                             "problem files split by METIS: METIS's random seed; other seeds give "
+                             "other splits of the same quality by METIS's measure, and the "
+                             "solver's iterations vary with them [decomposition.seed]")
+                 ->capture_default_str()
+                 ->check(kStrictInt);
   p.o_cluster_split =
       cmd->add_option("--cluster-split", p.cluster_split,
                       "problem files split by METIS, H-TFETI-DP: how clusters are formed, mesh "
@@ -279,6 +286,12 @@ std::shared_ptr<const Model> file_model(const ProblemArgs& p, const TableArgs& a
       throw std::invalid_argument(
           "--partition-objective is for meshes split by METIS (decomposition.subdomains = N)");
   }
+  if (p.o_seed->count()) {
+    spec.partition_seed = p.seed;
+    if (spec.subdomains.size() != 1 || !spec.mesh_parts.empty())
+      throw std::invalid_argument(
+          "--partition-seed is for meshes split by METIS (decomposition.subdomains = N)");
+  }
   if (p.o_cluster_split->count()) {
     spec.cluster_split = parse_cluster_split(p.cluster_split);
     if (spec.subdomains.size() != 1 || !spec.mesh_parts.empty())
@@ -329,6 +342,8 @@ std::shared_ptr<const Model> builtin_model(const ProblemArgs& p, const TableArgs
     throw std::invalid_argument("--partition-objective is for problem files split by METIS");
   if (p.o_cluster_split->count())
     throw std::invalid_argument("--cluster-split is for problem files split by METIS");
+  if (p.o_seed->count())
+    throw std::invalid_argument("--partition-seed is for problem files split by METIS");
   DecompositionOptions& d = run.solve.decomposition;
   d.problem = parse_problem(p.problem);
   d.element = parse_element(p.element);

@@ -14,6 +14,38 @@ ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 BIN = os.environ.get("HTFETI_BIN") or os.path.join(ROOT, "build", "htfeti")
 RESULTS = os.path.join(ROOT, "bench", "results")
 
+# The cube-obstacle of issue 32 as a problem file (bench/cases/cube40_metis64*.toml): n^3 hex8
+# cells, the obstacle u_z >= -amp sin(pi x / 50), subdomains N (METIS) or [s, s, s] (a box).
+CUBE_OBSTACLE_TOML = """[mesh]
+generator = "box"
+size = [100.0, 100.0, 100.0]
+elements = [{n}, {n}, {n}]
+element = "hex8"
+
+[physics]
+type = "elasticity"
+young = 2.1e7
+poisson = 0.3
+density = 7850
+gravity = [0.0, 0.0, -9.8066]
+
+[[dirichlet]]
+group = "x0"
+value = [0.0, 0.0, 0.0]
+
+[[contact]]
+group = "z0"
+direction = [0.0, 0.0, -1.0]
+gap = "{amp!r}*sin(pi*x/50)"
+
+[decomposition]
+subdomains = {subdomains}
+cluster_size = 1
+
+[solver]
+rtol = {rtol!r}
+"""
+
 
 def env(threads=1):
     e = dict(os.environ)

@@ -13,7 +13,9 @@ Table 3 full size (n = 3168, N_s = 32) for m = 4 (about 10 GB and two minutes pe
 compare): metis40 (bench/cases/cube40_metis64.toml), metis80 (cube80_metis512.toml, one run:
 about a minute and 7 GB), metis80pre (the same with --mprgp-expansion preconditioned),
 metis40a20 and metis80a20 (the same cubes with the obstacle's amplitude A = 20, *_a20.toml),
-bracket (examples/bracket.toml, tet4). The builds take turns run by run, so that the drift of a
+bracket (examples/bracket.toml, tet4), metis80dry (the 80^3 cube at A = 20 with --dry-run:
+reading, generating and splitting the mesh and planning, nothing set up; wall time only, medians
+of --repeat). The builds take turns run by run, so that the drift of a
 shared machine falls on both alike. Each row keeps the phase timings of every run.
 Writes bench/results/compare_builds.json (or --out)."""
 import argparse
@@ -34,7 +36,7 @@ p.add_argument("--threads", type=int, default=2)
 p.add_argument("--full", action="store_true")
 p.add_argument("--cases", nargs="+",
                choices=["membranes", "full", "metis40", "metis80", "metis80pre", "metis40a20",
-                        "metis80a20", "bracket"])
+                        "metis80a20", "bracket", "metis80dry"])
 p.add_argument("--out", default="compare_builds.json")
 a = p.parse_args()
 
@@ -58,6 +60,9 @@ CASES = {
                    [os.path.join(ROOT, "bench", "cases", "cube80_metis512_a20.toml")], False, 1),
     "bracket": ("bracket, tet4, 12 parts (no VTU)",
                 [os.path.join(ROOT, "examples", "bracket.toml")], False, a.repeat),
+    "metis80dry": ("cube-obstacle 80^3 split by METIS into 512, A = 20, --dry-run (model only)",
+                   [os.path.join(ROOT, "bench", "cases", "cube80_metis512_a20.toml"),
+                    "--dry-run"], False, a.repeat),
 }
 names = a.cases or (["membranes", "full"] if a.full else ["membranes"])
 cases = [CASES[n] for n in names]
@@ -66,18 +71,30 @@ rows = []
 for name, args, vtu, repeat in cases:
     row = {"case": name, "args": args}
     runs = {"before": ([], []), "after": ([], [])}
+    dry = "--dry-run" in args  # no report: wall time only
     for _ in range(repeat):
         for label, binary in (("before", a.before), ("after", a.after)):
             walls, reports = runs[label]
             with tempfile.TemporaryDirectory() as d:
-                cmd = [binary, "solve", *args, "--report", os.path.join(d, "r.json")]
-                cmd += ["--vtu", os.path.join(d, "u.vtu")] if vtu else ["--no-vtu"]
+                cmd = [binary, "solve", *args]
+                if not dry:
+                    cmd += ["--report", os.path.join(d, "r.json")]
+                    cmd += ["--vtu", os.path.join(d, "u.vtu")] if vtu else ["--no-vtu"]
                 t0 = time.perf_counter()
                 subprocess.run(cmd, check=True, env=env(a.threads), stdout=subprocess.DEVNULL)
                 walls.append(time.perf_counter() - t0)
+                if dry:
+                    continue
                 with open(os.path.join(d, "r.json")) as f:
                     reports.append(json.load(f))
                 vtu_bytes = os.path.getsize(os.path.join(d, "u.vtu")) if vtu else 0
+    if dry:
+        for label, (walls, _) in runs.items():
+            row[label] = {"wall_median_s": statistics.median(walls), "walls_s": walls}
+        print(f"{name}: before {row['before']['wall_median_s']:.2f} s, after "
+              f"{row['after']['wall_median_s']:.2f} s", flush=True)
+        rows.append(row)
+        continue
     for label, (walls, reports) in runs.items():
         r = reports[0]
         row[label] = {"wall_median_s": statistics.median(walls), "walls_s": walls,

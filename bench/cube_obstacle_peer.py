@@ -42,7 +42,7 @@ import sys
 import tempfile
 import time
 
-from common import env, petsc_program, save, solve
+from common import CUBE_OBSTACLE_TOML, env, petsc_program, save, solve
 
 p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
 p.add_argument("--n", type=int, nargs="+", default=[40, 80])
@@ -61,35 +61,6 @@ a = p.parse_args()
 
 exe = petsc_program("petsc_cube_obstacle")
 
-TEMPLATE = """[mesh]
-generator = "box"
-size = [100.0, 100.0, 100.0]
-elements = [{n}, {n}, {n}]
-element = "hex8"
-
-[physics]
-type = "elasticity"
-young = 2.1e7
-poisson = 0.3
-density = 7850
-gravity = [0.0, 0.0, -9.8066]
-
-[[dirichlet]]
-group = "x0"
-value = [0.0, 0.0, 0.0]
-
-[[contact]]
-group = "z0"
-direction = [0.0, 0.0, -1.0]
-gap = "{amp!r}*sin(pi*x/50)"
-
-[decomposition]
-subdomains = {subdomains}
-cluster_size = 1
-
-[solver]
-rtol = {rtol!r}
-"""
 
 
 def peer(n, amp, rtol):
@@ -157,7 +128,7 @@ with tempfile.TemporaryDirectory() as tmp:
                     continue
                 path = os.path.join(tmp, f"c{n}_{split}_{amp}.toml")
                 with open(path, "w") as f:
-                    f.write(TEMPLATE.format(n=n, amp=amp, subdomains=sub, rtol=a.rtol))
+                    f.write(CUBE_OBSTACLE_TOML.format(n=n, amp=amp, subdomains=sub, rtol=a.rtol))
                 hr = repeated(lambda: htfeti(path, extra))
                 h = hr[0]
                 what = split.replace("_preconditioned", " split, preconditioned expansion")
@@ -182,7 +153,7 @@ with tempfile.TemporaryDirectory() as tmp:
                               "energy": h["objective"], "energy_error": err(h["objective"])}
                 if a.check_energy:
                     with open(path, "w") as f:
-                        f.write(TEMPLATE.format(n=n, amp=amp, subdomains=sub, rtol=1e-8))
+                        f.write(CUBE_OBSTACLE_TOML.format(n=n, amp=amp, subdomains=sub, rtol=1e-8))
                     tight = htfeti(path, extra)["objective"]
                     row[split]["tight_energy_error"] = err(tight)
                     if err(tight) > 1e-8:

@@ -439,11 +439,11 @@ void read_conditions(const toml::table& root, ProblemSpec& spec) {
 }
 
 // [decomposition]: subdomains (METIS: N; a generated box: one per axis), cluster_size, glue,
-// objective (METIS's).
+// objective and seed (METIS's).
 void read_decomposition(const toml::table& root, ProblemSpec& spec) {
   if (const toml::table* dec = table_of(root, "decomposition", false)) {
     check_keys(*dec, "decomposition",
-               {"subdomains", "cluster_size", "glue", "objective", "cluster_split"});
+               {"subdomains", "cluster_size", "glue", "objective", "cluster_split", "seed"});
     if (const toml::node* s = dec->get("subdomains")) {
       spec.subdomains.clear();
       if (s->is_integer()) {
@@ -487,6 +487,14 @@ void read_decomposition(const toml::table& root, ProblemSpec& spec) {
     } catch (const std::invalid_argument& e) {
       bad("decomposition.cluster_split", e.what());
     }
+    if (dec->contains("seed") && (!spec.mesh_parts.empty() || spec.subdomains.size() != 1))
+      bad("decomposition.seed",
+          "is for meshes split by METIS (decomposition.subdomains = N); a mesh partitioned in "
+          "advance keeps its parts, a box split into boxes draws nothing");
+    const long long seed = get_int(*dec, "decomposition", "seed", kDefaultPartitionSeed);
+    if (seed < 0 || seed > 999999999LL)
+      bad("decomposition.seed", "must be an integer from 0 to 999999999");
+    spec.partition_seed = static_cast<int>(seed);
   }
 }
 

@@ -399,6 +399,34 @@ TEST(Partition, AutomaticObjectiveKeepsTheVolumeOnRegularCells) {
             PartitionObjective::area);
 }
 
+// METIS's seed: the same seed gives the same split, another seed another split, each a
+// partition of all cells into the parts asked for, within METIS's balance and with every part
+// in one piece (the repair holds for any seed).
+TEST(Partition, SeedChoosesAmongSplitsAndRepeats) {
+  const Mesh square = quad_strip(48, 48, 1.0, 1.0);
+  const auto split = [&](int seed) {
+    return partition_mesh(square, 12, 1, PartitionObjective::volume, ClusterSplit::mesh, seed);
+  };
+  const MeshPartition a = split(1), again = split(1), b = split(7);
+  EXPECT_EQ(a.cell_subdomain, again.cell_subdomain);
+  EXPECT_EQ(a.cell_subdomain,
+            partition_mesh(square, 12, 1, PartitionObjective::volume).cell_subdomain)
+      << "kDefaultPartitionSeed is the default";
+  EXPECT_NE(a.cell_subdomain, b.cell_subdomain);
+  for (const MeshPartition* p : {&a, &b}) {
+    ASSERT_EQ(p->num_subdomains, 12);
+    size_t cells = 0;
+    for (const auto& c : p->subdomain_cells) {
+      EXPECT_GE(c.size(), 48u * 48u / 12u * 9u / 10u);
+      EXPECT_LE(c.size(), 48u * 48u / 12u * 11u / 10u);
+      cells += c.size();
+    }
+    EXPECT_EQ(cells, 48u * 48u);
+    std::vector<int> part(p->cell_subdomain.begin(), p->cell_subdomain.end());
+    EXPECT_EQ(repair_parts(square, part, 0.0), 0) << "every part in one piece, none hinged";
+  }
+}
+
 // Clusters split from the mesh (ClusterSplit::mesh): the subdomains are numbered cluster-major,
 // every cluster holds its share of the subdomains (64 in clusters of 8: 8 each; 30 in clusters
 // of 4: 8 clusters of 3 or 4), and each cluster is one compact piece: its cells are joined by

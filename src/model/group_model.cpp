@@ -132,7 +132,7 @@ class MetisSplit final : public MeshSource {
   void split(const ProblemSpec& spec) {
     part_ = std::make_unique<MeshPartition>(
         partition_mesh(*mesh_, spec.subdomains.at(0), spec.cluster_size, spec.partition_objective,
-                       spec.cluster_split));
+                       spec.cluster_split, spec.partition_seed));
   }
   int dim() const override { return mesh_->dim; }
   int num_subdomains() const override { return part_->num_subdomains; }
@@ -167,6 +167,7 @@ class MetisSplit final : public MeshSource {
                                                         {"cells", mesh_->num_cells()}};
     j["partitioner"] = "metis";
     j["partition_objective"] = to_string(part_->objective);
+    j["partition_seed"] = spec.partition_seed;
     j["partition_repaired_cells"] = part_->repaired_cells;
     j["partition_contiguous_splits"] = part_->contiguous_splits;
     if (spec.cluster_size > 1) j["cluster_split"] = to_string(part_->cluster_split);

@@ -145,7 +145,8 @@ int find_bodies(const Mesh& mesh, std::vector<int>& cell_body) {
 // METIS k-way on the dual graph of the given cells (all cells: the whole mesh as it is);
 // part[e] in [0, nparts) for e in cells.
 void split_cells(const Mesh& mesh, const std::vector<int>* cells, int nparts_in,
-                 PartitionObjective objective, std::vector<idx_t>& part, bool contiguous = false) {
+                 PartitionObjective objective, int seed, std::vector<idx_t>& part,
+                 bool contiguous = false) {
   if (nparts_in <= 1) {
     if (cells)
       for (int e : *cells) part[e] = 0;
@@ -174,7 +175,7 @@ void split_cells(const Mesh& mesh, const std::vector<int>* cells, int nparts_in,
   std::vector<idx_t> out(ne), npart(nn);
   idx_t options[METIS_NOPTIONS];
   METIS_SetDefaultOptions(options);
-  options[METIS_OPTION_SEED] = 1;
+  options[METIS_OPTION_SEED] = seed;
   options[METIS_OPTION_NUMBERING] = 0;
   if (contiguous) options[METIS_OPTION_CONTIG] = 1;
   if (objective == PartitionObjective::area) {
@@ -226,14 +227,23 @@ SplitDefects split_defects(const Mesh& mesh, const std::vector<int>& cells,
       if (facets[i].first == facets[i - 1].first) join(facets[i].second, facets[i - 1].second);
   });
   const int by_node = components([&](auto join) {
-    std::vector<std::array<long long, 3>> at;  // (node, part, cell)
+    // The cells around each node (counting sort by node); each cell is joined to the first cell
+    // of its part met before it at that node. Linear in the cells' node lists.
+    std::vector<int> first(static_cast<size_t>(mesh.num_nodes()) + 1, 0);
     for (int e : cells)
-      for (int a = 0; a < nc; ++a)
-        at.push_back({mesh.cells[static_cast<size_t>(e) * nc + a], part[e], e});
-    std::sort(at.begin(), at.end());
-    for (size_t i = 1; i < at.size(); ++i)
-      if (at[i][0] == at[i - 1][0] && at[i][1] == at[i - 1][1])
-        join(static_cast<int>(at[i][2]), static_cast<int>(at[i - 1][2]));
+      for (int a = 0; a < nc; ++a) ++first[mesh.cells[static_cast<size_t>(e) * nc + a] + 1];
+    for (size_t v = 1; v < first.size(); ++v) first[v] += first[v - 1];
+    std::vector<int> around(static_cast<size_t>(first.back())),
+        fill(first.begin(), first.end() - 1);
+    for (int e : cells)
+      for (int a = 0; a < nc; ++a) around[fill[mesh.cells[static_cast<size_t>(e) * nc + a]]++] = e;
+    for (size_t v = 0; v + 1 < first.size(); ++v)
+      for (int i = first[v] + 1; i < first[v + 1]; ++i)
+        for (int j = first[v]; j < i; ++j)
+          if (part[around[j]] == part[around[i]]) {
+            join(around[i], around[j]);
+            break;
+          }
   });
   std::vector<char> used(cells.size(), 0);
   int parts = 0;
@@ -396,7 +406,7 @@ std::vector<int> cluster_subdomains(const std::vector<std::map<int, int>>& adjac
       std::vector<idx_t> out(ns);
       idx_t options[METIS_NOPTIONS];
       METIS_SetDefaultOptions(options);
-      options[METIS_OPTION_SEED] = 1;
+      options[METIS_OPTION_SEED] = kDefaultPartitionSeed;
       metis_check(METIS_PartGraphKway(&nv, &ncon, xadj.data(), adjncy.data(), nullptr, nullptr,
                                       adjwgt.data(), &nparts, nullptr, nullptr, options, &objval,
                                       out.data()),
@@ -487,7 +497,7 @@ long repair_parts(const Mesh& mesh, std::vector<int>& part, double max_share) {
 }
 
 MeshPartition partition_mesh(const Mesh& mesh, int subdomains, int cluster_size,
-                             PartitionObjective objective, ClusterSplit split) {
+                             PartitionObjective objective, ClusterSplit split, int seed) {
   if (subdomains < 1) throw std::invalid_argument("decomposition.subdomains must be positive");
   if (cluster_size < 1) throw std::invalid_argument("decomposition.cluster_size must be positive");
   const int ne = mesh.num_cells(), nn = mesh.num_nodes(), nc = cell_nodes(mesh.type);
@@ -528,7 +538,7 @@ MeshPartition partition_mesh(const Mesh& mesh, int subdomains, int cluster_size,
   const auto split_region = [&](const std::vector<int>* subset, const std::vector<int>& region,
                                 int k, std::vector<idx_t>& out, bool subdomain_parts,
                                 const std::string& what) {
-    split_cells(mesh, subset, k, objective, out);
+    split_cells(mesh, subset, k, objective, seed, out);
     const SplitDefects defects = k > 1 ? split_defects(mesh, region, out, facets) : SplitDefects{};
     if (!defects.hinged && !defects.pieces) return;
     // A few cells in pieces: moved to a neighbouring part (repair_split); METIS's split is kept
@@ -544,7 +554,7 @@ MeshPartition partition_mesh(const Mesh& mesh, int subdomains, int cluster_size,
       out = metis_split;
     }
     ++p.contiguous_splits;
-    split_cells(mesh, subset, k, objective, out, true);
+    split_cells(mesh, subset, k, objective, seed, out, true);
     if (subdomain_parts && split_defects(mesh, region, out, facets).hinged)
       throw std::invalid_argument("METIS could not split " + what + " into " + std::to_string(k) +
                                   " subdomains without one hinged at a node (a mechanism): use "

@@ -75,6 +75,8 @@ struct ProblemSpec {
   PartitionObjective partition_objective = PartitionObjective::automatic;
   /// How a METIS split forms the clusters (cluster_size > 1; partition.hpp).
   ClusterSplit cluster_split = ClusterSplit::mesh;
+  /// METIS's random seed when a mesh is split (METIS_OPTION_SEED; partition.hpp).
+  int partition_seed = kDefaultPartitionSeed;
 };
 
 /// The cube-obstacle benchmark (DESIGN.md; the paper's Table 4, ESPRESO's former obstacle

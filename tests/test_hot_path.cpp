@@ -113,6 +113,30 @@ TEST_P(HotPath, OperatorsAllocateNothing) {
   EXPECT_EQ(counting.allocations(), 0) << c.name;
 }
 
+// The preconditioner allocates nothing from its first application on (the Dirichlet one's
+// factor of K_ii makes its solve workspace in the setup): its loop over the subdomains cannot
+// pass an allocation failure on.
+TEST(HotPath, PreconditionerAllocatesNothingFromItsFirstApplication) {
+  Comm comm;
+  const auto model =
+      make_builtin_model({ProblemKind::membranes, ElementKind::q1, 32, 4, 1, Glue::averages});
+  for (const PreconditionerKind kind :
+       {PreconditionerKind::lumped, PreconditionerKind::dirichlet}) {
+    FetiOptions o;
+    o.dual_operator = DualOperator::implicit;
+    o.preconditioner = kind;
+    o.dirichlet_storage = 2;  // implicit S_i: a sparse factor of K_ii
+    auto dual = test::make_dual(*model, comm, o);
+    const int n = dual->n_owned();
+    const Eigen::VectorXd x = test::pseudo_random(*dual, 1.0);
+    Eigen::VectorXd z(n);
+    Counting counting;
+    dual->apply_preconditioner(x, z);
+    EXPECT_EQ(counting.allocations(), 0) << to_string(kind);
+    EXPECT_GT(z.norm(), 0.0);
+  }
+}
+
 INSTANTIATE_TEST_SUITE_P(
     Membranes, HotPath,
     ::testing::Values(

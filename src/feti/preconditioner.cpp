@@ -141,6 +141,14 @@ LocalPreconditioner::LocalPreconditioner(const Eigen::SparseMatrix<double>& K,
     }
   }
   work_.resize(ni);
+  // One solve here makes the factor's solve workspace (CHOLMOD's dense work arrays, kept between
+  // solves), so that apply(), which runs in the dual problem's parallel loops, allocates
+  // nothing from its first call on: an allocation failure happens in the setup, where it is
+  // reported ("out of memory", exit 2), not inside a loop that cannot pass it on.
+  if (ni > 0) {
+    work_.setZero();
+    Kii_.solve(work_.data(), work_.data());
+  }
 }
 
 void LocalPreconditioner::apply(const double* x, double* y) {

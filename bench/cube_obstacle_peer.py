@@ -25,12 +25,15 @@ compared. --check-energy also solves each case with htfeti at rtol 1e-8 and asse
 energy equals the reference to 1e-8 (relative): the two codes solve the same discrete problem.
 
 Wall times: the whole process (mpiexec and start-up included), medians of --repeat runs where a
-run takes under a minute, one run above. Peak RSS: htfeti's report (one rank); the peer's sum
+run takes under a minute, one run above. With --turns K the peer and the htfeti rows are run K
+times in turns and each wall time and ratio is the median over the turns (the ratio of each
+turn is kept): this host's speed can drift by a quarter within minutes, and the codes taking
+turns see the drift alike. Peak RSS: htfeti's report (one rank); the peer's sum
 over its ranks (getrusage).
 
 Installs petsc-dev with apt-get if it is missing (as root). Usage:
   bench/cube_obstacle_peer.py [--n 40 80] [--amplitude 1 20] [--ranks 2] [--repeat 3]
-                              [--check-energy] [--splits box metis ...]
+                              [--check-energy] [--splits box metis ...] [--turns 1]
                               [--out cube_obstacle_peer.json]
 Writes bench/results/OUT and prints a markdown table."""
 import argparse
@@ -51,6 +54,10 @@ p.add_argument("--ranks", type=int, default=2)
 p.add_argument("--repeat", type=int, default=3)
 p.add_argument("--rtol", type=float, default=1e-4)
 p.add_argument("--check-energy", action="store_true")
+p.add_argument("--turns", type=int, default=1,
+               help="run the peer and the htfeti rows this many times in turns (peer, then each "
+                    "split, then again); wall times and ratios are the medians over the turns, "
+                    "so that a drift of the machine falls on every code alike")
 p.add_argument("--splits", nargs="+", default=["box", "metis", "box_preconditioned",
                                                "metis_preconditioned"],
                help="the htfeti rows to run (default: these four; also box_projected_cg, "
@@ -90,6 +97,80 @@ def htfeti(path, extra=()):
     return r
 
 
+def one_turn(n, amp, ns, tmp, ref, err, check):
+    """The peer and every split once (each repeated as --repeat says): one turn's row."""
+    runs = repeated(lambda: peer(n, amp, a.rtol))
+    r = runs[0]
+    row = {"n": n, "amplitude": amp, "reference_energy": ref, "peer": {
+        "code": f"PETSc SNES VI (rsls) + CG/GAMG, {a.ranks} ranks",
+        "runs": len(runs), "wall_s": statistics.median(x["wall_s"] for x in runs),
+        "total_s": statistics.median(x["total_s"] for x in runs),
+        "newton_iterations": r["newton_iterations"], "cg_iterations": r["cg_iterations"],
+        "peak_rss_gb": r["peak_rss_mb_sum"] / 1024, "energy": r["objective"],
+        "energy_error": err(r["objective"]), "contact_nodes": r["contact_nodes"]}}
+    pre = ["--mprgp-expansion", "preconditioned"]
+    pcg = ["--mprgp-expansion", "projected-cg"]
+    grd = ["--mprgp-expansion", "gradient"]
+    dir_ = ["--preconditioner", "dirichlet"]
+    dbl = ["--factor-precision", "double"]
+    for split, sub, extra in (("box", f"[{ns}, {ns}, {ns}]", []),
+                              ("box_double", f"[{ns}, {ns}, {ns}]", dbl),
+                              ("metis_double", str(ns ** 3), dbl),
+                              ("metis_dirichlet_double", str(ns ** 3), dir_ + dbl),
+                              ("metis", str(ns ** 3), []),
+                              ("box_preconditioned", f"[{ns}, {ns}, {ns}]", pre),
+                              ("metis_preconditioned", str(ns ** 3), pre),
+                              ("box_projected_cg", f"[{ns}, {ns}, {ns}]", pcg),
+                              ("metis_projected_cg", str(ns ** 3), pcg),
+                              ("box_gradient", f"[{ns}, {ns}, {ns}]", grd),
+                              ("metis_gradient", str(ns ** 3), grd),
+                              ("box_dirichlet", f"[{ns}, {ns}, {ns}]", dir_),
+                              ("metis_dirichlet", str(ns ** 3), dir_)):
+        if split not in a.splits:
+            continue
+        path = os.path.join(tmp, f"c{n}_{split}_{amp}.toml")
+        with open(path, "w") as f:
+            f.write(CUBE_OBSTACLE_TOML.format(n=n, amp=amp, subdomains=sub, rtol=a.rtol))
+        hr = repeated(lambda: htfeti(path, extra))
+        h = hr[0]
+        what = split.replace("_preconditioned", " split, preconditioned expansion")
+        what = what.replace("_projected_cg", " split, projected CG expansion")
+        what = what.replace("_gradient", " split, gradient expansion")
+        what = what.replace("_dirichlet", " split, Dirichlet preconditioner")
+        what = what.replace("_double", " split, double-precision factor sweeps")
+        what = what.replace("split split", "split")
+        what = what if "split" in what else what + " split"
+        row[split] = {"code": f"htfeti TFETI, {what}, 1 rank x {a.ranks} threads",
+                      "runs": len(hr), "wall_s": statistics.median(x["wall_s"] for x in hr),
+                      "total_s": statistics.median(x["timings"]["total"] for x in hr),
+                      "products": h["matvecs"], "outer_iterations": h["outer_iterations"],
+                      "expansion_steps": h["solver"].get("expansion_steps"),
+                      "expansion_cost_increases":
+                          h["solver"].get("expansion_cost_increases"),
+                      "preconditioner": h.get("preconditioner"),
+                      "factor_precision": h.get("factor_precision"),
+                      "single_check_products":
+                          h["solver"].get("single_sweeps", {}).get("check_products"),
+                      "peak_rss_gb": h["memory"]["peak_rss_mb_max_rank"] / 1024,
+                      "energy": h["objective"], "energy_error": err(h["objective"])}
+        if a.check_energy:
+            with open(path, "w") as f:
+                f.write(CUBE_OBSTACLE_TOML.format(n=n, amp=amp, subdomains=sub, rtol=1e-8))
+            tight = htfeti(path, extra)["objective"]
+            row[split]["tight_energy_error"] = err(tight)
+            if err(tight) > 1e-8:
+                sys.exit(f"n={n} A={amp} {split}: htfeti's energy at rtol 1e-8 "
+                         f"{tight!r} differs from the peer's {ref!r} by {err(tight):.2e}")
+    for split in a.splits:
+        row[f"ratio_{split}_to_peer"] = row[split]["wall_s"] / row["peer"]["wall_s"]
+    for split in ("metis", "metis_preconditioned", "metis_projected_cg",
+                  "metis_gradient", "metis_dirichlet", "metis_double", "metis_dirichlet_double"):
+        if split in row and "box" in row:
+            row[f"products_{split}_to_box"] = (row[split]["products"] /
+                                               row["box"]["products"])
+    return row
+
+
 rows = []
 with tempfile.TemporaryDirectory() as tmp:
     for n in a.n:
@@ -97,75 +178,19 @@ with tempfile.TemporaryDirectory() as tmp:
         for amp in a.amplitude:
             ref = peer(n, amp, 1e-10)["objective"]
             err = lambda e: abs(e - ref) / abs(ref)  # noqa: E731
-            runs = repeated(lambda: peer(n, amp, a.rtol))
-            r = runs[0]
-            row = {"n": n, "amplitude": amp, "reference_energy": ref, "peer": {
-                "code": f"PETSc SNES VI (rsls) + CG/GAMG, {a.ranks} ranks",
-                "runs": len(runs), "wall_s": statistics.median(x["wall_s"] for x in runs),
-                "total_s": statistics.median(x["total_s"] for x in runs),
-                "newton_iterations": r["newton_iterations"], "cg_iterations": r["cg_iterations"],
-                "peak_rss_gb": r["peak_rss_mb_sum"] / 1024, "energy": r["objective"],
-                "energy_error": err(r["objective"]), "contact_nodes": r["contact_nodes"]}}
-            pre = ["--mprgp-expansion", "preconditioned"]
-            pcg = ["--mprgp-expansion", "projected-cg"]
-            grd = ["--mprgp-expansion", "gradient"]
-            dir_ = ["--preconditioner", "dirichlet"]
-            dbl = ["--factor-precision", "double"]
-            for split, sub, extra in (("box", f"[{ns}, {ns}, {ns}]", []),
-                                      ("box_double", f"[{ns}, {ns}, {ns}]", dbl),
-                                      ("metis_double", str(ns ** 3), dbl),
-                                      ("metis_dirichlet_double", str(ns ** 3), dir_ + dbl),
-                                      ("metis", str(ns ** 3), []),
-                                      ("box_preconditioned", f"[{ns}, {ns}, {ns}]", pre),
-                                      ("metis_preconditioned", str(ns ** 3), pre),
-                                      ("box_projected_cg", f"[{ns}, {ns}, {ns}]", pcg),
-                                      ("metis_projected_cg", str(ns ** 3), pcg),
-                                      ("box_gradient", f"[{ns}, {ns}, {ns}]", grd),
-                                      ("metis_gradient", str(ns ** 3), grd),
-                                      ("box_dirichlet", f"[{ns}, {ns}, {ns}]", dir_),
-                                      ("metis_dirichlet", str(ns ** 3), dir_)):
-                if split not in a.splits:
-                    continue
-                path = os.path.join(tmp, f"c{n}_{split}_{amp}.toml")
-                with open(path, "w") as f:
-                    f.write(CUBE_OBSTACLE_TOML.format(n=n, amp=amp, subdomains=sub, rtol=a.rtol))
-                hr = repeated(lambda: htfeti(path, extra))
-                h = hr[0]
-                what = split.replace("_preconditioned", " split, preconditioned expansion")
-                what = what.replace("_projected_cg", " split, projected CG expansion")
-                what = what.replace("_gradient", " split, gradient expansion")
-                what = what.replace("_dirichlet", " split, Dirichlet preconditioner")
-                what = what.replace("_double", " split, double-precision factor sweeps")
-                what = what.replace("split split", "split")
-                what = what if "split" in what else what + " split"
-                row[split] = {"code": f"htfeti TFETI, {what}, 1 rank x {a.ranks} threads",
-                              "runs": len(hr), "wall_s": statistics.median(x["wall_s"] for x in hr),
-                              "total_s": statistics.median(x["timings"]["total"] for x in hr),
-                              "products": h["matvecs"], "outer_iterations": h["outer_iterations"],
-                              "expansion_steps": h["solver"].get("expansion_steps"),
-                              "expansion_cost_increases":
-                                  h["solver"].get("expansion_cost_increases"),
-                              "preconditioner": h.get("preconditioner"),
-                              "factor_precision": h.get("factor_precision"),
-                              "single_check_products":
-                                  h["solver"].get("single_sweeps", {}).get("check_products"),
-                              "peak_rss_gb": h["memory"]["peak_rss_mb_max_rank"] / 1024,
-                              "energy": h["objective"], "energy_error": err(h["objective"])}
-                if a.check_energy:
-                    with open(path, "w") as f:
-                        f.write(CUBE_OBSTACLE_TOML.format(n=n, amp=amp, subdomains=sub, rtol=1e-8))
-                    tight = htfeti(path, extra)["objective"]
-                    row[split]["tight_energy_error"] = err(tight)
-                    if err(tight) > 1e-8:
-                        sys.exit(f"n={n} A={amp} {split}: htfeti's energy at rtol 1e-8 "
-                                 f"{tight!r} differs from the peer's {ref!r} by {err(tight):.2e}")
-            for split in a.splits:
-                row[f"ratio_{split}_to_peer"] = row[split]["wall_s"] / row["peer"]["wall_s"]
-            for split in ("metis", "metis_preconditioned", "metis_projected_cg",
-                          "metis_gradient", "metis_dirichlet", "metis_double", "metis_dirichlet_double"):
-                if split in row and "box" in row:
-                    row[f"products_{split}_to_box"] = (row[split]["products"] /
-                                                       row["box"]["products"])
+            turns = [one_turn(n, amp, ns, tmp, ref, err, a.check_energy and t == 0)
+                     for t in range(a.turns)]
+            row = turns[0]
+            if a.turns > 1:  # medians over the turns; each turn's ratios kept
+                for code in ["peer", *a.splits]:
+                    walls = [t[code]["wall_s"] for t in turns]
+                    row[code]["walls_by_turn"] = walls
+                    row[code]["wall_s"] = statistics.median(walls)
+                for split in a.splits:
+                    ratios = [t[split]["wall_s"] / t["peer"]["wall_s"] for t in turns]
+                    row[f"ratios_{split}_to_peer_by_turn"] = ratios
+                    row[f"ratio_{split}_to_peer"] = statistics.median(ratios)
+            row["turns"] = a.turns
             rows.append(row)
             print(json.dumps(row), flush=True)
 
@@ -182,6 +207,6 @@ for r in rows:
         h = r[split]
         print(f"| {r['n']} | {r['amplitude']:g} | {h['code']} | {h['products']} products | "
               f"{h['wall_s']:.1f} | {h['peak_rss_gb']:.2f} | {h['energy_error']:.1e} | "
-              f"{h['wall_s'] / pe['wall_s']:.2f} |")
+              f"{r[f'ratio_{split}_to_peer']:.2f} |")
 print("\nwritten:", save(a.out, {"ranks": a.ranks, "rtol": a.rtol, "repeat": a.repeat,
                                  "rows": rows}))

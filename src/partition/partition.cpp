@@ -383,7 +383,8 @@ ClusterSplit parse_cluster_split(const std::string& name) {
 std::string to_string(ClusterSplit split) { return name_of(kClusterSplitNames, split); }
 
 std::vector<int> cluster_subdomains(const std::vector<std::map<int, int>>& adjacency,
-                                    const std::vector<int>& body_first, int cluster_size) {
+                                    const std::vector<int>& body_first, int cluster_size,
+                                    int seed) {
   const int subdomains = body_first.back(), nb = static_cast<int>(body_first.size()) - 1;
   const int nclusters_target = (subdomains + cluster_size - 1) / cluster_size;
   std::vector<int> cpart(subdomains, 0);
@@ -406,7 +407,7 @@ std::vector<int> cluster_subdomains(const std::vector<std::map<int, int>>& adjac
       std::vector<idx_t> out(ns);
       idx_t options[METIS_NOPTIONS];
       METIS_SetDefaultOptions(options);
-      options[METIS_OPTION_SEED] = kDefaultPartitionSeed;
+      options[METIS_OPTION_SEED] = seed;
       metis_check(METIS_PartGraphKway(&nv, &ncon, xadj.data(), adjncy.data(), nullptr, nullptr,
                                       adjwgt.data(), &nparts, nullptr, nullptr, options, &objval,
                                       out.data()),
@@ -623,8 +624,8 @@ MeshPartition partition_mesh(const Mesh& mesh, int subdomains, int cluster_size,
         for (size_t j = 0; j < v.size(); ++j)
           if (i != j) ++adj[v[i]][v[j]];
   }
-  const ClusterOrder order =
-      order_by_cluster(by_mesh ? cluster_of : cluster_subdomains(adj, body_first, cluster_size));
+  const ClusterOrder order = order_by_cluster(
+      by_mesh ? cluster_of : cluster_subdomains(adj, body_first, cluster_size, seed));
   const std::vector<int>& new_id = order.new_id;
   p.num_subdomains = subdomains;
   p.num_clusters = static_cast<int>(order.cluster_first.size()) - 1;

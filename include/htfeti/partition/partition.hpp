@@ -110,8 +110,8 @@ double stretched_cell_share(const Mesh& mesh);
 
 /// Throws std::invalid_argument if the numbers do not fit the mesh (an empty subdomain).
 /// cluster_size: subdomains per cluster (1: TFETI); split: how clusters are formed.
-/// seed: METIS's random seed (METIS_OPTION_SEED) for the subdomains' split; the clusters' split
-/// of the subdomain graph keeps kDefaultPartitionSeed.
+/// seed: METIS's random seed (METIS_OPTION_SEED) for every METIS call of the split (subdomains,
+/// clusters).
 MeshPartition partition_mesh(const Mesh& mesh, int subdomains, int cluster_size,
                              PartitionObjective objective = PartitionObjective::automatic,
                              ClusterSplit split = ClusterSplit::mesh,
@@ -120,10 +120,11 @@ MeshPartition partition_mesh(const Mesh& mesh, int subdomains, int cluster_size,
 /// Clusters of subdomains (H-TFETI-DP): METIS k-way on the subdomain graph of each body apart
 /// (subdomains [body_first[b], body_first[b + 1]) form body b; adjacency[s] maps each neighbour
 /// of s to the weight of their edge, the nodes they share), ceil(subdomains of the body /
-/// cluster_size) clusters per body, METIS's seed fixed. Returns the cluster of each subdomain
-/// (some clusters may be empty); adjacency is not read when cluster_size is 1.
+/// cluster_size) clusters per body, with METIS's seed `seed`. Returns the cluster of each
+/// subdomain (some clusters may be empty); adjacency is not read when cluster_size is 1.
 std::vector<int> cluster_subdomains(const std::vector<std::map<int, int>>& adjacency,
-                                    const std::vector<int>& body_first, int cluster_size);
+                                    const std::vector<int>& body_first, int cluster_size,
+                                    int seed = kDefaultPartitionSeed);
 
 /// Subdomains renumbered cluster-major: empty clusters dropped, new_id[s] the new id of
 /// subdomain s (the subdomains of a cluster keep their order), cluster_first the first new id of

@@ -196,14 +196,16 @@ void split_cells(const Mesh& mesh, const std::vector<int>* cells, int nparts_in,
 // hinged at a node, whose stiffness the kernel of rigid body motions does not make regular.
 // pieces: some part falls into pieces that share no node (METIS's parts need not be
 // connected): solved right, each piece with its own rigid motions, but a larger coarse problem
-// and a worse-conditioned one. `facets`: all_facets(mesh).
+// and a worse-conditioned one. `facets`: all_facets(mesh); node_cell_offset and node_cell_list:
+// the cells around each node, as MeshPartition holds them.
 struct SplitDefects {
   bool hinged = false, pieces = false;
 };
 SplitDefects split_defects(const Mesh& mesh, const std::vector<int>& cells,
                            const std::vector<idx_t>& part,
-                           const std::vector<std::pair<FacetKey, int>>& facets) {
-  const int nc = cell_nodes(mesh.type);
+                           const std::vector<std::pair<FacetKey, int>>& facets,
+                           const std::vector<int>& node_cell_offset,
+                           const std::vector<int>& node_cell_list) {
   std::vector<int> local(mesh.num_cells(), -1);
   for (size_t i = 0; i < cells.size(); ++i) local[cells[i]] = static_cast<int>(i);
   auto components = [&](auto&& join_all) {
@@ -227,23 +229,20 @@ SplitDefects split_defects(const Mesh& mesh, const std::vector<int>& cells,
       if (facets[i].first == facets[i - 1].first) join(facets[i].second, facets[i - 1].second);
   });
   const int by_node = components([&](auto join) {
-    // The cells around each node (counting sort by node); each cell is joined to the first cell
-    // of its part met before it at that node. Linear in the cells' node lists.
-    std::vector<int> first(static_cast<size_t>(mesh.num_nodes()) + 1, 0);
-    for (int e : cells)
-      for (int a = 0; a < nc; ++a) ++first[mesh.cells[static_cast<size_t>(e) * nc + a] + 1];
-    for (size_t v = 1; v < first.size(); ++v) first[v] += first[v - 1];
-    std::vector<int> around(static_cast<size_t>(first.back())),
-        fill(first.begin(), first.end() - 1);
-    for (int e : cells)
-      for (int a = 0; a < nc; ++a) around[fill[mesh.cells[static_cast<size_t>(e) * nc + a]]++] = e;
-    for (size_t v = 0; v + 1 < first.size(); ++v)
-      for (int i = first[v] + 1; i < first[v + 1]; ++i)
-        for (int j = first[v]; j < i; ++j)
-          if (part[around[j]] == part[around[i]]) {
-            join(around[i], around[j]);
+    // At each node, each of the given cells is joined to the first given cell of its part met
+    // before it there. Linear in the cells' node lists.
+    for (size_t v = 0; v + 1 < node_cell_offset.size(); ++v)
+      for (int i = node_cell_offset[v] + 1; i < node_cell_offset[v + 1]; ++i) {
+        const int e = node_cell_list[i];
+        if (local[e] < 0) continue;
+        for (int j = node_cell_offset[v]; j < i; ++j) {
+          const int f = node_cell_list[j];
+          if (local[f] >= 0 && part[f] == part[e]) {
+            join(e, f);
             break;
           }
+        }
+      }
   });
   std::vector<char> used(cells.size(), 0);
   int parts = 0;
@@ -529,6 +528,20 @@ MeshPartition partition_mesh(const Mesh& mesh, int subdomains, int cluster_size,
   std::vector<idx_t> part(ne, 0);
   std::vector<int> body_first(nb + 1, 0);  // first subdomain of each body
   const auto facets = all_facets(mesh);
+  // The cells around each node (ascending), for the checks of the splits and for the model.
+  p.node_cell_offset.assign(nn + 1, 0);
+  for (int v : mesh.cells) ++p.node_cell_offset[v + 1];
+  for (int k = 0; k < nn; ++k) p.node_cell_offset[k + 1] += p.node_cell_offset[k];
+  p.node_cell_list.resize(mesh.cells.size());
+  {
+    std::vector<int> pos(p.node_cell_offset.begin(), p.node_cell_offset.end() - 1);
+    for (int e = 0; e < ne; ++e)
+      for (int a = 0; a < nc; ++a)
+        p.node_cell_list[pos[mesh.cells[static_cast<size_t>(e) * nc + a]]++] = e;
+  }
+  const auto defects_of = [&](const std::vector<int>& region, const std::vector<idx_t>& out) {
+    return split_defects(mesh, region, out, facets, p.node_cell_offset, p.node_cell_list);
+  };
   std::vector<std::vector<int>> cells(nb);
   for (int e = 0; e < ne; ++e) cells[p.cell_body[e]].push_back(e);
   std::vector<long long> counts(nb);
@@ -540,14 +553,14 @@ MeshPartition partition_mesh(const Mesh& mesh, int subdomains, int cluster_size,
                                 int k, std::vector<idx_t>& out, bool subdomain_parts,
                                 const std::string& what) {
     split_cells(mesh, subset, k, objective, seed, out);
-    const SplitDefects defects = k > 1 ? split_defects(mesh, region, out, facets) : SplitDefects{};
+    const SplitDefects defects = k > 1 ? defects_of(region, out) : SplitDefects{};
     if (!defects.hinged && !defects.pieces) return;
     // A few cells in pieces: moved to a neighbouring part (repair_split); METIS's split is kept
     // otherwise. Larger defects: METIS again with connected parts asked for.
     const std::vector<idx_t> metis_split = out;
     const long moved = repair_split(region, out, facets, kRepairShare);
     if (moved >= 0) {
-      const SplitDefects left = split_defects(mesh, region, out, facets);
+      const SplitDefects left = defects_of(region, out);
       if (!left.hinged && !left.pieces) {
         p.repaired_cells += moved;
         return;
@@ -556,7 +569,7 @@ MeshPartition partition_mesh(const Mesh& mesh, int subdomains, int cluster_size,
     }
     ++p.contiguous_splits;
     split_cells(mesh, subset, k, objective, seed, out, true);
-    if (subdomain_parts && split_defects(mesh, region, out, facets).hinged)
+    if (subdomain_parts && defects_of(region, out).hinged)
       throw std::invalid_argument("METIS could not split " + what + " into " + std::to_string(k) +
                                   " subdomains without one hinged at a node (a mechanism): use "
                                   "fewer subdomains");
@@ -645,16 +658,6 @@ MeshPartition partition_mesh(const Mesh& mesh, int subdomains, int cluster_size,
   }
   p.copy_list.reserve(p.copy_offset[nn]);
   for (const auto& v : node_subs) p.copy_list.insert(p.copy_list.end(), v.begin(), v.end());
-  p.node_cell_offset.assign(nn + 1, 0);
-  for (int v : mesh.cells) ++p.node_cell_offset[v + 1];
-  for (int k = 0; k < nn; ++k) p.node_cell_offset[k + 1] += p.node_cell_offset[k];
-  p.node_cell_list.resize(mesh.cells.size());
-  {
-    std::vector<int> pos(p.node_cell_offset.begin(), p.node_cell_offset.end() - 1);
-    for (int e = 0; e < ne; ++e)
-      for (int a = 0; a < nc; ++a)
-        p.node_cell_list[pos[mesh.cells[static_cast<size_t>(e) * nc + a]]++] = e;
-  }
   index_groups(mesh, p);
   // Domain boundary: nodes of facets that belong to one cell only.
   p.on_boundary.assign(nn, 0);

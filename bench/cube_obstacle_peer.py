@@ -28,7 +28,8 @@ Wall times: the whole process (mpiexec and start-up included), medians of --repe
 run takes under a minute, one run above. With --turns K the peer and the htfeti rows are run K
 times in turns and each wall time and ratio is the median over the turns (the ratio of each
 turn is kept): this host's speed can drift by a quarter within minutes, and the codes taking
-turns see the drift alike. Peak RSS: htfeti's report (one rank); the peer's sum
+turns see the drift alike. The order alternates (odd turns: the peer first; even turns: the
+htfeti rows first), since the code that runs second meets the pages the first one freed. Peak RSS: htfeti's report (one rank); the peer's sum
 over its ranks (getrusage).
 
 Installs petsc-dev with apt-get if it is missing (as root). Usage:
@@ -55,9 +56,10 @@ p.add_argument("--repeat", type=int, default=3)
 p.add_argument("--rtol", type=float, default=1e-4)
 p.add_argument("--check-energy", action="store_true")
 p.add_argument("--turns", type=int, default=1,
-               help="run the peer and the htfeti rows this many times in turns (peer, then each "
-                    "split, then again); wall times and ratios are the medians over the turns, "
-                    "so that a drift of the machine falls on every code alike")
+               help="run the peer and the htfeti rows this many times in turns (odd turns: the "
+                    "peer, then each split; even turns: the splits, then the peer); wall times "
+                    "and ratios are the medians over the turns, so that a drift of the machine "
+                    "and the order fall on every code alike")
 p.add_argument("--splits", nargs="+", default=["box", "metis", "box_preconditioned",
                                                "metis_preconditioned"],
                help="the htfeti rows to run (default: these four; also box_projected_cg, "
@@ -97,17 +99,25 @@ def htfeti(path, extra=()):
     return r
 
 
-def one_turn(n, amp, ns, tmp, ref, err, check):
-    """The peer and every split once (each repeated as --repeat says): one turn's row."""
+def peer_row(n, amp, err):
+    """The peer's runs of one turn (repeated as --repeat says)."""
     runs = repeated(lambda: peer(n, amp, a.rtol))
     r = runs[0]
-    row = {"n": n, "amplitude": amp, "reference_energy": ref, "peer": {
-        "code": f"PETSc SNES VI (rsls) + CG/GAMG, {a.ranks} ranks",
-        "runs": len(runs), "wall_s": statistics.median(x["wall_s"] for x in runs),
-        "total_s": statistics.median(x["total_s"] for x in runs),
-        "newton_iterations": r["newton_iterations"], "cg_iterations": r["cg_iterations"],
-        "peak_rss_gb": r["peak_rss_mb_sum"] / 1024, "energy": r["objective"],
-        "energy_error": err(r["objective"]), "contact_nodes": r["contact_nodes"]}}
+    return {"code": f"PETSc SNES VI (rsls) + CG/GAMG, {a.ranks} ranks",
+            "runs": len(runs), "wall_s": statistics.median(x["wall_s"] for x in runs),
+            "total_s": statistics.median(x["total_s"] for x in runs),
+            "newton_iterations": r["newton_iterations"], "cg_iterations": r["cg_iterations"],
+            "peak_rss_gb": r["peak_rss_mb_sum"] / 1024, "energy": r["objective"],
+            "energy_error": err(r["objective"]), "contact_nodes": r["contact_nodes"]}
+
+
+def one_turn(n, amp, ns, tmp, ref, err, check, peer_first=True):
+    """The peer and every split once (each repeated as --repeat says): one turn's row. The peer
+    runs first, or after the splits when peer_first is false (row["order"] says which)."""
+    row = {"n": n, "amplitude": amp, "reference_energy": ref,
+           "order": "peer first" if peer_first else "peer last"}
+    if peer_first:
+        row["peer"] = peer_row(n, amp, err)
     pre = ["--mprgp-expansion", "preconditioned"]
     pcg = ["--mprgp-expansion", "projected-cg"]
     grd = ["--mprgp-expansion", "gradient"]
@@ -161,6 +171,8 @@ def one_turn(n, amp, ns, tmp, ref, err, check):
             if err(tight) > 1e-8:
                 sys.exit(f"n={n} A={amp} {split}: htfeti's energy at rtol 1e-8 "
                          f"{tight!r} differs from the peer's {ref!r} by {err(tight):.2e}")
+    if not peer_first:
+        row["peer"] = peer_row(n, amp, err)
     for split in a.splits:
         row[f"ratio_{split}_to_peer"] = row[split]["wall_s"] / row["peer"]["wall_s"]
     for split in ("metis", "metis_preconditioned", "metis_projected_cg",
@@ -178,7 +190,10 @@ with tempfile.TemporaryDirectory() as tmp:
         for amp in a.amplitude:
             ref = peer(n, amp, 1e-10)["objective"]
             err = lambda e: abs(e - ref) / abs(ref)  # noqa: E731
-            turns = [one_turn(n, amp, ns, tmp, ref, err, a.check_energy and t == 0)
+            # The order alternates: whichever code runs second meets the pages the first
+            # one freed (the peer at 80^3 frees about 12 GB, htfeti about 5).
+            turns = [one_turn(n, amp, ns, tmp, ref, err, a.check_energy and t == 0,
+                              peer_first=t % 2 == 0)
                      for t in range(a.turns)]
             row = turns[0]
             if a.turns > 1:  # medians over the turns; each turn's ratios kept
@@ -186,6 +201,7 @@ with tempfile.TemporaryDirectory() as tmp:
                     walls = [t[code]["wall_s"] for t in turns]
                     row[code]["walls_by_turn"] = walls
                     row[code]["wall_s"] = statistics.median(walls)
+                row["order_by_turn"] = [t["order"] for t in turns]
                 for split in a.splits:
                     ratios = [t[split]["wall_s"] / t["peer"]["wall_s"] for t in turns]
                     row[f"ratios_{split}_to_peer_by_turn"] = ratios

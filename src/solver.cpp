@@ -200,6 +200,29 @@ QpSolve solve_with_contact(DualProblem& dual, DualOperators& ops, Vec& lambda,
   Vec nu;  // the equality's multiplier: each Coulomb solve starts from the last one's
   auto r = qp::smalbe(qp, normA, x, red, so, hooks, progress, &nu);
   lambda = qp.shift + x;
+  // The report's solver.outer_log: every outer iteration of every SMALBE-M call of the run
+  // (the first, the Coulomb fixed point's, the single-precision check, the refinements), with
+  // the products counted from the first call's start.
+  nlohmann::json outer_log = nlohmann::json::array();
+  int calls = 0;
+  const auto log_outer = [&](const qp::SmalbeResult& res, long products_before) {
+    ++calls;
+    for (std::size_t i = 0; i < res.outer_log.size(); ++i) {
+      const qp::SmalbeOuterRecord& o = res.outer_log[i];
+      outer_log.push_back({{"solve", calls},
+                           {"outer", static_cast<int>(i) + 1},
+                           {"inner_iterations", o.inner_iterations},
+                           {"cg_steps", o.cg_steps},
+                           {"expansion_steps", o.expansion_steps},
+                           {"proportioning_steps", o.proportioning_steps},
+                           {"products", products_before + o.products},
+                           {"projected_gradient", o.projected_gradient},
+                           {"equality", o.equality},
+                           {"M", o.M},
+                           {"rho", o.rho}});
+    }
+  };
+  log_outer(r, 0);
   QpSolve out;
   out.outer = r.outer_iterations;
   out.inner = r.inner_iterations;
@@ -217,6 +240,7 @@ QpSolve solve_with_contact(DualProblem& dual, DualOperators& ops, Vec& lambda,
   const auto solve_again = [&]() {
     r = qp::smalbe(qp, normA, x, red, so, hooks, progress, &nu);
     lambda = qp.shift + x;
+    log_outer(r, out.matvecs);
     out.outer += r.outer_iterations;
     out.inner += r.inner_iterations;
     out.matvecs += r.hessian_applications;
@@ -321,6 +345,7 @@ QpSolve solve_with_contact(DualProblem& dual, DualOperators& ops, Vec& lambda,
                 {"face_set_seconds", face_set_seconds}};
   if (!single_check.is_null()) out.solver["single_sweeps"] = single_check;
   if (steps.size() > 1) out.solver["accuracy_refinements"] = steps;
+  out.solver["outer_log"] = std::move(outer_log);
   // The fixed point's history: per step the relative change of the slip bounds.
   if (dual.has_coulomb())
     out.solver["coulomb"] = {
@@ -543,12 +568,13 @@ SolveOutput solve(std::shared_ptr<const Model> model_ptr, const SolveOptions& op
                  name_of(qp::kExpansionNames, options.smalbe.expansion).c_str());
   auto progress = [&](int it, double gp, double gx) {
     if (!verbose) return;
+    // F applications so far, the norm estimate's included.
     if (contact)
       std::fprintf(stderr,
-                   "  it %5d  ||g^P||/||b|| %.3e  ||PFP|| ||G lambda||/||b|| %.3e  %.2f s\n", it,
-                   gp, gx, seconds_now() - t_solve);
+                   "  it %5d  ||g^P||/||b|| %.3e  ||PFP|| ||G lambda||/||b|| %.3e  %ld F  %.2f s\n",
+                   it, gp, gx, ops.F.count(), seconds_now() - t_solve);
     else
-      std::fprintf(stderr, "  it %5d  ||P r||/||P b|| %.3e  %.2f s\n", it, gp,
+      std::fprintf(stderr, "  it %5d  ||P r||/||P b|| %.3e  %ld F  %.2f s\n", it, gp, ops.F.count(),
                    seconds_now() - t_solve);
   };
   // The accuracy check reconstructs u; the last check's u is the solution's (its lambda is the

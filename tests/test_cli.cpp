@@ -418,6 +418,31 @@ TEST_F(Cli, EveryExampleRuns) {
                 j["inner_iterations"].get<int>())
           << e.path() << ": " << sv.dump();
       refined += sv.contains("accuracy_refinements");
+      // The outer log: one entry per outer iteration of every solve, in order, whose steps add
+      // up to the run's; the products grow to at most the run's.
+      const auto& log = sv["outer_log"];
+      ASSERT_EQ(static_cast<int>(log.size()), j["outer_iterations"].get<int>()) << e.path();
+      int inner = 0, solve = 0, outer = 0;
+      long products = 0;
+      for (const auto& o : log) {
+        EXPECT_EQ(o["cg_steps"].get<int>() + o["expansion_steps"].get<int>() +
+                      o["proportioning_steps"].get<int>(),
+                  o["inner_iterations"].get<int>())
+            << e.path() << ": " << o.dump();
+        inner += o["inner_iterations"].get<int>();
+        if (o["solve"].get<int>() != solve) {
+          EXPECT_GT(o["solve"].get<int>(), solve) << e.path();  // (a solve ended by a face
+          solve = o["solve"].get<int>(), outer = 0;             // at its start logs none)
+        }
+        EXPECT_EQ(o["outer"].get<int>(), ++outer) << e.path();
+        EXPECT_GE(o["products"].get<long>(), products) << e.path();
+        products = o["products"].get<long>();
+        EXPECT_TRUE(o["projected_gradient"].get<double>() >= 0 && o["M"].get<double>() > 0 &&
+                    o["rho"].get<double>() > 0)
+            << e.path() << ": " << o.dump();
+      }
+      EXPECT_EQ(inner, j["inner_iterations"].get<int>()) << e.path();
+      EXPECT_LE(products, j["matvecs"].get<long>()) << e.path();
     }
   }
   EXPECT_GE(n, 13);

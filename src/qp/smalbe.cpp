@@ -113,6 +113,7 @@ SmalbeResult smalbe(const QuadraticProgram& qp, double normA, Vec& x, const Redu
     clamp(x, l, u);
     active_set_changed();  // held = the start point's active set (collective: warm is agreed)
   }
+  res.outer_log.reserve(static_cast<std::size_t>(std::clamp(opt.max_outer, 0, kMaxOuterRecords)));
   double L_prev = 0;
   double qnorm = 0, qnorm_prev = 0;
   int stalls = 0;  // consecutive stalled outer iterations (step 4)
@@ -229,6 +230,10 @@ SmalbeResult smalbe(const QuadraticProgram& qp, double normA, Vec& x, const Redu
     res.projected_gradient = inner.projected_gradient;
     res.equality_residual = qnorm;
     res.M = M;
+    if (res.outer_log.size() < res.outer_log.capacity())
+      res.outer_log.push_back(
+          {inner.iterations, inner.cg_steps, inner.expansion_steps, inner.proportioning_steps,
+           H.count(), inner.projected_gradient / bnorm, normA * qnorm / bnorm, M, H.rho()});
     if (progress) progress(k + 1, inner.projected_gradient / bnorm, normA * qnorm / bnorm);
     if (global_stop) {
       res.reason = StopReason::converged;

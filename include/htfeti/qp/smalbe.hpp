@@ -42,6 +42,8 @@
 // iteration adds one Q (x checked afresh) and a few vector operations.
 #pragma once
 
+#include <vector>
+
 #include "htfeti/qp/face_cg.hpp"
 #include "htfeti/qp/mprgp.hpp"
 #include "htfeti/qp/qp.hpp"
@@ -98,6 +100,20 @@ struct SmalbeOptions {
   bool face_solve = true;
 };
 
+/// One outer iteration of SMALBE-M (SmalbeResult::outer_log): what its inner solve did and
+/// where it ended, for the report's solver.outer_log.
+struct SmalbeOuterRecord {
+  int inner_iterations = 0;  ///< MPRGP iterations of this inner solve
+  int cg_steps = 0, expansion_steps = 0, proportioning_steps = 0;
+  long products = 0;              ///< H_rho applications of this SMALBE-M call up to its end
+  double projected_gradient = 0;  ///< ||g^P|| / ||b|| at the inner exit
+  double equality = 0;            ///< ||A|| ||G x|| / ||b|| at the inner exit
+  double M = 0, rho = 0;          ///< the inner stopping test's M and the penalty it used
+};
+/// SmalbeResult::outer_log keeps the first this many outer iterations (its room is reserved
+/// before the loop, so that the loop allocates nothing).
+inline constexpr int kMaxOuterRecords = 1000;
+
 struct SmalbeResult {
   StopReason reason = StopReason::max_iterations;
   int outer_iterations = 0;
@@ -120,6 +136,9 @@ struct SmalbeResult {
   int face_tries = 0;                ///< face solves begun (also those declined or not taken)
   double face_seconds = 0;           ///< wall time in face solves, their products included
   double face_set_seconds = 0;       ///< of it, setting the faces (coarse matrices)
+  /// Per outer iteration, the first kMaxOuterRecords (a face solve's products fall in the
+  /// record after it, or only in hessian_applications when it ends the solve).
+  std::vector<SmalbeOuterRecord> outer_log;
 };
 
 /// y = Z_rho x (the preconditioner in face, which depends on rho).

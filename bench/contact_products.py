@@ -7,11 +7,12 @@ build) also each energy's relative distance from the reference's, so that fewer 
 not bought with less accuracy.
 
 Usage: bench/contact_products.py [--rtol R] [--reference REF.json] [--threads 2]
-                                 [--out contact_products.json]     (needs the gmsh program)
+                                 [--extra "htfeti options"] [--out contact_products.json]     (needs the gmsh program)
 Writes bench/results/OUT and prints one line per case and the totals."""
 import argparse
 import json
 import os
+import shlex
 import tempfile
 
 from common import ROOT, machine, save, solve
@@ -21,6 +22,7 @@ p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
 p.add_argument("--rtol", type=float, default=None, help="passed as --rtol (default: the cases')")
 p.add_argument("--reference", default=None, help="a results file of this script at rtol 1e-8")
 p.add_argument("--threads", type=int, default=2)
+p.add_argument("--extra", default="", help="more htfeti options for every case")
 p.add_argument("--out", default="contact_products.json")
 a = p.parse_args()
 
@@ -41,7 +43,8 @@ if a.reference:
         ref = {r["case"]: r for r in json.load(f)["rows"]}
 rows, total, errors = [], 0, []
 for name, args in CASES:
-    r = solve([*args, *(["--rtol", a.rtol] if a.rtol else [])], threads=a.threads)
+    r = solve([*args, *(["--rtol", a.rtol] if a.rtol else []), *shlex.split(a.extra)],
+              threads=a.threads)
     s = r["solver"]
     row = {"case": name, "converged": r["converged"], "outer_iterations": r["outer_iterations"],
            "products": r["matvecs"], "norm_estimate_products": s.get("norm_estimate_matvecs", 0),
@@ -57,5 +60,5 @@ for name, args in CASES:
           + (f"  energy error {row['energy_error']:.1e}" if "energy_error" in row else ""),
           flush=True)
 print(f"total {total} products" + (f", largest energy error {max(errors):.1e}" if errors else ""))
-save(a.out, {"rtol": a.rtol, "threads": a.threads, "reference": a.reference,
+save(a.out, {"rtol": a.rtol, "threads": a.threads, "reference": a.reference, "extra": a.extra,
              "total_products": total, "rows": rows, "machine": machine()})

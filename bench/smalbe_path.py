@@ -5,8 +5,9 @@ the inner solve's MPRGP steps by kind, the products it took, ||g^P||/||b|| and
 ||PFP|| ||G lambda||/||b|| where it ended, M and rho), then per case the products by kind of
 step: CG and proportioning steps take one product each, expansion steps two (the CG direction's
 product, then the gradient at the expanded point) and three where a projected CG step was tried
-and undone; face solves one per face iteration; the norm estimate's and the accuracy
-refinements' are in the totals. Counts do not depend on the machine's speed.
+and undone (with --mprgp-expansion preconditioned three, the third counted under "other");
+face solves one per face iteration; the norm estimate's and the accuracy refinements' are in
+the totals. Counts do not depend on the machine's speed.
 
 Cases (--cases, default all): the 40^3 cube-obstacle at A = 20 split by METIS into 64 parts and
 as a 4 x 4 x 4 box (bench/cases/cube40_metis64_a20.toml), the strongly graded Hertz block of

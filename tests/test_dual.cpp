@@ -31,6 +31,17 @@ class DualOperators : public ::testing::TestWithParam<Case> {
     dual = test::make_dual(*model, comm);
   }
   double dot(const Eigen::VectorXd& a, const Eigen::VectorXd& b) { return comm.sum(a.dot(b)); }
+  // The columns of G~^T, from unit coarse vectors.
+  std::vector<Eigen::VectorXd> gt_columns() {
+    const int nc = dual->coarse_dimension();
+    std::vector<Eigen::VectorXd> cols(nc);
+    for (int c = 0; c < nc; ++c) {
+      Eigen::VectorXd e = Eigen::VectorXd::Zero(nc);
+      e[c] = 1;
+      dual->apply_Gt(e, cols[c]);
+    }
+    return cols;
+  }
   Comm comm;
   std::unique_ptr<Decomposition> dec;
   std::unique_ptr<Model> model;
@@ -38,14 +49,9 @@ class DualOperators : public ::testing::TestWithParam<Case> {
 };
 
 TEST_P(DualOperators, CoarseFactorInvertsGGt) {
-  // Columns of G~^T from unit coarse vectors; the dense G~ G~^T from their dot products.
+  // The dense G~ G~^T from the dot products of the columns of G~^T.
   const int nc = dual->coarse_dimension();
-  std::vector<Eigen::VectorXd> cols(nc);
-  for (int c = 0; c < nc; ++c) {
-    Eigen::VectorXd e = Eigen::VectorXd::Zero(nc);
-    e[c] = 1;
-    dual->apply_Gt(e, cols[c]);
-  }
+  const std::vector<Eigen::VectorXd> cols = gt_columns();
   Eigen::MatrixXd GGt(nc, nc);
   for (int a = 0; a < nc; ++a)
     for (int b = 0; b < nc; ++b) GGt(a, b) = dot(cols[a], cols[b]);
@@ -72,12 +78,7 @@ TEST_P(DualOperators, FaceCorrectionEqualsTheDenseFaceMatrix) {
   const auto* lb = dynamic_cast<const qp::LowerBounds*>(bounds.get());
   if (!lb) GTEST_SKIP() << "no contact rows";
   const int n = dual->n_owned(), nc = dual->coarse_dimension();
-  std::vector<Eigen::VectorXd> cols(nc);
-  for (int c = 0; c < nc; ++c) {
-    Eigen::VectorXd e = Eigen::VectorXd::Zero(nc);
-    e[c] = 1;
-    dual->apply_Gt(e, cols[c]);
-  }
+  const std::vector<Eigen::VectorXd> cols = gt_columns();
   Eigen::VectorXd held_some = Eigen::VectorXd::Ones(n);
   int bounded = 0;
   for (int i = 0; i < n; ++i)
@@ -101,6 +102,33 @@ TEST_P(DualOperators, FaceCorrectionEqualsTheDenseFaceMatrix) {
       dual->project(v, pv);
       EXPECT_LT(std::sqrt(dot(y - (v - pv), y - (v - pv))), 1e-10 * std::sqrt(dot(v, v)));
     }
+  }
+}
+
+TEST_P(DualOperators, WeightedCoarseSolveEqualsTheDenseMatrix) {
+  // solve_weighted forms G~ W G~^T from the fixed part that factor() keeps plus the bounded
+  // rows' products where W is 1 off the contact rows (the reconstruction's mask), and from all of
+  // G~'s items otherwise: both must solve with the dense matrix of apply_Gt's columns.
+  const int n = dual->n_owned(), nc = dual->coarse_dimension();
+  const std::vector<Eigen::VectorXd> cols = gt_columns();
+  const auto bounds = dual->constraint_set();
+  const auto* lb = dynamic_cast<const qp::LowerBounds*>(bounds.get());
+  std::vector<double> masked(n, 1.0), other(n, 1.0);
+  int bounded = 0;
+  for (int i = 0; i < n; ++i) {
+    if (lb && lb->lower()[i] > -1e300 && bounded++ % 3 == 0) masked[i] = 0.0;  // a contact row
+    if (!(lb && lb->lower()[i] > -1e300) && i % 5 == 1) other[i] = 0.5;        // an equality row
+  }
+  for (const std::vector<double>& weight : {masked, other}) {
+    const Eigen::VectorXd w = Eigen::Map<const Eigen::VectorXd>(weight.data(), n);
+    Eigen::MatrixXd GWGt(nc, nc);
+    for (int a = 0; a < nc; ++a)
+      for (int b = 0; b < nc; ++b) GWGt(a, b) = dot(cols[a], w.cwiseProduct(cols[b]));
+    if (GWGt.ldlt().rcond() < 1e-12) continue;  // a rigid motion held by masked rows alone
+    const Eigen::VectorXd z = Eigen::VectorXd::LinSpaced(nc, 1.0, 2.0);
+    Eigen::VectorXd y = GWGt * z;
+    EXPECT_EQ(dual->coarse_solve_weighted(weight, y), 0);
+    EXPECT_LT((y - z).norm(), 1e-10 * z.norm());
   }
 }
 

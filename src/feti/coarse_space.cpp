@@ -236,39 +236,81 @@ void CoarseSpace::project(const Vec& x, Vec& y) {
   y = x - m_.ext_out.head(m_.layout.n_owned());
 }
 
+namespace {
+bool bounded_row(MultiplierKind kind) {
+  return kind == MultiplierKind::contact || kind == MultiplierKind::friction;
+}
+}  // namespace
+
+void CoarseSpace::factor() {
+  const int n_own = m_.layout.n_owned();
+  const std::vector<double> ones(n_own, 1.0);
+  bool bounded = false;
+  for (int k = 0; k < n_own && !bounded; ++k) bounded = bounded_row(m_.kind[k]);
+  if (!(comm_.max(bounded ? 1.0 : 0.0) > 0)) {
+    assemble(ones, factor_);
+    return;
+  }
+  // G~ G~^T as assemble() forms it (the same sums), and the fixed part from the same items.
+  std::vector<CoarseTriplet> all;
+  {
+    const std::vector<GItem> items = g_columns_at_owners();  // freed before the factorization
+    all = weighted_triplets(items, ones);
+    cache_face_parts(items);
+  }
+  factor_triplets(std::move(all), factor_, false);
+}
+
+void CoarseSpace::cache_face_parts(const std::vector<GItem>& items) {
+  std::vector<double> fixed(m_.layout.n_owned(), 1.0);
+  for (int k = 0; k < m_.layout.n_owned(); ++k)
+    if (bounded_row(m_.kind[k])) fixed[k] = 0.0;
+  std::vector<CoarseTriplet> all = weighted_triplets(items, fixed);
+  face_fixed_.clear();
+  for (const CoarseTriplet& t : all) {  // sorted by (a, b, cluster): sum each entry in order
+    if (face_fixed_.empty() || face_fixed_.back().a != t.a || face_fixed_.back().b != t.b)
+      face_fixed_.push_back({-1, t.a, t.b, 0.0});
+    face_fixed_.back().v += t.v;
+  }
+  face_items_.clear();
+  for (const GItem& it : items)
+    if (fixed[m_.layout.ext_index(it.k)] == 0.0) face_items_.push_back(it);
+  face_cached_ = true;
+}
+
 int CoarseSpace::solve_weighted(const std::vector<double>& weight, Vec& coarse) {
   Factor factor;
-  assemble(weight, factor);
+  // The kept fixed part serves where only bounded rows are weighted other than 1 (agreed over
+  // the ranks: each checks its own rows).
+  bool fixed_part = face_cached_;
+  if (fixed_part) {
+    bool other = false;
+    for (int k = 0; k < m_.layout.n_owned() && !other; ++k)
+      other = !bounded_row(m_.kind[k]) && weight[k] != 1.0;
+    fixed_part = !(comm_.max(other ? 1.0 : 0.0) > 0);
+  }
+  if (fixed_part) {
+    std::vector<CoarseTriplet> all = face_fixed_;
+    const std::vector<CoarseTriplet> bounded = weighted_triplets(face_items_, weight);
+    all.insert(all.end(), bounded.begin(), bounded.end());
+    factor_triplets(std::move(all), factor, false);
+  } else {
+    assemble(weight, factor);
+  }
   solve_with(factor, coarse);
   return factor.null_dimension();
 }
 
 bool CoarseSpace::set_face(const Vec& free) {
   // G~ D G~^T = (the rows that are never held: gluing and Dirichlet) + (the bounded rows times
-  // free). The first part is the same for every face: formed once, its entries summed, and kept
-  // with the bounded rows' items of G~ (few: the contact and friction rows), so that a face costs
-  // the bounded rows' products, one small gather and the sparse factorization, not a pass over
-  // all of G~'s items (1.9 s per face at 80^3 with 512 METIS parts). Both parts are summed in a
-  // fixed order (cluster order, then fixed part before the bounded rows), so the result does
-  // not depend on the rank count.
-  if (!face_cached_) {
-    std::vector<GItem> items = g_columns_at_owners();
-    std::vector<double> fixed(m_.layout.n_owned(), 1.0);
-    for (int k = 0; k < m_.layout.n_owned(); ++k)
-      if (m_.kind[k] == MultiplierKind::contact || m_.kind[k] == MultiplierKind::friction)
-        fixed[k] = 0.0;
-    std::vector<CoarseTriplet> all = weighted_triplets(items, fixed);
-    face_fixed_.clear();
-    for (const CoarseTriplet& t : all) {  // sorted by (a, b, cluster): sum each entry in order
-      if (face_fixed_.empty() || face_fixed_.back().a != t.a || face_fixed_.back().b != t.b)
-        face_fixed_.push_back({-1, t.a, t.b, 0.0});
-      face_fixed_.back().v += t.v;
-    }
-    face_items_.clear();
-    for (const GItem& it : items)
-      if (fixed[m_.layout.ext_index(it.k)] == 0.0) face_items_.push_back(it);
-    face_cached_ = true;
-  }
+  // free). The first part is the same for every face: formed once (by factor(), or here at the
+  // first face), its entries summed, and kept with the bounded rows' items of G~ (few: the
+  // contact and friction rows), so that a face costs the bounded rows' products, one small
+  // gather and the sparse factorization, not a pass over all of G~'s items (1.9 s per face at
+  // 80^3 with 512 METIS parts). Both parts are summed in a fixed order (cluster order, then
+  // fixed part before the bounded rows), so the result does not depend on the rank count.
+  if (!face_cached_) cache_face_parts(g_columns_at_owners());
+  face_used_ = true;
   std::vector<CoarseTriplet> all = face_fixed_;
   const std::vector<CoarseTriplet> bounded =
       weighted_triplets(face_items_, std::vector<double>(free.data(), free.data() + free.size()));

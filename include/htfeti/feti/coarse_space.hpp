@@ -50,8 +50,10 @@ class CoarseSpace {
   /// clusters when threads_over_clusters; coarse_ranks: FetiOptions::coarse_ranks. Collective.
   void set_up(const std::vector<std::unique_ptr<Cluster>>& clusters, int first_cluster,
               std::vector<int> sub_first, bool threads_over_clusters, int coarse_ranks = 0);
-  /// Assembles and factors G~ G~^T. Collective.
-  void factor() { assemble(std::vector<double>(m_.n_owned(), 1.0), factor_); }
+  /// Assembles and factors G~ G~^T. With bounded rows (contact, friction) it also keeps, from
+  /// the same pass over G~'s items, the parts of G~ W G~^T that do not depend on which bounded
+  /// rows W masks (see solve_weighted and set_face). Collective.
+  void factor();
 
   int dimension() const { return first_.empty() ? 0 : first_.back(); }
   /// Cluster c's first coarse index (all clusters; c = num_clusters gives dimension()).
@@ -71,7 +73,10 @@ class CoarseSpace {
   /// y = P x (x and y may alias).
   void project(const Vec& x, Vec& y);
   /// coarse <- (G~ W G~^T)^{-1} coarse with W = diag(weight) on the owned multipliers (the
-  /// reconstruction's active rows); returns the null dimension of G~ W G~^T. Collective.
+  /// reconstruction's active rows); returns the null dimension of G~ W G~^T. Where W is 1 on
+  /// every row that is neither a contact nor a friction row, G~ W G~^T is the kept fixed part
+  /// plus the bounded rows' products (a pass over the bounded rows' items only); otherwise it
+  /// is assembled from all of G~'s items. Collective.
   int solve_weighted(const std::vector<double>& weight, Vec& coarse);
 
   /// The face of the bounds (qp/face_cg.hpp): assembles and factors G~ D G~^T, D = diag(free)
@@ -81,11 +86,12 @@ class CoarseSpace {
   bool set_face(const Vec& free);
   /// y = G~^T (G~ D G~^T)^{-1} G~ v for the face last set (x and y may alias). Collective.
   void face_correction(const Vec& v, Vec& y);
-  /// Whether set_face costs little: its fixed part is formed (then a face costs the bounded rows'
-  /// products and one factorization), or the coarse dimension is at most kFaceCheapDimension
-  /// (its first assembly, a pass over all of G~'s items, measured at 1.9 s = 6 products at
-  /// 3,072 with 512 METIS parts, 19.7 s = 16 products at 24,576 in Table 4 row 1).
-  bool face_cheap() const { return face_cached_ || dimension() <= kFaceCheapDimension; }
+  /// Whether faces may be tried early (SMALBE-M, face_cg.hpp): once a face has been set, or
+  /// where the coarse dimension is at most kFaceCheapDimension. This was the rule when a first
+  /// face paid for the pass over all of G~'s items (1.9 s = 6 products at 3,072 with 512 METIS
+  /// parts, 19.7 s = 16 products at 24,576 in Table 4 row 1), which factor() now makes; the
+  /// rule is kept as measured (trying faces earlier changes SMALBE-M's path).
+  bool face_cheap() const { return face_used_ || dimension() <= kFaceCheapDimension; }
   static constexpr int kFaceCheapDimension = 4096;
 
   /// Directions of the coarse space that no constraint row restrains (see Factor).
@@ -222,9 +228,12 @@ class CoarseSpace {
   Factor factor_;
   Factor face_;  // G~ D G~^T of the last set_face
   bool face_set_ = false;
-  // set_face's parts that do not depend on the face (set at its first call): the summed entries
-  // of the never-held rows' G~ W G~^T (on the ranks that factor) and the bounded rows' items.
+  // The parts of G~ W G~^T that do not depend on the bounded rows' weights (set by factor(), or
+  // at the first set_face): the summed entries of the never-held rows' products (on the ranks
+  // that factor) and the bounded rows' items.
   bool face_cached_ = false;
+  bool face_used_ = false;  // set_face was called
+  void cache_face_parts(const std::vector<GItem>& items);
   std::vector<CoarseTriplet> face_fixed_;
   std::vector<GItem> face_items_;
   // The ranks that hold the coarse factor (FetiOptions::coarse_ranks): every rank (subset_

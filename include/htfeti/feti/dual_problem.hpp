@@ -236,6 +236,11 @@ class DualProblem {
   void apply_Gt(const Vec& coarse, Vec& lambda) { coarse_.apply_Gt(coarse, lambda); }
   /// coarse <- (G~ G~^T)^{-1} coarse.
   void coarse_solve(Vec& coarse) { coarse_.solve(coarse); }
+  /// coarse <- (G~ W G~^T)^{-1} coarse, W = diag(weight) on the owned rows (as the
+  /// reconstruction masks open contact rows); returns its null dimension (CoarseSpace).
+  int coarse_solve_weighted(const std::vector<double>& weight, Vec& coarse) {
+    return coarse_.solve_weighted(weight, coarse);
+  }
   /// Directions of the coarse space that no constraint row restrains (0 for a well-posed
   /// problem; see CoarseSpace::Factor): the solution is unique up to these rigid motions, whose
   /// coefficients are chosen zero.

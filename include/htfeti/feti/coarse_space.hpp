@@ -50,9 +50,11 @@ class CoarseSpace {
   /// clusters when threads_over_clusters; coarse_ranks: FetiOptions::coarse_ranks. Collective.
   void set_up(const std::vector<std::unique_ptr<Cluster>>& clusters, int first_cluster,
               std::vector<int> sub_first, bool threads_over_clusters, int coarse_ranks = 0);
-  /// Assembles and factors G~ G~^T. With bounded rows (contact, friction) it also keeps, from
-  /// the same pass over G~'s items, the parts of G~ W G~^T that do not depend on which bounded
-  /// rows W masks (see solve_weighted and set_face). Collective.
+  /// Assembles and factors G~ G~^T. With bounded rows (contact, friction) and a coarse
+  /// dimension of at most kFaceCheapDimension it also keeps, from the same pass over G~'s items,
+  /// the parts of G~ W G~^T that do not depend on which bounded rows W masks (the fixed part of
+  /// solve_weighted and set_face; above that dimension they are formed at their first use).
+  /// Collective.
   void factor();
 
   int dimension() const { return first_.empty() ? 0 : first_.back(); }
@@ -74,9 +76,9 @@ class CoarseSpace {
   void project(const Vec& x, Vec& y);
   /// coarse <- (G~ W G~^T)^{-1} coarse with W = diag(weight) on the owned multipliers (the
   /// reconstruction's active rows); returns the null dimension of G~ W G~^T. Where W is 1 on
-  /// every row that is neither a contact nor a friction row, G~ W G~^T is the kept fixed part
-  /// plus the bounded rows' products (a pass over the bounded rows' items only); otherwise it
-  /// is assembled from all of G~'s items. Collective.
+  /// every row that is neither a contact nor a friction row, G~ W G~^T is the fixed part (kept,
+  /// or formed at this first use) plus the bounded rows' products (a pass over the bounded rows'
+  /// items only); otherwise it is assembled from all of G~'s items. Collective.
   int solve_weighted(const std::vector<double>& weight, Vec& coarse);
 
   /// The face of the bounds (qp/face_cg.hpp): assembles and factors G~ D G~^T, D = diag(free)
@@ -89,8 +91,9 @@ class CoarseSpace {
   /// Whether faces may be tried early (SMALBE-M, face_cg.hpp): once a face has been set, or
   /// where the coarse dimension is at most kFaceCheapDimension. This was the rule when a first
   /// face paid for the pass over all of G~'s items (1.9 s = 6 products at 3,072 with 512 METIS
-  /// parts, 19.7 s = 16 products at 24,576 in Table 4 row 1), which factor() now makes; the
-  /// rule is kept as measured (trying faces earlier changes SMALBE-M's path).
+  /// parts, 19.7 s = 16 products at 24,576 in Table 4 row 1), which factor() now makes up to
+  /// kFaceCheapDimension; the rule is kept as measured (trying faces earlier changes
+  /// SMALBE-M's path).
   bool face_cheap() const { return face_used_ || dimension() <= kFaceCheapDimension; }
   static constexpr int kFaceCheapDimension = 4096;
 

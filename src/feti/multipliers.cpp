@@ -25,18 +25,35 @@ std::vector<std::vector<Subdomain::BEntry>> Multipliers::number(
   std::vector<NumberingKey> keys;
   std::vector<int> key_owner;
   std::vector<const LocalRow*> key_row;
+  // key_of[s][r]: the index in keys of subdomain s's row r (so that no row searches the keys).
+  std::vector<std::vector<int>> key_of(nsub);
   {
-    std::vector<std::pair<RowKey, const LocalRow*>> all;
-    for (int s = 0; s < nsub; ++s)
-      for (const auto& r : local_rows[s]) all.push_back({r.key, &r});
-    std::sort(all.begin(), all.end(),
-              [](const auto& x, const auto& y) { return x.first < y.first; });
-    for (size_t i = 0; i < all.size(); ++i)
-      if (i == 0 || all[i].first != all[i - 1].first) {
-        keys.push_back(all[i].first);
-        key_owner.push_back(fl.rank_of_subdomain(all[i].second->owner_subdomain, P));
-        key_row.push_back(all[i].second);
+    struct Entry {
+      RowKey key;
+      const LocalRow* row;
+      int s, r;
+    };
+    std::vector<Entry> all;
+    size_t total = 0;
+    for (int s = 0; s < nsub; ++s) total += local_rows[s].size();
+    all.reserve(total);
+    keys.reserve(total), key_owner.reserve(total), key_row.reserve(total);
+    for (int s = 0; s < nsub; ++s) {
+      key_of[s].resize(local_rows[s].size());
+      for (size_t r = 0; r < local_rows[s].size(); ++r)
+        all.push_back({local_rows[s][r].key, &local_rows[s][r], s, static_cast<int>(r)});
+    }
+    // (Rows with equal keys are alike to the comparison, so which comes first does not depend
+    // on what else an entry carries.)
+    std::sort(all.begin(), all.end(), [](const Entry& x, const Entry& y) { return x.key < y.key; });
+    for (size_t i = 0; i < all.size(); ++i) {
+      if (i == 0 || all[i].key != all[i - 1].key) {
+        keys.push_back(all[i].key);
+        key_owner.push_back(fl.rank_of_subdomain(all[i].row->owner_subdomain, P));
+        key_row.push_back(all[i].row);
       }
+      key_of[all[i].s][all[i].r] = static_cast<int>(keys.size()) - 1;
+    }
   }
   // Bucket position: per-node rows by their node, object rows after all nodes by cluster.
   const long long nodes = fl.num_nodes;
@@ -64,8 +81,9 @@ std::vector<std::vector<Subdomain::BEntry>> Multipliers::number(
   contact_point.assign(n_own, {0, 0, 0});
   long long my_inequalities = 0, my_friction = 0;
   owner_cluster.assign(n_own, 0);
+  std::vector<int> key_ext(keys.size());  // each key's extended index
   for (size_t i = 0; i < keys.size(); ++i) {
-    const int k = layout.ext_index(index[i]);
+    const int k = key_ext[i] = layout.ext_index(index[i]);
     owner_rank[k] = key_owner[i];
     if (k < n_own) {
       const LocalRow& r = *key_row[i];
@@ -98,10 +116,7 @@ std::vector<std::vector<Subdomain::BEntry>> Multipliers::number(
       auto& lr = local_rows[s];
       std::vector<std::pair<int, const LocalRow*>> ordered;
       ordered.reserve(lr.size());
-      for (const auto& r : lr) {
-        const size_t i = std::lower_bound(keys.begin(), keys.end(), r.key) - keys.begin();
-        ordered.push_back({layout.ext_index(index[i]), &r});
-      }
+      for (size_t r = 0; r < lr.size(); ++r) ordered.push_back({key_ext[key_of[s][r]], &lr[r]});
       // Rows in global order (the order of the ext indices of owned entries, then ghosts, is the
       // global order within each part; sort by global index for a fixed accumulation order).
       std::sort(ordered.begin(), ordered.end(), [&](const auto& x, const auto& y) {

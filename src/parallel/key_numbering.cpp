@@ -42,16 +42,27 @@ std::vector<long long> number_keys(const Comm& comm, const std::vector<Numbering
   const size_t m = rbuf.size() / K;
   std::vector<NumberingKey> recv(m);
   for (size_t j = 0; j < m; ++j) std::copy(&rbuf[K * j], &rbuf[K * j] + K, recv[j].begin());
+  // On one rank (and wherever the buckets arrive in order) the keys come sorted: then the
+  // sort is skipped and each key's index is the count of distinct keys before it.
+  const bool in_order = std::is_sorted(recv.begin(), recv.end());
   std::vector<NumberingKey> uniq = recv;
-  std::sort(uniq.begin(), uniq.end());
+  if (!in_order) std::sort(uniq.begin(), uniq.end());
   uniq.erase(std::unique(uniq.begin(), uniq.end()), uniq.end());
   long long local = static_cast<long long>(uniq.size()), offset = 0;
   MPI_Exscan(&local, &offset, 1, MPI_LONG_LONG, MPI_SUM, comm.raw());
   if (comm.rank() == 0) offset = 0;
   MPI_Allreduce(&local, &total, 1, MPI_LONG_LONG, MPI_SUM, comm.raw());
   std::vector<long long> ridx(m), sidx(n);
-  for (size_t j = 0; j < m; ++j)
-    ridx[j] = offset + (std::lower_bound(uniq.begin(), uniq.end(), recv[j]) - uniq.begin());
+  if (in_order) {
+    long long distinct = -1;
+    for (size_t j = 0; j < m; ++j) {
+      if (j == 0 || recv[j] != recv[j - 1]) ++distinct;
+      ridx[j] = offset + distinct;
+    }
+  } else {
+    for (size_t j = 0; j < m; ++j)
+      ridx[j] = offset + (std::lower_bound(uniq.begin(), uniq.end(), recv[j]) - uniq.begin());
+  }
   // Answers go back along the same counts (in units of one index).
   std::vector<int> sd1(P + 1, 0), rd1(P + 1, 0);
   for (int r = 0; r < P; ++r) sd1[r + 1] = sd1[r] + scount[r], rd1[r + 1] = rd1[r] + rcount[r];

@@ -243,14 +243,12 @@ bool bounded_row(MultiplierKind kind) {
 }  // namespace
 
 void CoarseSpace::factor() {
-  const int n_own = m_.layout.n_owned();
-  const std::vector<double> ones(n_own, 1.0);
-  bool bounded = false;
-  for (int k = 0; k < n_own && !bounded; ++k) bounded = bounded_row(m_.kind[k]);
+  const std::vector<double> ones(m_.layout.n_owned(), 1.0);
+  const bool bounded = m_.inequalities + m_.friction_rows > 0;  // (global counts)
   // Above kFaceCheapDimension the fixed part is left to its first use (faces are tried late
   // there, and the reconstruction may mask no row): its products would cost the setup several
   // seconds (Table 4 row 1: the pass over G~'s items 19.7 s at 24,576).
-  if (!(comm_.max(bounded ? 1.0 : 0.0) > 0) || dimension() > kFaceCheapDimension) {
+  if (!bounded || dimension() > kFaceCheapDimension) {
     assemble(ones, factor_);
     return;
   }

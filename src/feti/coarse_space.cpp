@@ -243,21 +243,26 @@ bool bounded_row(MultiplierKind kind) {
 }  // namespace
 
 void CoarseSpace::factor() {
-  const std::vector<double> ones(m_.layout.n_owned(), 1.0);
   const bool bounded = m_.inequalities + m_.friction_rows > 0;  // (global counts)
   // Above kFaceCheapDimension the fixed part is left to its first use (faces are tried late
   // there, and the reconstruction may mask no row): its products would cost the setup several
   // seconds (Table 4 row 1: the pass over G~'s items 19.7 s at 24,576).
   if (!bounded || dimension() > kFaceCheapDimension) {
-    assemble(ones, factor_);
+    assemble(std::vector<double>(m_.layout.n_owned(), 1.0), factor_);
     return;
   }
-  // G~ G~^T as assemble() forms it (the same sums), and the fixed part from the same items.
+  // G~ G~^T as assemble() forms it (the same sums), and the fixed part from the same pass over
+  // the items: each entry's sum of the never-held rows' products is kept beside its full sum.
   std::vector<CoarseTriplet> all;
   {
     const std::vector<GItem> items = g_columns_at_owners();  // freed before the factorization
-    all = weighted_triplets(items, ones);
-    cache_face_parts(items);
+    const std::vector<double> ones(m_.layout.n_owned(), 1.0);
+    std::vector<CoarseTriplet> fixed;
+    const std::vector<CoarseTriplet> mine = owner_cluster_sums(
+        items, weighted_products(items, ones),
+        [&](size_t i) { return !bounded_row(m_.kind[m_.layout.ext_index(items[i].k)]); }, &fixed);
+    all = gather_to_factor_ranks(mine);
+    set_face_parts(items, gather_to_factor_ranks(fixed));
   }
   factor_triplets(std::move(all), factor_, false);
 }
@@ -266,16 +271,20 @@ void CoarseSpace::cache_face_parts(const std::vector<GItem>& items) {
   std::vector<double> fixed(m_.layout.n_owned(), 1.0);
   for (int k = 0; k < m_.layout.n_owned(); ++k)
     if (bounded_row(m_.kind[k])) fixed[k] = 0.0;
-  std::vector<CoarseTriplet> all = weighted_triplets(items, fixed);
+  set_face_parts(items, weighted_triplets(items, fixed));
+}
+
+void CoarseSpace::set_face_parts(const std::vector<GItem>& items,
+                                 const std::vector<CoarseTriplet>& fixed) {
   face_fixed_.clear();
-  for (const CoarseTriplet& t : all) {  // sorted by (a, b, cluster): sum each entry in order
+  for (const CoarseTriplet& t : fixed) {  // sorted by (a, b, cluster): sum each entry in order
     if (face_fixed_.empty() || face_fixed_.back().a != t.a || face_fixed_.back().b != t.b)
       face_fixed_.push_back({-1, t.a, t.b, 0.0});
     face_fixed_.back().v += t.v;
   }
   face_items_.clear();
   for (const GItem& it : items)
-    if (fixed[m_.layout.ext_index(it.k)] == 0.0) face_items_.push_back(it);
+    if (bounded_row(m_.kind[m_.layout.ext_index(it.k)])) face_items_.push_back(it);
   face_cached_ = true;
 }
 
@@ -440,29 +449,43 @@ std::vector<CoarseSpace::CoarseTriplet> CoarseSpace::allgather_sorted(
 }
 
 std::vector<CoarseSpace::CoarseTriplet> CoarseSpace::owner_cluster_sums(
-    const std::vector<GItem>& gcol, const ProductsOf& products_of) const {
+    const std::vector<GItem>& gcol, const ProductsOf& products_of,
+    const std::function<bool(size_t)>& also_sum_of, std::vector<CoarseTriplet>* also_out) const {
   // Products summed per owner cluster of the multiplier (all of a cluster's multipliers live on
   // one rank whatever the rank count), in multiplier order; the caller adds the partial sums in
   // cluster order (allgather_sorted). Rank-count independent, and O(entries touched per
   // cluster) memory instead of one triplet per product (78 per multiplier for G~ G~^T in 3D
   // elasticity).
+  const bool also = also_out && also_sum_of;
+  if (also_out) also_out->clear();
   std::vector<std::pair<int, size_t>> groups;  // (owner cluster, first item of the multiplier)
   for (size_t i = 0; i < gcol.size(); ++i)
     if (i == 0 || gcol[i].k != gcol[i - 1].k)
       groups.push_back({m_.owner_cluster[m_.layout.ext_index(gcol[i].k)], i});
   std::stable_sort(groups.begin(), groups.end(),
                    [](const auto& x, const auto& y) { return x.first < y.first; });
-  std::vector<CoarseTriplet> mine, products, sums;
+  // One slot per distinct entry (a, b) of a cluster: its sum, and with also_sum_of the sum of
+  // the chosen multipliers' products (touched: some product was added to it).
+  struct Slot {
+    CoarseTriplet t;
+    double also_v;
+    bool touched;
+  };
+  std::vector<CoarseTriplet> mine, products;
+  std::vector<Slot> sums;
+  std::vector<std::pair<size_t, bool>> ranges;  // per multiplier: end of its products, chosen
   std::unordered_map<unsigned long long, size_t> slot;  // entry (a, b) -> its place in sums
   for (size_t g0 = 0; g0 < groups.size();) {
     size_t g1 = g0;
     while (g1 < groups.size() && groups[g1].first == groups[g0].first) ++g1;
     products.clear();
+    ranges.clear();
     for (size_t g = g0; g < g1; ++g) {
       const size_t i = groups[g].second;
       size_t j = i;
       while (j < gcol.size() && gcol[j].k == gcol[i].k) ++j;
       products_of(i, j, products);
+      if (also) ranges.push_back({products.size(), also_sum_of(i)});
     }
     // Each entry (a, b) sums its products in the order they were formed (multiplier order), as
     // a stable sort by (a, b) followed by a running sum would, without sorting the products
@@ -470,17 +493,27 @@ std::vector<CoarseSpace::CoarseTriplet> CoarseSpace::owner_cluster_sums(
     // per distinct entry, then the few distinct entries sorted.
     slot.clear();
     sums.clear();
-    for (const CoarseTriplet& t : products) {
+    size_t range = 0;
+    for (size_t p = 0; p < products.size(); ++p) {
+      const CoarseTriplet& t = products[p];
       const auto key = (static_cast<unsigned long long>(static_cast<unsigned>(t.a)) << 32) |
                        static_cast<unsigned>(t.b);
       const auto [it, added] = slot.try_emplace(key, sums.size());
-      if (added) sums.push_back({groups[g0].first, t.a, t.b, 0.0});
-      sums[it->second].v += t.v;
+      if (added) sums.push_back({{groups[g0].first, t.a, t.b, 0.0}, 0.0, false});
+      Slot& s = sums[it->second];
+      s.t.v += t.v;
+      if (also) {
+        while (p >= ranges[range].first) ++range;
+        if (ranges[range].second) s.also_v += t.v, s.touched = true;
+      }
     }
-    std::sort(sums.begin(), sums.end(), [](const CoarseTriplet& x, const CoarseTriplet& y) {
-      return x.a != y.a ? x.a < y.a : x.b < y.b;  // distinct entries: any sort is the same
+    std::sort(sums.begin(), sums.end(), [](const Slot& x, const Slot& y) {
+      return x.t.a != y.t.a ? x.t.a < y.t.a : x.t.b < y.t.b;  // distinct entries: any sort
     });
-    mine.insert(mine.end(), sums.begin(), sums.end());
+    for (const Slot& s : sums) {
+      mine.push_back(s.t);
+      if (also && s.touched) also_out->push_back({s.t.k, s.t.a, s.t.b, s.also_v});
+    }
     g0 = g1;
   }
   return mine;
@@ -496,25 +529,28 @@ bool CoarseSpace::assemble(const std::vector<double>& weight, Factor& factor,
   return factor_triplets(std::move(all), factor, fail_if_singular);
 }
 
+CoarseSpace::ProductsOf CoarseSpace::weighted_products(const std::vector<GItem>& items,
+                                                       const std::vector<double>& weight) const {
+  // (G~ W G~^T)_{ab} = sum_k w_k g_ak g_bk: the products at one multiplier's items [i, j).
+  return [&items, &weight, this](size_t i, size_t j, std::vector<CoarseTriplet>& products) {
+    const double w = weight[m_.layout.ext_index(items[i].k)];
+    if (w != 0.0)
+      for (size_t a = i; a < j; ++a)
+        for (size_t b = a; b < j; ++b) {
+          int ca = items[a].row, cb = items[b].row;
+          if (ca > cb) std::swap(ca, cb);
+          products.push_back({items[i].k, ca, cb, w * items[a].g * items[b].g});
+        }
+  };
+}
+
 std::vector<CoarseSpace::CoarseTriplet> CoarseSpace::weighted_triplets(
     const std::vector<GItem>& rbuf, const std::vector<double>& weight) const {
-  // (G~ W G~^T)_{ab} = sum_k w_k g_ak g_bk. The owners of the multipliers form the products and
-  // sum equal entries; the summed triplets are shared (every rank factors the coarse matrix).
-  using Triplet = CoarseTriplet;
-  std::vector<Triplet> mine =
-      owner_cluster_sums(rbuf, [&](size_t i, size_t j, std::vector<Triplet>& products) {
-        const double w = weight[m_.layout.ext_index(rbuf[i].k)];
-        if (w != 0.0)
-          for (size_t a = i; a < j; ++a)
-            for (size_t b = a; b < j; ++b) {
-              int ca = rbuf[a].row, cb = rbuf[b].row;
-              if (ca > cb) std::swap(ca, cb);
-              products.push_back({rbuf[i].k, ca, cb, w * rbuf[a].g * rbuf[b].g});
-            }
-      });
-  // Each entry's partial sums in cluster order whatever rank formed them (k: the cluster); on
-  // the ranks that factor (coarse_ranks), the others have none.
-  return gather_to_factor_ranks(mine);
+  // The owners of the multipliers form the products and sum equal entries; the summed triplets
+  // are shared (every rank factors the coarse matrix). Each entry's partial sums in cluster
+  // order whatever rank formed them (k: the cluster); on the ranks that factor (coarse_ranks),
+  // the others have none.
+  return gather_to_factor_ranks(owner_cluster_sums(rbuf, weighted_products(rbuf, weight)));
 }
 
 bool CoarseSpace::factor_triplets(std::vector<CoarseTriplet> all, Factor& factor,

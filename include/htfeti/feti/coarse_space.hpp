@@ -198,8 +198,16 @@ class CoarseSpace {
   // Factors the coarse matrix of the summed triplets (upper triangle; duplicates summed in
   // order) into factor: see assemble. Collective.
   bool factor_triplets(std::vector<CoarseTriplet> all, Factor& factor, bool fail_if_singular);
-  std::vector<CoarseTriplet> owner_cluster_sums(const std::vector<GItem>& gcol,
-                                                const ProductsOf& products_of) const;
+  // With also_sum_of and also_out: the same pass also sums, into *also_out, the products of the
+  // multipliers gcol[i] for which also_sum_of(i) holds, each entry in the same order as a pass
+  // over those products alone would (so bit for bit its result), and only the entries they touch.
+  std::vector<CoarseTriplet> owner_cluster_sums(
+      const std::vector<GItem>& gcol, const ProductsOf& products_of,
+      const std::function<bool(size_t)>& also_sum_of = {},
+      std::vector<CoarseTriplet>* also_out = nullptr) const;
+  // products_of for G~ W G~^T (W = diag(weight) on the owned multipliers; none where w = 0).
+  ProductsOf weighted_products(const std::vector<GItem>& items,
+                               const std::vector<double>& weight) const;
   // build_image's steps 1 and 4 (coarse_image.cpp).
   std::vector<std::vector<int>> clusters_touching_owned_rows() const;
   void assemble_image_coarse_matrix();
@@ -237,6 +245,9 @@ class CoarseSpace {
   bool face_cached_ = false;
   bool face_used_ = false;  // set_face was called
   void cache_face_parts(const std::vector<GItem>& items);
+  // face_fixed_ from the never-held rows' partial sums (gathered to the ranks that factor), and
+  // face_items_ from items.
+  void set_face_parts(const std::vector<GItem>& items, const std::vector<CoarseTriplet>& fixed);
   std::vector<CoarseTriplet> face_fixed_;
   std::vector<GItem> face_items_;
   // The ranks that hold the coarse factor (FetiOptions::coarse_ranks): every rank (subset_

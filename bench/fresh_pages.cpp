@@ -1,6 +1,6 @@
 // What a fresh page costs on this machine (docs/performance.md, "Fresh pages in one call" and
-// "Huge pages, populated"): anonymous memory mapped anew and written page by page (one page
-// fault per 4 KiB page), against the same memory made resident first by
+// "What a fresh page costs here, and huge pages again"): anonymous memory mapped anew and written
+// page by page (one page fault per 4 KiB page), against the same memory made resident first by
 // madvise(MADV_POPULATE_WRITE) (parallel/fresh_pages.hpp) and then written, and against a mapping
 // started on a 2 MiB boundary, marked MADV_HUGEPAGE (transparent huge pages) and then populated;
 // then a pass that reads it all. Each way is timed on new mappings, `repeat` times, and the

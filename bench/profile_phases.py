@@ -75,6 +75,13 @@ with tempfile.TemporaryDirectory(dir=os.environ.get("HTFETI_BENCH_TMP")) as d:
     out = subprocess.run(["perf", "script", "-i", data, "-F", "time,ip,sym"],
                          capture_output=True, text=True).stdout
 counts, callers = collections.Counter(), collections.Counter()
+
+
+def symbol(name):
+    """A symbol as printed: anonymous namespaces written {anon} (their parenthesis would cut it)."""
+    return name.replace("(anonymous namespace)", "{anon}").strip()
+
+
 if a.kernel_callers:
     # Samples are blocks: a header line (time), then one line per frame (ip symbol), leaf first.
     for block in out.split("\n\n"):
@@ -88,7 +95,7 @@ if a.kernel_callers:
         if not lo <= ts < hi:
             continue
         frames = [x.split(None, 1) for x in lines[1:]]
-        frames = [(f[0], re.sub(r"\s+\(.*\)$", "", f[1]).strip() if len(f) > 1 else "[unknown]")
+        frames = [(f[0], symbol(re.sub(r"\s+\(.*\)$", "", f[1])) if len(f) > 1 else "[unknown]")
                   for f in frames]
         if not frames:
             continue
@@ -106,8 +113,7 @@ else:
         except ValueError:
             continue
         if lo <= ts < hi:
-            counts[parts[2].replace("(anonymous namespace)", "{anon}").split("(")[0].strip()
-                   if len(parts) > 2 else "[unknown]"] += 1
+            counts[symbol(parts[2]).split("(")[0].strip() if len(parts) > 2 else "[unknown]"] += 1
 total = sum(counts.values())
 span = "the whole run" if a.phase == "all" else f"{hi - lo:.2f} s"
 print(f"phase {a.phase}: {span}, {total} samples")

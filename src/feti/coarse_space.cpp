@@ -21,6 +21,7 @@
 
 #include "htfeti/errors.hpp"
 #include "htfeti/linalg/nnls.hpp"
+#include "htfeti/parallel/fresh_pages.hpp"
 #include "htfeti/parallel/memory.hpp"
 
 namespace htfeti {
@@ -127,43 +128,78 @@ void CoarseSpace::set_up(const std::vector<std::unique_ptr<Cluster>>& clusters, 
   }
   failure.rethrow();
   {  // G~^T by ordered sums over clusters: one pair per (cluster, multiplier)
+    // Two passes over the clusters, each on the threads (a cluster's entries are its own): the
+    // multipliers each cluster touches, then, with every array's size known and its pages made
+    // resident in one call (parallel/fresh_pages.hpp), their places. Written once, not grown:
+    // at 80^3 with 512 METIS parts the grown arrays' copies and page faults were a fifth of the
+    // coarse phase.
+    std::vector<std::vector<int>> touched(ncl);  // per cluster: its multipliers, sorted
+    std::vector<long> values(ncl + 1, 0);
+    RegionError pass_failure;
+#pragma omp parallel for schedule(dynamic) if (!omp_in_parallel() && ncl > 1)
+    for (int c = 0; c < ncl; ++c) {
+      try {
+        std::vector<int>& ks = touched[c];
+        size_t n = 0;
+        for (const auto& row : rows_[c]) n += row.size();
+        ks.reserve(n);
+        for (const auto& row : rows_[c])
+          for (const auto& [k, g] : row) ks.push_back(k);
+        std::sort(ks.begin(), ks.end());
+        ks.erase(std::unique(ks.begin(), ks.end()), ks.end());
+      } catch (const std::exception& e) {
+        pass_failure.record(e);
+      }
+    }
+    pass_failure.rethrow();
+    pair_first_.assign(ncl + 1, 0);
+    value_first_.assign(ncl + 1, 0);
+    for (int c = 0; c < ncl; ++c) {
+      pair_first_[c + 1] = pair_first_[c] + static_cast<int>(touched[c].size());
+      value_first_[c + 1] = value_first_[c] + static_cast<long>(touched[c].size()) *
+                                                  static_cast<long>(rows_[c].size());
+    }
+    entry_first_ = pair_first_;  // one entry per (cluster, multiplier) pair
+    const int npairs = pair_first_[ncl];
     std::vector<int> pk;
     std::vector<long long> pc;
-    pair_first_.assign(ncl + 1, 0);
-    entry_first_.assign(ncl + 1, 0);
-    value_first_.assign(ncl + 1, 0);
-    entry_k_.clear(), entry_p_.clear(), entry_g_.clear();
+    resize_resident(pk, npairs);
+    resize_resident(pc, npairs);
+    resize_resident(entry_k_, npairs);
+    resize_resident(entry_p_, npairs);
+    resize_resident(entry_g_, value_first_[ncl]);  // zeros where a row has no entry
+#pragma omp parallel for schedule(dynamic) if (!omp_in_parallel() && ncl > 1)
     for (int c = 0; c < ncl; ++c) {
-      std::vector<int> ks;
-      for (const auto& row : rows_[c])
-        for (const auto& [k, g] : row) ks.push_back(k);
-      std::sort(ks.begin(), ks.end());
-      ks.erase(std::unique(ks.begin(), ks.end()), ks.end());
-      const int base = static_cast<int>(pk.size());
-      for (int k : ks) pk.push_back(k), pc.push_back(first_cluster_ + c);
-      pair_first_[c + 1] = static_cast<int>(pk.size());
-      // The entries in the global order of their multipliers (that of every row of rows_).
-      std::vector<int> order(ks);
-      std::sort(order.begin(), order.end(),
-                [&](int a, int b) { return m_.layout.global(a) < m_.layout.global(b); });
-      const int r = static_cast<int>(rows_[c].size());
-      const size_t e0 = entry_k_.size();
-      entry_g_.resize(entry_g_.size() + order.size() * r, 0.0);
-      for (int k : order) {
-        entry_k_.push_back(k);
-        entry_p_.push_back(
-            base + static_cast<int>(std::lower_bound(ks.begin(), ks.end(), k) - ks.begin()));
-      }
-      for (int j = 0; j < r; ++j) {
-        size_t e = e0;  // both in the global order
-        for (const auto& [k, g] : rows_[c][j]) {
-          while (entry_k_[e] != k) ++e;
-          entry_g_[value_first_[c] + (e - e0) * r + j] = g;
+      try {
+        const std::vector<int>& ks = touched[c];
+        const int base = pair_first_[c];
+        for (size_t i = 0; i < ks.size(); ++i)
+          pk[base + i] = ks[i], pc[base + i] = first_cluster_ + c;
+        // The entries in the global order of their multipliers (that of every row of rows_).
+        std::vector<int> order(ks);
+        std::sort(order.begin(), order.end(),
+                  [&](int a, int b) { return m_.layout.global(a) < m_.layout.global(b); });
+        const int r = static_cast<int>(rows_[c].size());
+        const int e0 = entry_first_[c];
+        for (size_t i = 0; i < order.size(); ++i) {
+          entry_k_[e0 + i] = order[i];
+          entry_p_[e0 + i] =
+              base +
+              static_cast<int>(std::lower_bound(ks.begin(), ks.end(), order[i]) - ks.begin());
         }
+        for (int j = 0; j < r; ++j) {
+          int e = e0;  // both in the global order
+          for (const auto& [k, g] : rows_[c][j]) {
+            while (entry_k_[e] != k) ++e;
+            entry_g_[value_first_[c] + static_cast<long>(e - e0) * r + j] = g;
+          }
+        }
+        std::vector<int>().swap(touched[c]);
+      } catch (const std::exception& e) {
+        pass_failure.record(e);
       }
-      entry_first_[c + 1] = static_cast<int>(entry_k_.size());
-      value_first_[c + 1] = static_cast<long>(entry_g_.size());
     }
+    pass_failure.rethrow();
     cluster_sum_ = OrderedSum(comm_, m_.layout, pk, pc, m_.owner_rank);
     pairs_ = Vec::Zero(static_cast<int>(pk.size()));
   }
@@ -390,16 +426,37 @@ std::vector<CoarseSpace::GItem> CoarseSpace::g_columns_at_owners() const {
   MPI_Datatype item_type =
       struct_type<GItem, 3>({offsetof(GItem, k), offsetof(GItem, row), offsetof(GItem, g)},
                             {MPI_LONG_LONG, MPI_INT, MPI_DOUBLE});
-  // The items are written once, each into its place in the send buffer (counted first), and on
-  // one rank that buffer is the result: no growing per-rank lists and no copies (at 80^3 with
-  // 512 METIS parts the items are 200 MB, and fresh pages cost more than the work on them).
+  // The items are written once, each into its place (counted first) in a buffer made resident
+  // in one call: no growing per-rank lists and no copies (at 80^3 with 512 METIS parts the
+  // items are 200 MB, and fresh pages cost more than the work on them).
   const int P = comm_.size();
+  if (P == 1) {
+    // One rank owns every multiplier, and its extended order is the global one: each item goes
+    // straight to its place in (multiplier, row) order (a counting sort: the rows are visited
+    // in increasing order), with no sort and no second buffer.
+    MPI_Type_free(&item_type);
+    std::vector<long> at(m_.layout.n_ext() + 1, 0);
+    for (const auto& cluster_rows : rows_)
+      for (const auto& row : cluster_rows)
+        for (const auto& entry : row) ++at[entry.first + 1];
+    for (int k = 0; k < m_.layout.n_ext(); ++k) at[k + 1] += at[k];
+    std::vector<GItem> items;
+    resize_resident(items, static_cast<size_t>(at.back()));
+    for (size_t c = 0; c < rows_.size(); ++c) {
+      const int base = first_[first_cluster_ + c];
+      for (size_t j = 0; j < rows_[c].size(); ++j)
+        for (const auto& [k, g] : rows_[c][j])
+          items[at[k]++] = {m_.layout.global(k), base + static_cast<int>(j), g};
+    }
+    return items;
+  }
   std::vector<int> scount(P, 0), rcount(P), sdisp(P + 1, 0), rdisp(P + 1, 0);
   for (const auto& cluster_rows : rows_)
     for (const auto& row : cluster_rows)
       for (const auto& entry : row) ++scount[m_.owner_rank[entry.first]];
   for (int r = 0; r < P; ++r) sdisp[r + 1] = sdisp[r] + scount[r];
-  std::vector<GItem> sbuf(sdisp[P]);
+  std::vector<GItem> sbuf;
+  resize_resident(sbuf, static_cast<size_t>(sdisp[P]));
   {
     std::vector<int> pos(sdisp.begin(), sdisp.end() - 1);
     for (size_t c = 0; c < rows_.size(); ++c) {
@@ -409,17 +466,13 @@ std::vector<CoarseSpace::GItem> CoarseSpace::g_columns_at_owners() const {
           sbuf[pos[m_.owner_rank[k]]++] = {m_.layout.global(k), base + static_cast<int>(j), g};
     }
   }
+  MPI_Alltoall(scount.data(), 1, MPI_INT, rcount.data(), 1, MPI_INT, comm_.raw());
+  for (int r = 0; r < P; ++r) rdisp[r + 1] = rdisp[r] + rcount[r];
   std::vector<GItem> rbuf;
-  if (P == 1) {
-    rbuf = std::move(sbuf);
-  } else {
-    MPI_Alltoall(scount.data(), 1, MPI_INT, rcount.data(), 1, MPI_INT, comm_.raw());
-    for (int r = 0; r < P; ++r) rdisp[r + 1] = rdisp[r] + rcount[r];
-    rbuf.resize(rdisp[P]);
-    MPI_Alltoallv(sbuf.data(), scount.data(), sdisp.data(), item_type, rbuf.data(), rcount.data(),
-                  rdisp.data(), item_type, comm_.raw());
-    sbuf = {};
-  }
+  resize_resident(rbuf, static_cast<size_t>(rdisp[P]));
+  MPI_Alltoallv(sbuf.data(), scount.data(), sdisp.data(), item_type, rbuf.data(), rcount.data(),
+                rdisp.data(), item_type, comm_.raw());
+  sbuf = {};
   MPI_Type_free(&item_type);
   // (k, row) is unique: a coarse row lists each multiplier once (set_up sums its entries), so
   // this order is total and an in-place sort gives what a stable one would, without its buffer.
@@ -460,10 +513,18 @@ std::vector<CoarseSpace::CoarseTriplet> CoarseSpace::owner_cluster_sums(
   if (also_out) also_out->clear();
   std::vector<std::pair<int, size_t>> groups;  // (owner cluster, first item of the multiplier)
   for (size_t i = 0; i < gcol.size(); ++i)
-    if (i == 0 || gcol[i].k != gcol[i - 1].k)
-      groups.push_back({m_.owner_cluster[m_.layout.ext_index(gcol[i].k)], i});
+    if (i == 0 || gcol[i].k != gcol[i - 1].k) groups.push_back({0, i});
+  const long ngroups = static_cast<long>(groups.size());
+#pragma omp parallel for schedule(static) if (!omp_in_parallel() && ngroups > 4096)
+  for (long g = 0; g < ngroups; ++g)  // (a binary search each)
+    groups[g].first = m_.owner_cluster[m_.layout.ext_index(gcol[groups[g].second].k)];
   std::stable_sort(groups.begin(), groups.end(),
                    [](const auto& x, const auto& y) { return x.first < y.first; });
+  std::vector<size_t> block;  // the owner clusters' first groups (+ the end)
+  for (size_t g = 0; g < groups.size(); ++g)
+    if (g == 0 || groups[g].first != groups[g - 1].first) block.push_back(g);
+  block.push_back(groups.size());
+  const int nblocks = static_cast<int>(block.size()) - 1;
   // One slot per distinct entry (a, b) of a cluster: its sum, and with also_sum_of the sum of
   // the chosen multipliers' products (touched: some product was added to it).
   struct Slot {
@@ -471,51 +532,78 @@ std::vector<CoarseSpace::CoarseTriplet> CoarseSpace::owner_cluster_sums(
     double also_v;
     bool touched;
   };
-  std::vector<CoarseTriplet> mine, products;
-  std::vector<Slot> sums;
-  std::vector<std::pair<size_t, bool>> ranges;  // per multiplier: end of its products, chosen
-  std::unordered_map<unsigned long long, size_t> slot;  // entry (a, b) -> its place in sums
-  for (size_t g0 = 0; g0 < groups.size();) {
-    size_t g1 = g0;
-    while (g1 < groups.size() && groups[g1].first == groups[g0].first) ++g1;
-    products.clear();
-    ranges.clear();
-    for (size_t g = g0; g < g1; ++g) {
-      const size_t i = groups[g].second;
-      size_t j = i;
-      while (j < gcol.size() && gcol[j].k == gcol[i].k) ++j;
-      products_of(i, j, products);
-      if (also) ranges.push_back({products.size(), also_sum_of(i)});
-    }
-    // Each entry (a, b) sums its products in the order they were formed (multiplier order), as
-    // a stable sort by (a, b) followed by a running sum would, without sorting the products
-    // (78 per multiplier in 3D elasticity; the sort was 7% of a METIS H-TFETI-DP run): a slot
-    // per distinct entry, then the few distinct entries sorted.
-    slot.clear();
-    sums.clear();
-    size_t range = 0;
-    for (size_t p = 0; p < products.size(); ++p) {
-      const CoarseTriplet& t = products[p];
-      const auto key = (static_cast<unsigned long long>(static_cast<unsigned>(t.a)) << 32) |
-                       static_cast<unsigned>(t.b);
-      const auto [it, added] = slot.try_emplace(key, sums.size());
-      if (added) sums.push_back({{groups[g0].first, t.a, t.b, 0.0}, 0.0, false});
-      Slot& s = sums[it->second];
-      s.t.v += t.v;
-      if (also) {
-        while (p >= ranges[range].first) ++range;
-        if (ranges[range].second) s.also_v += t.v, s.touched = true;
+  // The owner clusters on the threads, each cluster's sums formed by one thread in the same
+  // order whatever the threads, then put together in cluster order.
+  std::vector<std::vector<CoarseTriplet>> part(nblocks), also_part(also ? nblocks : 0);
+  RegionError failure;
+#pragma omp parallel if (!omp_in_parallel() && nblocks > 1)
+  {
+    std::vector<CoarseTriplet> products;
+    std::vector<Slot> sums;
+    std::vector<std::pair<size_t, bool>> ranges;  // per multiplier: end of its products, chosen
+    std::unordered_map<unsigned long long, size_t> slot;  // entry (a, b) -> its place in sums
+#pragma omp for schedule(dynamic)
+    for (int blk = 0; blk < nblocks; ++blk) {
+      try {
+        const size_t g0 = block[blk], g1 = block[blk + 1];
+        products.clear();
+        ranges.clear();
+        for (size_t g = g0; g < g1; ++g) {
+          const size_t i = groups[g].second;
+          size_t j = i;
+          while (j < gcol.size() && gcol[j].k == gcol[i].k) ++j;
+          products_of(i, j, products);
+          if (also) ranges.push_back({products.size(), also_sum_of(i)});
+        }
+        // Each entry (a, b) sums its products in the order they were formed (multiplier
+        // order), as a stable sort by (a, b) followed by a running sum would, without sorting
+        // the products (78 per multiplier in 3D elasticity; the sort was 7% of a METIS
+        // H-TFETI-DP run): a slot per distinct entry, then the few distinct entries sorted.
+        slot.clear();
+        sums.clear();
+        size_t range = 0;
+        for (size_t p = 0; p < products.size(); ++p) {
+          const CoarseTriplet& t = products[p];
+          const auto key = (static_cast<unsigned long long>(static_cast<unsigned>(t.a)) << 32) |
+                           static_cast<unsigned>(t.b);
+          const auto [it, added] = slot.try_emplace(key, sums.size());
+          if (added) sums.push_back({{groups[g0].first, t.a, t.b, 0.0}, 0.0, false});
+          Slot& sl = sums[it->second];
+          sl.t.v += t.v;
+          if (also) {
+            while (p >= ranges[range].first) ++range;
+            if (ranges[range].second) sl.also_v += t.v, sl.touched = true;
+          }
+        }
+        std::sort(sums.begin(), sums.end(), [](const Slot& x, const Slot& y) {
+          return x.t.a != y.t.a ? x.t.a < y.t.a : x.t.b < y.t.b;  // distinct entries: any sort
+        });
+        part[blk].reserve(sums.size());
+        for (const Slot& sl : sums) {
+          part[blk].push_back(sl.t);
+          if (also && sl.touched) also_part[blk].push_back({sl.t.k, sl.t.a, sl.t.b, sl.also_v});
+        }
+      } catch (const std::exception& e) {
+        failure.record(e);
       }
     }
-    std::sort(sums.begin(), sums.end(), [](const Slot& x, const Slot& y) {
-      return x.t.a != y.t.a ? x.t.a < y.t.a : x.t.b < y.t.b;  // distinct entries: any sort
-    });
-    for (const Slot& s : sums) {
-      mine.push_back(s.t);
-      if (also && s.touched) also_out->push_back({s.t.k, s.t.a, s.t.b, s.also_v});
-    }
-    g0 = g1;
   }
+  failure.rethrow();
+  const auto join = [](std::vector<std::vector<CoarseTriplet>>& parts,
+                       std::vector<CoarseTriplet>& out) {
+    size_t n = 0;
+    for (const auto& q : parts) n += q.size();
+    resize_resident(out, n);
+    n = 0;
+    for (auto& q : parts) {
+      std::copy(q.begin(), q.end(), out.begin() + static_cast<long>(n));
+      n += q.size();
+      std::vector<CoarseTriplet>().swap(q);
+    }
+  };
+  std::vector<CoarseTriplet> mine;
+  join(part, mine);
+  if (also) join(also_part, *also_out);
   return mine;
 }
 

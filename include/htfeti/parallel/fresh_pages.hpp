@@ -9,6 +9,7 @@
 
 #include <Eigen/SparseCore>
 #include <cstddef>
+#include <vector>
 
 namespace htfeti {
 
@@ -29,6 +30,17 @@ inline void resize_resident(Eigen::SparseMatrix<double>& M, Eigen::Index rows, E
   M.resizeNonZeros(nnz);
   populate(M.valuePtr(), sizeof(double) * static_cast<std::size_t>(nnz));
   populate(M.innerIndexPtr(), sizeof(int) * static_cast<std::size_t>(nnz));
+}
+
+/// v becomes n value-initialized elements (zeros for numbers) in new storage made resident
+/// before it is written (populate()): the old contents are dropped. For arrays of known final
+/// size that would otherwise be grown, or zeroed page by page.
+template <class T>
+void resize_resident(std::vector<T>& v, std::size_t n) {
+  std::vector<T>().swap(v);
+  v.reserve(n);
+  populate(v.data(), sizeof(T) * n);
+  v.resize(n);
 }
 
 /// Routes CHOLMOD's allocations (SuiteSparse_config's malloc, calloc, realloc and free)

@@ -134,7 +134,6 @@ void CoarseSpace::set_up(const std::vector<std::unique_ptr<Cluster>>& clusters, 
     // at 80^3 with 512 METIS parts the grown arrays' copies and page faults were a fifth of the
     // coarse phase.
     std::vector<std::vector<int>> touched(ncl);  // per cluster: its multipliers, sorted
-    std::vector<long> values(ncl + 1, 0);
     RegionError pass_failure;
 #pragma omp parallel for schedule(dynamic) if (!omp_in_parallel() && ncl > 1)
     for (int c = 0; c < ncl; ++c) {
@@ -423,9 +422,6 @@ std::vector<CoarseSpace::CoarseTriplet> CoarseSpace::gather_to_factor_ranks(
 std::vector<CoarseSpace::GItem> CoarseSpace::g_columns_at_owners() const {
   // Every cluster sends (k, coarse row, g) for its nonzeros of G~ to the owner of k. Counts are
   // in items (MPI datatypes), not bytes.
-  MPI_Datatype item_type =
-      struct_type<GItem, 3>({offsetof(GItem, k), offsetof(GItem, row), offsetof(GItem, g)},
-                            {MPI_LONG_LONG, MPI_INT, MPI_DOUBLE});
   // The items are written once, each into its place (counted first) in a buffer made resident
   // in one call: no growing per-rank lists and no copies (at 80^3 with 512 METIS parts the
   // items are 200 MB, and fresh pages cost more than the work on them).
@@ -434,7 +430,6 @@ std::vector<CoarseSpace::GItem> CoarseSpace::g_columns_at_owners() const {
     // One rank owns every multiplier, and its extended order is the global one: each item goes
     // straight to its place in (multiplier, row) order (a counting sort: the rows are visited
     // in increasing order), with no sort and no second buffer.
-    MPI_Type_free(&item_type);
     std::vector<long> at(m_.layout.n_ext() + 1, 0);
     for (const auto& cluster_rows : rows_)
       for (const auto& row : cluster_rows)
@@ -450,6 +445,9 @@ std::vector<CoarseSpace::GItem> CoarseSpace::g_columns_at_owners() const {
     }
     return items;
   }
+  MPI_Datatype item_type =
+      struct_type<GItem, 3>({offsetof(GItem, k), offsetof(GItem, row), offsetof(GItem, g)},
+                            {MPI_LONG_LONG, MPI_INT, MPI_DOUBLE});
   std::vector<int> scount(P, 0), rcount(P), sdisp(P + 1, 0), rdisp(P + 1, 0);
   for (const auto& cluster_rows : rows_)
     for (const auto& row : cluster_rows)

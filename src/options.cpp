@@ -256,8 +256,9 @@ void add_qp_options(std::vector<OptionSpec>& t) {
       }));
   t.push_back(boolean(
       "solver", "face_solve", "--face-solve", "--no-face-solve",
-      "SMALBE-M: when two inner solves in a row end on the same active set, and first in a "
-      "continuation, solve on that face by projected CG with the equality held exactly (the "
+      "SMALBE-M: after an inner solve, on the active set where it ended (once per active set), "
+      "and first in a continuation, solve on that face by projected CG with the equality held "
+      "exactly (the "
       "coarse matrix of the free rows) and take the face's equality multiplier; where it stops "
       "short, SMALBE-M restarts from there (docs/method.md, \"The face solve\")",
       [](RunOptions& r) -> bool& { return r.solve.smalbe.face_solve; }));

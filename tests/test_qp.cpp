@@ -561,6 +561,54 @@ TEST(Smalbe, FaceSolveReachesTheEnumeratedSolutions) {
   EXPECT_GE(taken, finished);
 }
 
+// One problem of the face-solve suites below: a random QP with lower bounds on 6 of 10 entries
+// and 2 equalities, its enumerated solution, and SMALBE-M's hooks with a dense face (built in
+// place: the hooks point into it).
+struct FaceCase {
+  static constexpr int n = 10, bounded = 6, me = 2;
+  Qp q;
+  Vec xs;
+  DenseOperator A;
+  SerialReducer red;
+  double normA;
+  QuadraticProgram qp;
+  DenseFace face;
+  SmalbeHooks hooks;
+  SmalbeOptions opt;
+  explicit FaceCase(unsigned seed)
+      : q(random_qp(n, bounded, me, seed, seed % 2 == 0)),
+        xs(exact_solution(q, bounded)),
+        A(q.A),
+        normA(estimate_norm(A, Vec::Ones(n), red, 200, 1e-10)),
+        qp(qp_of(A, q, true)),
+        face{q.G, {}, 0} {
+    hooks.face = face.hooks();
+    opt.rtol = 1e-10;
+  }
+  FaceCase(const FaceCase&) = delete;
+  FaceCase& operator=(const FaceCase&) = delete;
+};
+
+// A face is tried on the active set of every inner exit, not only once two exits in a row
+// agree: a cold start whose first inner solve already ends on the solution's face can finish
+// there by the face solve, after one outer iteration (with the rule of two equal exits, a face
+// could end a solve at the second outer iteration at the earliest). Every run reaches the
+// enumerated solution.
+TEST(Smalbe, FaceIsTriedAtTheFirstInnerExit) {
+  int first = 0;
+  for (unsigned seed = 1; seed <= 12; ++seed) {
+    FaceCase c(seed);
+    Vec x = Vec::Zero(FaceCase::n);
+    const auto r = smalbe(c.qp, c.normA, x, c.red, c.opt, c.hooks);
+    ASSERT_EQ(r.reason, StopReason::converged) << seed;
+    EXPECT_LT((x - c.xs).norm(), 1e-7) << seed;
+    expect_kkt(c.q, x, 1e-7);
+    EXPECT_GE(r.face_tries, r.outer_iterations > 1 ? 1 : 0) << seed;
+    if (r.outer_iterations == 1 && r.face_converged == 1) ++first;
+  }
+  EXPECT_GT(first, 0);
+}
+
 // A warm start (a multiplier given) tries the face solve first: started at the solution, with
 // any multiplier, the face solve finds the face's own multiplier and ends the solve before any
 // inner solve; started at zero, the same solution as a cold start. A face solve that stops on a
@@ -569,25 +617,14 @@ TEST(Smalbe, FaceSolveReachesTheEnumeratedSolutions) {
 TEST(Smalbe, WarmStartTriesTheFaceFirst) {
   int at_start = 0, kept = 0;
   for (unsigned seed = 1; seed <= 12; ++seed) {
-    const int n = 10, bounded = 6, me = 2;
-    const Qp q = random_qp(n, bounded, me, seed, seed % 2 == 0);
-    const Vec xs = exact_solution(q, bounded);
-    DenseOperator A(q.A);
-    SerialReducer red;
-    const double normA = estimate_norm(A, Vec::Ones(n), red, 200, 1e-10);
-    const QuadraticProgram qp = qp_of(A, q, true);
-    DenseFace face{q.G, {}, 0};
-    SmalbeHooks hooks;
-    hooks.face = face.hooks();
-    SmalbeOptions opt;
-    opt.rtol = 1e-10;
+    FaceCase c(seed);
     for (int start = 0; start < 2; ++start) {
-      Vec x = start ? xs : Vec::Zero(n);
-      Vec mu = Vec::Zero(n);
-      const auto r = smalbe(qp, normA, x, red, opt, hooks, {}, &mu);
+      Vec x = start ? c.xs : Vec::Zero(FaceCase::n);
+      Vec mu = Vec::Zero(FaceCase::n);
+      const auto r = smalbe(c.qp, c.normA, x, c.red, c.opt, c.hooks, {}, &mu);
       ASSERT_EQ(r.reason, StopReason::converged) << seed << start;
-      EXPECT_LT((x - xs).norm(), 1e-7) << seed << start;
-      expect_kkt(q, x, 1e-7);
+      EXPECT_LT((x - c.xs).norm(), 1e-7) << seed << start;
+      expect_kkt(c.q, x, 1e-7);
       if (start && r.outer_iterations == 0) {
         ++at_start;
         EXPECT_EQ(r.face_converged, 1);

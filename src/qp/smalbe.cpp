@@ -247,13 +247,12 @@ SmalbeResult smalbe(const QuadraticProgram& qp, double normA, Vec& x, const Redu
       res.reason = StopReason::max_iterations;
       break;
     }
-    // The face solve (face_cg.hpp), once two inner solves in a row have ended on the same active
-    // set (before the late phase only where faces are cheap: FaceHooks::cheap); at most
+    // The face solve (face_cg.hpp) on the active set of this inner exit, once per active set
+    // (before the late phase only where faces are cheap: FaceHooks::cheap); at most
     // kMaxFaceSolves taken per run. A kept face point restarts the outer loop: no
     // multiplier update (mu is the face's), and the M test compares with L there.
-    const bool set_changed = use_face && active_set_changed();
-    if (set_changed) face_tried = false;
-    if (use_face && !set_changed && !face_tried && res.face_solves < kMaxFaceSolves &&
+    if (use_face && active_set_changed()) face_tried = false;
+    if (use_face && !face_tried && res.face_solves < kMaxFaceSolves &&
         (late || inner.projected_gradient <= grad_tol || face_cheap()) && face_finishes())
       break;
     if (face_kept) {

@@ -93,9 +93,9 @@ struct SmalbeOptions {
   /// bound kMaxRhoGrowth stays relative to rho_factor ||A||.
   double rho_start = 0, M_start = 0;
   /// The face solve (face_cg.hpp; needs SmalbeHooks::face and bounds, not a SeparableSet):
-  /// after an outer iteration whose inner solve ended on the same active set as the one before,
-  /// and first of all in a warm start (multiplier given): CG on that face with G x = 0 held
-  /// exactly, and the face's equality multiplier. It ends the solve when its point passes the
+  /// after an outer iteration, on the active set where its inner solve ended (once per active
+  /// set), and first of all in a warm start (multiplier given): CG on that face with G x = 0
+  /// held exactly, and the face's equality multiplier. It ends the solve when its point passes the
   /// global test; else the outer loop restarts from its point and multiplier.
   bool face_solve = true;
 };

@@ -258,9 +258,8 @@ void add_qp_options(std::vector<OptionSpec>& t) {
       "solver", "face_solve", "--face-solve", "--no-face-solve",
       "SMALBE-M: after an inner solve, on the active set where it ended (once per active set), "
       "and first in a continuation, solve on that face by projected CG with the equality held "
-      "exactly (the "
-      "coarse matrix of the free rows) and take the face's equality multiplier; where it stops "
-      "short, SMALBE-M restarts from there (docs/method.md, \"The face solve\")",
+      "exactly (the coarse matrix of the free rows) and take the face's equality multiplier; "
+      "where it stops short, SMALBE-M restarts from there (docs/method.md, \"The face solve\")",
       [](RunOptions& r) -> bool& { return r.solve.smalbe.face_solve; }));
   t.push_back(number(
       "gamma", "--gamma", "MPRGP proportioning parameter Gamma",

@@ -176,6 +176,8 @@ with tempfile.TemporaryDirectory() as tmp:
         worst = int(np.argmax(values))
         order = np.sort(values)[::-1]
         row = {"split": name, "seed": seed, "products": r["matvecs"],
+               "expansion_steps": r["solver"].get("expansion_steps"),
+               "expansion_cost_increases": r["solver"].get("expansion_cost_increases"),
                "norm_estimate": r["solver"]["norm_estimate"], "softest_part": worst,
                "softest": float(order[0]), "second": float(order[1]), "median": float(np.median(values)),
                "parts": soft}

@@ -33,7 +33,7 @@ import numpy as np
 from vtkmodules.util.numpy_support import vtk_to_numpy
 from vtkmodules.vtkIOXML import vtkXMLUnstructuredGridReader
 
-from common import BIN, ROOT, machine, save
+from common import BIN, ROOT, env, save
 
 p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
 p.add_argument("--case", default="cases/cube40_metis64_a20.toml")
@@ -167,8 +167,8 @@ with tempfile.TemporaryDirectory() as tmp:
             args[2] = box_case
         else:
             args += ["--partition-seed", str(seed)]
-        env = dict(os.environ, OMP_NUM_THREADS=str(a.threads))
-        subprocess.run(args, check=True, stdout=subprocess.DEVNULL, env=env)
+        # (common.solve would delete the VTU this script reads; the same environment)
+        subprocess.run(args, check=True, stdout=subprocess.DEVNULL, env=env(a.threads))
         with open(rep) as f:
             r = json.load(f)
         soft = softest_modes(*read_split(vtu))
@@ -186,4 +186,4 @@ with tempfile.TemporaryDirectory() as tmp:
         print(f"{name:16s} products {row['products']:4d}  ||PFP|| {row['norm_estimate']:.3e}  softest part "
               f"{worst} {order[0]:.3e} (next {order[1]:.3e}, median {row['median']:.3e})  "
               f"||PFP|| / softest {row['norm_over_softest']:.2f}", flush=True)
-save(a.out, {"case": a.case, "threads": a.threads, "rows": rows, "machine": machine()})
+save(a.out, {"case": a.case, "threads": a.threads, "rows": rows})  # (save adds the machine)

@@ -72,6 +72,16 @@ def steal_fraction(before, after):
     return d[7] / sum(d) if sum(d) > 0 else 0.0
 
 
+def cube_obstacle_file(directory, n, amplitude, subdomains, rtol=1e-4):
+    """Writes the cube-obstacle problem (CUBE_OBSTACLE_TOML: n^3 hex8 cells, obstacle amplitude,
+    subdomains as the problem file's value, e.g. "64" or "[4, 4, 4]") into directory and
+    returns its path."""
+    path = os.path.join(directory, f"cube_{n}_{amplitude:g}_{subdomains.replace(' ', '')}.toml")
+    with open(path, "w") as f:
+        f.write(CUBE_OBSTACLE_TOML.format(n=n, amp=amplitude, subdomains=subdomains, rtol=rtol))
+    return path
+
+
 def solve(args, ranks=1, threads=1, extra_env=None, binary=None, vtu=False):
     """Runs htfeti solve (build/htfeti, or `binary`) with the given argument list; returns the
     report as a dict. vtu: also write the VTU output (to a temporary directory beside the report,

@@ -17,11 +17,10 @@ Usage: bench/metis_seeds.py [--n 40] [--amplitudes 1 20] [--seeds 8] [--threads 
 The cube is n^3 hex8 cells in (n/10)^3 parts (64 at n = 40, 512 at n = 80), the problem of
 bench/cases/cube40_metis64*.toml and bench/cube_obstacle_peer.py. Writes bench/results/OUT."""
 import argparse
-import os
 import statistics
 import tempfile
 
-from common import CUBE_OBSTACLE_TOML, machine, save, solve
+from common import cube_obstacle_file, machine, save, solve
 
 p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
 p.add_argument("--n", type=int, default=40)
@@ -37,10 +36,7 @@ ns = a.n // 10
 
 
 def case_file(d, amplitude, subdomains):
-    path = os.path.join(d, f"cube_{amplitude:g}_{subdomains.replace(' ', '')}.toml")
-    with open(path, "w") as f:
-        f.write(CUBE_OBSTACLE_TOML.format(n=a.n, amp=amplitude, subdomains=subdomains, rtol=1e-4))
-    return path
+    return cube_obstacle_file(d, a.n, amplitude, subdomains)
 
 
 def row_of(r, split, seed):

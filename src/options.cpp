@@ -330,6 +330,13 @@ void add_feti_options(std::vector<OptionSpec>& t) {
                      name_of(kDirichletStorageNames,
                              static_cast<DirichletStorage>(r.solve.feti.dirichlet_storage)));
                }});
+  t.push_back(integer(
+      "dirichlet_layers", "--dirichlet-layers",
+      "Dirichlet preconditioner: 0 the Schur complement on the whole interior of each "
+      "subdomain; k >= 1 only the k layers of interior dofs next to the interface, the rest "
+      "clamped (an approximate Dirichlet preconditioner: a smaller setup and application, "
+      "iterations between lumped and Dirichlet)",
+      [](RunOptions& r) -> int& { return r.solve.feti.dirichlet_layers; }, 0, 1000000));
   t.push_back(gigabytes(
       "dirichlet_budget_gb", "--dirichlet-budget",
       "GB per rank: with dirichlet_storage = auto the Dirichlet preconditioner stores its S_i "

@@ -110,6 +110,9 @@ void report_problem_and_solve(nlohmann::json& rep, const Model& model, DualProbl
                                     : comm.min(dual.preconditioner_dense() ? 1.0 : 0.0) > 0
                                         ? "dense"
                                         : "implicit";
+  // The Dirichlet preconditioner's layers of interior dofs (0: all of them).
+  if (ops.preconditioned && dual.preconditioner() == PreconditionerKind::dirichlet)
+    rep["preconditioner_layers"] = dual.preconditioner_layers();
   rep["converged"] = qs.converged;
   rep["stop_reason"] = qs.reason;
   rep["outer_iterations"] = qs.outer;

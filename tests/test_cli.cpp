@@ -296,6 +296,7 @@ TEST_F(Cli, BadProblemFilesExitWithCode2NamingTheKeyAndWriteNothing) {
       {with("[solver]", "[solver]\npreconditioner = \"jacobi\""), "preconditioner"},
       {with("[solver]", "[solver]\nscaling = 1"), "solver.scaling"},
       {with("[solver]", "[solver]\ndirichlet_storage = \"packed\""), "solver.dirichlet_storage"},
+      {with("[solver]", "[solver]\ndirichlet_layers = -2"), "solver.dirichlet_layers"},
       {with("type = \"laplace\"", "type = \"laplace\"\ncoefficient = \"q\""),
        "physics.coefficient"},
       {with("type = \"laplace\"", "type = \"laplace\"\ncoefficient = \"x - 0.5\""),
@@ -1011,7 +1012,8 @@ TEST_F(Cli, OptionsAreEchoedAndDryRunWritesNothing) {
 
   for (const char* bad :
        {"--memory-limit nan", "--explicit-budget nan", "--numeric-cache nan", "--rtol inf",
-        "--dirichlet-budget -1", "--symbolic-cache 1e3", "--max-it 99999999999"}) {
+        "--dirichlet-budget -1", "--dirichlet-layers -1", "--dirichlet-layers 1.5",
+        "--symbolic-cache 1e3", "--max-it 99999999999"}) {
     EXPECT_EQ(run(bin + " solve p.toml --report r.json " + bad), 2) << bad;
     EXPECT_NE(stderr_text().find(std::string(bad).substr(0, std::string(bad).find(' '))),
               std::string::npos)

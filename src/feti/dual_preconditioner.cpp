@@ -19,6 +19,7 @@ void DualPreconditioner::start(const FetiOptions& options, const FetiLayout& lay
     throw std::logic_error("DualProblem: resolve the automatic preconditioner first");
   kind_ = options.preconditioner;
   scaling_ = options.scaling;
+  layers_ = options.dirichlet_layers;
   // Exact stiffness scaling on the nodes needs their copy counts. Copies joined primally (corner
   // glue) form groups, for which the identity used there does not hold: those runs weight each
   // per-node row over its own entries instead (build_scaling).
@@ -70,7 +71,7 @@ void DualPreconditioner::set_up_subdomain(int s, const Eigen::SparseMatrix<doubl
                                           std::vector<int> interface, Ordering ordering,
                                           const Eigen::MatrixXd* kernel, SubdomainCache* cache) {
   local_[s] = std::make_unique<LocalPreconditioner>(K, std::move(interface), kind_, dense_,
-                                                    ordering, kernel, cache);
+                                                    ordering, kernel, cache, layers_);
 }
 
 void DualPreconditioner::finish(Multipliers& m, const std::vector<std::vector<double>>& rho,

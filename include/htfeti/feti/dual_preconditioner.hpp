@@ -60,6 +60,8 @@ class DualPreconditioner {
   Scaling scaling() const { return scaling_; }
   /// Whether the Dirichlet S_i are stored dense on this rank.
   bool dense() const { return dense_; }
+  /// The Dirichlet preconditioner's layers (FetiOptions::dirichlet_layers; 0: the whole interior).
+  int layers() const { return layers_; }
   long bytes() const;  ///< on this rank
 
  private:
@@ -73,6 +75,7 @@ class DualPreconditioner {
   PreconditionerKind kind_ = PreconditionerKind::none;
   Scaling scaling_ = Scaling::multiplicity;
   bool dense_ = true;
+  int layers_ = 0;
   std::vector<std::unique_ptr<LocalPreconditioner>> local_;  // per local subdomain
   // Per local subdomain, per row entry: the interface position of its dof, and (stiffness
   // scaling) the scaled value of B_D.

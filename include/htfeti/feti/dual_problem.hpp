@@ -100,6 +100,9 @@ struct FetiOptions {
   double dirichlet_dense_budget_bytes = 2.0 * (1LL << 30);
   /// Force the Dirichlet storage: 0 automatic (the budget above), 1 dense, 2 implicit.
   int dirichlet_storage = 0;
+  /// The Dirichlet preconditioner's interior: 0 all of it (S_i), k >= 1 the k layers of dofs
+  /// next to the interface, the rest clamped (S_i^(k), preconditioner.hpp).
+  int dirichlet_layers = 0;
   /// Subdomain factorizations share the symbolic analysis of an earlier subdomain with the same
   /// sparsity pattern (SubdomainCache); this many patterns are kept per rank (0: every subdomain
   /// is analysed on its own). The factors are the same either way.
@@ -220,6 +223,7 @@ class DualProblem {
   Scaling scaling() const { return preconditioner_.scaling(); }
   /// Whether the Dirichlet S_i are stored dense on every rank (false: implicit somewhere).
   bool preconditioner_dense() const { return preconditioner_.dense(); }
+  int preconditioner_layers() const { return preconditioner_.layers(); }
   long preconditioner_bytes() const { return preconditioner_.bytes(); }  ///< on this rank
   /// Global sums that do not depend on the number of ranks: per owner cluster (the cluster of the
   /// lowest subdomain a multiplier touches) a partial sum over its entries in global order, the

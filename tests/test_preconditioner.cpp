@@ -39,6 +39,35 @@ std::shared_ptr<const Model> builtin(ProblemKind p, int n, int ns, int m, Glue g
       make_builtin_model(DecompositionOptions{p, ElementKind::q1, n, ns, m, glue}));
 }
 
+// The Schur complement K_bb - K_sb^T K_ss^{-1} K_sb of the dense Kd on the dofs b, over the
+// interior dofs s (the rest of Kd left out: clamped).
+Eigen::MatrixXd dense_schur(const Eigen::MatrixXd& Kd, const std::vector<int>& b,
+                            const std::vector<int>& s) {
+  const int nb = static_cast<int>(b.size()), ns = static_cast<int>(s.size());
+  Eigen::MatrixXd Kbb(nb, nb), Ksb(ns, nb), Kss(ns, ns);
+  for (int i = 0; i < nb; ++i)
+    for (int j = 0; j < nb; ++j) Kbb(i, j) = Kd(b[i], b[j]);
+  for (int i = 0; i < ns; ++i) {
+    for (int j = 0; j < nb; ++j) Ksb(i, j) = Kd(s[i], b[j]);
+    for (int j = 0; j < ns; ++j) Kss(i, j) = Kd(s[i], s[j]);
+  }
+  return Kbb - Ksb.transpose() * Kss.ldlt().solve(Ksb);
+}
+
+// The matrix of a local preconditioner: its application to each unit vector.
+Eigen::MatrixXd operator_matrix(LocalPreconditioner& p) {
+  const int nb = p.size();
+  Eigen::MatrixXd M(nb, nb);
+  Eigen::VectorXd e(nb), y(nb);
+  for (int j = 0; j < nb; ++j) {
+    e.setZero();
+    e[j] = 1;
+    p.apply(e.data(), y.data());
+    M.col(j) = y;
+  }
+  return M;
+}
+
 }  // namespace
 
 TEST(LocalPreconditioner, MatchesTheDenseSchurComplement) {
@@ -63,15 +92,10 @@ TEST(LocalPreconditioner, MatchesTheDenseSchurComplement) {
         ++j;
       else
         interior.push_back(d);
-    const int ni = static_cast<int>(interior.size());
-    Eigen::MatrixXd Kbb(nb, nb), Kib(ni, nb), Kii(ni, ni);
+    Eigen::MatrixXd Kbb(nb, nb);
     for (int i = 0; i < nb; ++i)
       for (int j = 0; j < nb; ++j) Kbb(i, j) = Kd(b[i], b[j]);
-    for (int i = 0; i < ni; ++i) {
-      for (int j = 0; j < nb; ++j) Kib(i, j) = Kd(interior[i], b[j]);
-      for (int j = 0; j < ni; ++j) Kii(i, j) = Kd(interior[i], interior[j]);
-    }
-    const Eigen::MatrixXd S = Kbb - Kib.transpose() * Kii.ldlt().solve(Kib);
+    const Eigen::MatrixXd S = dense_schur(Kd, b, interior);
     const Eigen::VectorXd x = ramp(nb, 0.5);
     Eigen::VectorXd y(nb);
     LocalPreconditioner lumped(K, b, PreconditionerKind::lumped, false, Ordering::amd);
@@ -95,13 +119,7 @@ TEST(LocalPreconditioner, MatchesTheDenseSchurComplement) {
       // annihilates: positive definite.
       LocalPreconditioner reg(K, b, PreconditionerKind::dirichlet, dense, Ordering::amd,
                               &in.system.R);
-      Eigen::MatrixXd Sr(nb, nb);
-      for (int j = 0; j < nb; ++j) {
-        Eigen::VectorXd e = Eigen::VectorXd::Zero(nb);
-        e[j] = 1;
-        reg.apply(e.data(), y.data());
-        Sr.col(j) = y;
-      }
+      const Eigen::MatrixXd Sr = operator_matrix(reg);
       Eigen::MatrixXd Rb(nb, in.system.R.cols());
       for (int i = 0; i < nb; ++i) Rb.row(i) = in.system.R.row(b[i]);
       EXPECT_LT((S * Rb).norm(), 1e-9 * Kbb.diagonal().maxCoeff() * Rb.norm());
@@ -138,15 +156,7 @@ TEST(LocalPreconditioner, LayeredDirichletBetweenLumpedAndDirichlet) {
     std::vector<int> s;
     for (int d : keep)
       if (!std::binary_search(b.begin(), b.end(), d)) s.push_back(d);
-    const int ns = static_cast<int>(s.size());
-    Eigen::MatrixXd Kbb(nb, nb), Ksb(ns, nb), Kss(ns, ns);
-    for (int i = 0; i < nb; ++i)
-      for (int j = 0; j < nb; ++j) Kbb(i, j) = Kd(b[i], b[j]);
-    for (int i = 0; i < ns; ++i) {
-      for (int j = 0; j < nb; ++j) Ksb(i, j) = Kd(s[i], b[j]);
-      for (int j = 0; j < ns; ++j) Kss(i, j) = Kd(s[i], s[j]);
-    }
-    return std::make_pair(Eigen::MatrixXd(Kbb - Ksb.transpose() * Kss.ldlt().solve(Ksb)), ns);
+    return std::make_pair(dense_schur(Kd, b, s), static_cast<int>(s.size()));
   };
   // The dofs within k steps of b in the dense matrix's nonzero pattern.
   const auto within = [&](int k) {
@@ -165,17 +175,6 @@ TEST(LocalPreconditioner, LayeredDirichletBetweenLumpedAndDirichlet) {
       if (depth[i] >= 0) keep.push_back(i);
     return keep;
   };
-  const auto operator_of = [&](LocalPreconditioner& p) {
-    Eigen::MatrixXd M(nb, nb);
-    Eigen::VectorXd e(nb), y(nb);
-    for (int j = 0; j < nb; ++j) {
-      e.setZero();
-      e[j] = 1;
-      p.apply(e.data(), y.data());
-      M.col(j) = y;
-    }
-    return M;
-  };
   const auto [S, n_interior] = schur(within(n));
   ASSERT_GT(n_interior, 0);
   const auto min_eigenvalue = [](const Eigen::MatrixXd& A) {
@@ -184,8 +183,8 @@ TEST(LocalPreconditioner, LayeredDirichletBetweenLumpedAndDirichlet) {
         .minCoeff();
   };
   const double scale = Kd.diagonal().maxCoeff();
-  Eigen::MatrixXd previous = operator_of(*std::make_unique<LocalPreconditioner>(
-      K, b, PreconditionerKind::lumped, false, Ordering::amd));  // K_bb
+  LocalPreconditioner lumped(K, b, PreconditionerKind::lumped, false, Ordering::amd);
+  Eigen::MatrixXd previous = operator_matrix(lumped);  // K_bb
   for (int k : {1, 2}) {
     const auto [Sk, ns] = schur(within(k));
     ASSERT_GT(ns, 0) << k;
@@ -193,7 +192,7 @@ TEST(LocalPreconditioner, LayeredDirichletBetweenLumpedAndDirichlet) {
     for (bool dense : {false, true}) {
       LocalPreconditioner p(K, b, PreconditionerKind::dirichlet, dense, Ordering::amd, &in.system.R,
                             nullptr, k);
-      const Eigen::MatrixXd M = operator_of(p);
+      const Eigen::MatrixXd M = operator_matrix(p);
       EXPECT_LT((M - Sk).norm(), 1e-10 * scale * nb) << k << " " << dense;
     }
     // S <= S^(k) <= S^(k-1): the differences are positive semidefinite, and not zero.
@@ -206,7 +205,7 @@ TEST(LocalPreconditioner, LayeredDirichletBetweenLumpedAndDirichlet) {
   // Layers that reach every dof: the Dirichlet operator itself.
   LocalPreconditioner all(K, b, PreconditionerKind::dirichlet, false, Ordering::amd, nullptr,
                           nullptr, n);
-  EXPECT_LT((operator_of(all) - S).norm(), 1e-10 * scale * nb);
+  EXPECT_LT((operator_matrix(all) - S).norm(), 1e-10 * scale * nb);
 }
 
 namespace {

@@ -318,8 +318,8 @@ void add_feti_options(std::vector<OptionSpec>& t) {
       kScalingNames, +[](RunOptions& r) -> Scaling& { return r.solve.feti.scaling; }));
   t.push_back({"solver", "dirichlet_storage", "--dirichlet-storage", "", OptionType::choice, "",
                "Dirichlet preconditioner: dense (S_i stored, 8 n_b^2 bytes per subdomain) | "
-               "implicit (applied with a factor of K_ii) | auto (dense when all fit "
-               "dirichlet_budget_gb per rank)",
+               "implicit (applied with a factor of K_ii) | auto (3D: implicit; 2D: dense when "
+               "all fit dirichlet_budget_gb per rank)",
                names_of(kDirichletStorageNames),
                [](RunOptions& r, const OptionValue& v) {
                  r.solve.feti.dirichlet_storage = static_cast<int>(
@@ -339,8 +339,8 @@ void add_feti_options(std::vector<OptionSpec>& t) {
       [](RunOptions& r) -> int& { return r.solve.feti.dirichlet_layers; }, 0, 1000000));
   t.push_back(gigabytes(
       "dirichlet_budget_gb", "--dirichlet-budget",
-      "GB per rank: with dirichlet_storage = auto the Dirichlet preconditioner stores its S_i "
-      "dense when they fit this, else applies them with a factor of K_ii",
+      "GB per rank: with dirichlet_storage = auto in 2D the Dirichlet preconditioner stores its "
+      "S_i dense when they fit this, else applies them with a factor of K_ii",
       [](RunOptions& r) -> double& { return r.solve.feti.dirichlet_dense_budget_bytes; }));
 }
 

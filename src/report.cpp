@@ -96,7 +96,7 @@ void report_problem_and_solve(nlohmann::json& rep, const Model& model, DualProbl
   rep["clusters_released"] = comm.sum(static_cast<long long>(dual.clusters_released()));
   rep["preconditioner"] = to_string(dual.preconditioner());
   // Why: "requested", or the automatic rule (resolve_preconditioner); a Dirichlet choice of auto
-  // whose dense blocks did not fit fell back to none.
+  // in 2D whose dense blocks did not fit fell back to none.
   std::string why = preconditioner_reason;
   if (feti.preconditioner == PreconditionerKind::dirichlet &&
       dual.preconditioner() != PreconditionerKind::dirichlet)

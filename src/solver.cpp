@@ -417,7 +417,8 @@ std::string resolve_preconditioner(const Model& model, FetiOptions& o) {
       o.preconditioner = PreconditionerKind::none;
       why = "automatic: Laplace without a coefficient field";
     }
-    // Dirichlet by choice of auto only where its dense blocks fit (else none, see FetiOptions).
+    // Dirichlet by choice of auto: in 2D only where its dense blocks fit (else none, see
+    // FetiOptions); in 3D with the implicit storage.
     if (o.preconditioner == PreconditionerKind::dirichlet)
       o.dirichlet_fallback = PreconditionerKind::none;
   }

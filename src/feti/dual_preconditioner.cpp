@@ -20,6 +20,7 @@ void DualPreconditioner::start(const FetiOptions& options, const FetiLayout& lay
   kind_ = options.preconditioner;
   scaling_ = options.scaling;
   layers_ = options.dirichlet_layers;
+  dim_ = layout.dim;
   // Exact stiffness scaling on the nodes needs their copy counts. Copies joined primally (corner
   // glue) form groups, for which the identity used there does not hold: those runs weight each
   // per-node row over its own entries instead (build_scaling).
@@ -51,9 +52,16 @@ std::vector<std::vector<int>> DualPreconditioner::plan(const FetiOptions& option
           static_cast<int>(std::lower_bound(in.begin(), in.end(), r.dof) - in.begin()));
     dense_bytes += 8.0 * in.size() * in.size();
   }
+  // Automatic storage (bench/dirichlet_storage.py, docs/performance.md "The Dirichlet
+  // preconditioner's storage"): in 2D a part's interface is a curve, n_b is small beside its
+  // interior and the dense S_i is both smaller than the factor of K_ii and applied several times
+  // faster; in 3D the interface is a surface, 8 n_b^2 bytes exceed that factor (3 to 7 times on
+  // the measured parts) and forming S_i from n_b right-hand sides costs 15 to 35 times the
+  // implicit setup, so 3D takes the implicit storage whatever the budget.
   const bool fits = comm.max(dense_bytes) <= options.dirichlet_dense_budget_bytes;
-  if (kind_ == PreconditionerKind::dirichlet && options.dirichlet_storage == 0 && !fits &&
-      options.dirichlet_fallback != PreconditionerKind::dirichlet) {
+  const bool dense_automatic = dim_ == 2 && fits;
+  if (kind_ == PreconditionerKind::dirichlet && options.dirichlet_storage == 0 && dim_ == 2 &&
+      !fits && options.dirichlet_fallback != PreconditionerKind::dirichlet) {
     kind_ = options.dirichlet_fallback;
     if (!built()) {
       interface.clear(), interface_position_.clear();
@@ -62,7 +70,7 @@ std::vector<std::vector<int>> DualPreconditioner::plan(const FetiOptions& option
     }
   }
   dense_ = kind_ == PreconditionerKind::dirichlet &&
-           (options.dirichlet_storage == 1 || (options.dirichlet_storage == 0 && fits));
+           (options.dirichlet_storage == 1 || (options.dirichlet_storage == 0 && dense_automatic));
   if (built()) local_.resize(nsub);
   return interface;
 }

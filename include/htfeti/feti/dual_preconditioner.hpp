@@ -36,8 +36,9 @@ class DualPreconditioner {
   std::vector<int>& node_copies(int s) { return node_copies_[s]; }
 
   /// Stage 2: the interface of each subdomain (the dofs its rows of B~ touch, sorted; returned)
-  /// and the storage: dense S_i when they fit options.dirichlet_dense_budget_bytes on every
-  /// rank, else the fallback. Collective.
+  /// and the storage. Automatic storage: in 2D dense S_i when they fit
+  /// options.dirichlet_dense_budget_bytes on every rank, else the fallback; in 3D implicit
+  /// (docs/method.md, "Preconditioners": measured faster and smaller there). Collective.
   std::vector<std::vector<int>> plan(const FetiOptions& options, const Multipliers& m,
                                      const Comm& comm);
   /// Whether set_up_subdomain needs the diagonal of K at the row entries (stiffness scaling).
@@ -76,6 +77,7 @@ class DualPreconditioner {
   Scaling scaling_ = Scaling::multiplicity;
   bool dense_ = true;
   int layers_ = 0;
+  int dim_ = 2;
   std::vector<std::unique_ptr<LocalPreconditioner>> local_;  // per local subdomain
   // Per local subdomain, per row entry: the interface position of its dof, and (stiffness
   // scaling) the scaled value of B_D.

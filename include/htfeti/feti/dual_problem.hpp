@@ -95,10 +95,12 @@ struct FetiOptions {
   /// The preconditioner built for apply_preconditioner() (none: not built; preconditioner.hpp).
   PreconditionerKind preconditioner = PreconditionerKind::none;
   Scaling scaling = Scaling::multiplicity;
-  /// The Dirichlet preconditioner stores S_i dense when 8 n_b^2 bytes summed over the rank's
-  /// subdomains fit this budget (n_b: interface dofs), else applies it with a factor of K_ii.
+  /// With the automatic storage the Dirichlet preconditioner stores S_i dense in 2D when
+  /// 8 n_b^2 bytes summed over the rank's subdomains fit this budget on every rank (n_b:
+  /// interface dofs), else applies it with a factor of K_ii; in 3D always the latter.
   double dirichlet_dense_budget_bytes = 2.0 * (1LL << 30);
-  /// Force the Dirichlet storage: 0 automatic (the budget above), 1 dense, 2 implicit.
+  /// Force the Dirichlet storage: 0 automatic (implicit in 3D; in 2D the budget above), 1 dense,
+  /// 2 implicit.
   int dirichlet_storage = 0;
   /// The Dirichlet preconditioner's interior: 0 all of it (S_i), k >= 1 the k layers of dofs
   /// next to the interface, the rest clamped (S_i^(k), preconditioner.hpp).
@@ -111,9 +113,10 @@ struct FetiOptions {
   /// many bytes per rank, and a subdomain whose K_rr equals a kept one entry for entry copies
   /// its factor instead of factoring (SubdomainCache; the same factor bit for bit). 0: off.
   double numeric_cache_bytes = 512.0 * (1 << 20);
-  /// With automatic storage, what to use when the dense S_i do not fit: the implicit Dirichlet
-  /// preconditioner (dirichlet), or another kind (the automatic choice falls back to none: the
-  /// implicit one needs a second factor per subdomain, which the memory check does not count).
+  /// With automatic storage in 2D, what to use when the dense S_i do not fit: the implicit
+  /// Dirichlet preconditioner (dirichlet), or another kind (the automatic choice falls back to
+  /// none: the implicit one needs a second factor per subdomain, which the memory check does not
+  /// count). In 3D the automatic storage is implicit and there is no fallback.
   PreconditionerKind dirichlet_fallback = PreconditionerKind::dirichlet;
   /// How many ranks hold the factor of the coarse matrix G~ G~^T (CoarseSpace): 0 (or the rank
   /// count or more) every rank, as before; K > 0 splits the ranks into groups of ceil(P / K)

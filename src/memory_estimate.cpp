@@ -50,6 +50,16 @@ double machine_available_mb(const FetiOptions& options, MPI_Comm node) {
   return available;
 }
 
+// Whether the run will apply the Dirichlet preconditioner on the whole interior with factors of
+// K_ii (DualPreconditioner::plan's automatic storage: implicit in 3D).
+bool implicit_dirichlet(const FetiOptions& o, int dim) {
+  return o.preconditioner == PreconditionerKind::dirichlet && o.dirichlet_layers == 0 &&
+         (o.dirichlet_storage == 2 || (o.dirichlet_storage == 0 && dim == 3));
+}
+
+// Counted as half of the factors: 0.57 to 0.69 of them measured (memory_estimate.hpp).
+constexpr double kImplicitDirichletShare = 0.5;
+
 }  // namespace
 
 MemoryEstimate estimate_memory(const Model& model, const FetiOptions& options, const Comm& comm,
@@ -71,6 +81,8 @@ MemoryEstimate estimate_memory(const Model& model, const FetiOptions& options, c
   e.matrices_mb = lower_nnz * 12.0 / kMiB;
   e.factors_mb = lower_nnz * 8.0 / kMiB;  // L has at least the nonzeros of K's lower triangle
   e.factors_held_mb = e.factors_mb;
+  const bool implicit_preconditioner = implicit_dirichlet(options, layout.dim);
+  if (implicit_preconditioner) e.preconditioner_mb = kImplicitDirichletShare * e.factors_mb;
   if (!sample_one || per_subdomain > kMaxSampleUnknowns) return e;
   // Sample: the rank's first subdomain, assembled and analysed with the ordering in effect.
   SubdomainInput in = model.input(s0);
@@ -120,6 +132,9 @@ MemoryEstimate estimate_memory(const Model& model, const FetiOptions& options, c
     }
   }
   e.factors_held_mb = e.factors_mb;
+  // The preconditioner's factors of K_ii, shared as the subdomains' factors are (the numeric
+  // cache serves both).
+  if (implicit_preconditioner) e.preconditioner_mb = kImplicitDirichletShare * e.factors_mb;
   // The implicit operator's single-precision copies (4 of a value's 8 bytes), where every
   // cluster of the rank is one subdomain (TFETI: no primal constraints).
   bool one_per_cluster = true;
@@ -167,11 +182,11 @@ MemoryEstimate check_memory(const Model& model, FetiOptions& options, const Comm
   MPI_Comm_size(node, &node_ranks);
   const double available = machine_available_mb(options, node);
   // One estimate and its sums over the machine: peak, factors, matrices, vectors, explicit,
-  // factors held.
+  // factors held, preconditioner.
   struct Sums {
     MemoryEstimate e;
     std::string error;
-    double sum[6] = {0, 0, 0, 0, 0, 0};
+    double sum[7] = {0, 0, 0, 0, 0, 0, 0};
     bool fits(double avail) const { return error.empty() && !(avail > 0 && sum[0] > avail); }
   };
   auto estimate = [&](const FetiOptions& o, bool sample) {
@@ -184,9 +199,9 @@ MemoryEstimate check_memory(const Model& model, FetiOptions& options, const Comm
       s.error = ex.what();
     }
     const MemoryEstimate& e = s.e;
-    double mine[6] = {e.peak_mb(),  e.factors_mb,  e.matrices_mb,
-                      e.vectors_mb, e.explicit_mb, e.factors_held_mb};
-    MPI_Allreduce(mine, s.sum, 6, MPI_DOUBLE, MPI_SUM, node);
+    double mine[7] = {e.peak_mb(),   e.factors_mb,      e.matrices_mb,      e.vectors_mb,
+                      e.explicit_mb, e.factors_held_mb, e.preconditioner_mb};
+    MPI_Allreduce(mine, s.sum, 7, MPI_DOUBLE, MPI_SUM, node);
     return s;
   };
   // The lower bound alone first: a problem that cannot fit is refused before a subdomain is
@@ -279,7 +294,8 @@ MemoryEstimate check_memory(const Model& model, FetiOptions& options, const Comm
             std::to_string(node_ranks) + " rank(s) of this machine (factors " + gb(sum[1]) +
             (sum[5] < sum[1] ? " of which " + gb(sum[5]) + " held at once" : std::string()) +
             ", matrices " + gb(sum[2]) + ", vectors " + gb(sum[3]) +
-            (sum[4] > 0 ? ", explicit F_i " + gb(sum[4]) : std::string()) + "), " +
+            (sum[4] > 0 ? ", explicit F_i " + gb(sum[4]) : std::string()) +
+            (sum[6] > 0 ? ", Dirichlet preconditioner " + gb(sum[6]) : std::string()) + "), " +
             (options.memory_limit_mb > 0 && available == options.memory_limit_mb
                  ? "limit (--memory-limit) "
                  : "available ") +

@@ -236,6 +236,8 @@ void report_timings_and_memory(nlohmann::json& rep, DualProblem& dual, const Com
         {"explicit", comm.sum(estimate.explicit_mb)},
         {"factors_held", comm.sum(estimate.factors_held_mb)},
         {"single_factors", comm.sum(estimate.single_mb)},
+        // The implicit Dirichlet preconditioner's factors of K_ii (0 otherwise).
+        {"preconditioner", comm.sum(estimate.preconditioner_mb)},
         {"sampled", comm.min(estimate.sampled ? 1.0 : 0.0) > 0},
         // Factors counted as shared by equal subdomains (a count; 0: one each).
         {"shared_factors", comm.sum(estimate.shared_factors)},

@@ -324,3 +324,38 @@ TEST(MemoryEstimate, EqualSubdomainsOfABoxShareTheirFactors) {
   const MemoryEstimate field = estimate_memory(*make_model(spec), o, comm);
   EXPECT_EQ(field.shared_factors, 0);
 }
+
+// The implicit Dirichlet preconditioner's factors of K_ii are counted, as half of the
+// subdomains' factors, and no more than it takes in the solve (the estimate errs low); the
+// other preconditioners and storages are not counted.
+TEST(MemoryEstimate, CountsTheImplicitDirichletPreconditioner) {
+  Comm comm;
+  ProblemSpec spec = cube_obstacle_spec({12, 12, 12}, {2, 2, 2}, 1);
+  spec.physics.coefficient = "x > 50 ? 1000 : 1";
+  std::shared_ptr<const Model> model = make_model(spec);
+  FetiOptions o;
+  o.dual_operator = DualOperator::implicit;
+  o.preconditioner = PreconditionerKind::lumped;
+  const MemoryEstimate lumped = estimate_memory(*model, o, comm);
+  EXPECT_EQ(lumped.preconditioner_mb, 0);
+  o.preconditioner = PreconditionerKind::dirichlet;  // automatic storage: implicit in 3D
+  const MemoryEstimate dirichlet = estimate_memory(*model, o, comm);
+  ASSERT_TRUE(dirichlet.sampled);
+  EXPECT_GT(dirichlet.preconditioner_mb, 0);
+  EXPECT_DOUBLE_EQ(dirichlet.preconditioner_mb, 0.5 * dirichlet.factors_mb);
+  EXPECT_GE(dirichlet.peak_mb(), lumped.peak_mb());
+  o.dirichlet_storage = 1;  // dense S_i: bounded by the budget, not counted
+  EXPECT_EQ(estimate_memory(*model, o, comm).preconditioner_mb, 0);
+  o.dirichlet_storage = 0;
+  o.dirichlet_layers = 1;  // the shell's factors: not counted
+  EXPECT_EQ(estimate_memory(*model, o, comm).preconditioner_mb, 0);
+  // What the solve holds (auto preconditioner: Dirichlet for the coefficient field, implicit).
+  SolveOptions so;
+  so.feti.dual_operator = DualOperator::implicit;
+  so.max_iterations = 2;
+  const SolveOutput out = solve(model, so, comm);
+  EXPECT_EQ(out.report["preconditioner_storage"], "implicit");
+  const double counted = out.report["memory"]["estimate_mb"]["preconditioner"];
+  EXPECT_NEAR(counted, comm.sum(dirichlet.preconditioner_mb), 1e-9 * counted);
+  EXPECT_LE(counted, out.report["memory"]["preconditioner_mb"].get<double>());
+}

@@ -20,17 +20,24 @@
 //  - explicit: the packed blocks F_i of the explicit operator, when it will be chosen (the same
 //    rule as DualProblem's), with n_i estimated from the sample's shared dofs, Dirichlet dofs and
 //    contact rows.
+//  - preconditioner: the implicit Dirichlet preconditioner's factors of K_ii (3D with the
+//    automatic storage, or --dirichlet-storage implicit; the whole interior), counted as half
+//    of the factors (measured 0.57 to 0.69 of them on METIS parts of the cube-obstacle and the
+//    graded Hertz blocks, hex8 and tet4: docs/performance.md, "The Dirichlet preconditioner's
+//    storage"). Dense S_i (at most dirichlet_budget_gb per rank with the automatic storage) and
+//    the layered preconditioner's thinner factors are not counted.
 // The matrices are freed cluster by cluster as the factors grow. With the explicit operator and
 // the automatic factor release, clusters free their factors once memory runs short, so the
 // factors held are bounded by the working set of the clusters being set up at one time
 // (threads x the largest cluster's share), not by all of them. The peak is therefore
-// max(matrices, factors held) + vectors + explicit, where factors held is all the factors
-// unless they are released. Before the sample is assembled, a lower bound from the element type
-// alone refuses sizes that cannot fit without building anything (a subdomain of 10^10 unknowns).
-// The ranks of one machine (MPI_COMM_TYPE_SHARED) add their estimates and compare the sum with
-// MemAvailable (and the limit, when one is given). The estimate leaves out the dual vectors,
-// the coarse problem, the preconditioner and the H-TFETI-DP clusters' dense K_i^+ C_i^T (2.4 GB
-// on the paper's Table 2 row 1, docs/performance.md), and the interface-last factors of the
+// max(matrices, factors held + explicit + preconditioner) + vectors, where factors held is all
+// the factors unless they are released. Before the sample is assembled, a lower bound from the
+// element type alone refuses sizes that cannot fit without building anything (a subdomain of 10^10
+// unknowns). The ranks of one machine (MPI_COMM_TYPE_SHARED) add their estimates and compare the
+// sum with MemAvailable (and the limit, when one is given). The estimate leaves out the dual
+// vectors, the coarse problem, the preconditioner's other forms and the H-TFETI-DP clusters' dense
+// K_i^+ C_i^T (2.4 GB on the paper's Table 2 row 1, docs/performance.md), and the
+// interface-last factors of the
 // explicit operator have more fill than the sample's plain analysis (1.46 times on the Table 3
 // subdomain), so it errs low: what it refuses cannot fit.
 #pragma once
@@ -46,6 +53,9 @@ namespace htfeti {
 
 struct MemoryEstimate {
   double matrices_mb = 0, factors_mb = 0, vectors_mb = 0, explicit_mb = 0;
+  /// The implicit Dirichlet preconditioner's factors of K_ii: half of factors_mb (0 for other
+  /// preconditioners, dense S_i and the layered one).
+  double preconditioner_mb = 0;
   /// The factors held at the peak: factors_mb, or the working set when they are released.
   double factors_held_mb = 0;
   /// The single-precision copies of the implicit operator's factors (FetiOptions::
@@ -84,7 +94,7 @@ struct MemoryEstimate {
   /// at most the larger of the two totals. The explicit operator adds the clusters in flight,
   /// which hold their matrices and their factors at once.
   double peak_mb() const {
-    const double done = factors_held_mb + single_mb + explicit_mb;
+    const double done = factors_held_mb + single_mb + explicit_mb + preconditioner_mb;
     return (matrices_mb > done ? matrices_mb : done) + vectors_mb + factors_working_mb;
   }
 };

@@ -164,6 +164,8 @@ void report_timings_and_memory(nlohmann::json& rep, DualProblem& dual, const Com
   const DualOperators& ops = r.ops;
   const double t_setup = r.t_setup, t_image = r.t_image, t_solve = r.t_solve, t_rec = r.t_rec,
                t_checks = r.t_checks, peak_mb_solve = r.peak_mb_solve;
+  // Timings the model described (timings.partition of a METIS split) are kept beside these.
+  const nlohmann::json before = rep.contains("timings") ? rep["timings"] : nlohmann::json::object();
   rep["timings"] = {{"setup", tmax(st.assembly + st.constraints)},
                     {"assembly", tmax(st.assembly)},
                     {"factorization", tmax(st.factorization)},
@@ -185,6 +187,7 @@ void report_timings_and_memory(nlohmann::json& rep, DualProblem& dual, const Com
                     // the automatic operator's cost model, before the setup (not in "total")
                     {"operator_model", tmax(r.cost ? r.cost->seconds : 0.0)},
                     {"total", tmax(t_setup + t_image + t_solve + t_rec + t_checks)}};
+  for (const auto& [key, value] : before.items()) rep["timings"][key] = value;
   // The subdomain factorizations in core-seconds (summed over subdomains and ranks): the
   // symbolic part (forming K_rr, ordering, analysis or its copy from the cache) and the numeric
   // one; and the symbolic analyses done and reused (FetiOptions::symbolic_cache_patterns).

@@ -537,6 +537,10 @@ TEST_F(Cli, PartitionSeed) {
     std::ifstream f("r.json");
     const auto j = nlohmann::json::parse(f);
     EXPECT_EQ(j["partition_seed"], std::stoi(seed));
+    // The time before the setup: the mesh read and split, METIS's split within it.
+    const auto& t = j["timings"];
+    EXPECT_GT(t["partition"].get<double>(), 0);
+    EXPECT_GE(t["model"].get<double>(), t["partition"].get<double>());
     energy.push_back(j["objective"].get<double>());
     dual.push_back(j["dual_dimension"].get<long long>());
   }

@@ -83,6 +83,8 @@ struct MeshPartition {
   /// repair them (repair_parts), and splits redone by METIS with connected parts asked for.
   long repaired_cells = 0;
   int contiguous_splits = 0;
+  /// Wall seconds of the split (set by the model that made it; the report's timings.partition).
+  double seconds = 0;
   /// The mesh's groups by subdomain, for extract_subdomain (built once by partition_mesh, so that
   /// extracting a subdomain costs its own size, not the groups' sizes): per subdomain and group
   /// (in the mesh's name order; groups the subdomain does not touch left out), the global node

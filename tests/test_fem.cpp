@@ -260,6 +260,45 @@ TEST(FreshPages, PooledBlocksKeepTheirContents) {
   release_idle_blocks();
 }
 
+// A block to be kept for the run (KeptAllocations) takes only its own size from a larger idle
+// block; the rest stays idle and serves the next allocation. Other blocks take the idle block
+// whole (the next allocation is then new).
+TEST(FreshPages, KeptBlocksTakeOnlyTheirSize) {
+  populate_cholmod_allocations();
+  release_idle_blocks();
+  const std::size_t big = 8 * kPopulateBytes, small = 2 * kPopulateBytes;
+  auto* a = static_cast<char*>(SuiteSparse_config.malloc_func(big));
+  ASSERT_NE(a, nullptr);
+  SuiteSparse_config.free_func(a);
+  void* again = SuiteSparse_config.malloc_func(big);
+  SuiteSparse_config.free_func(again);
+  if (again != a) GTEST_SKIP() << "no block pool (a sanitizer build)";
+  char* head = nullptr;
+  {
+    const KeptAllocations kept;
+    head = static_cast<char*>(SuiteSparse_config.malloc_func(small));
+  }
+  auto* tail = static_cast<char*>(SuiteSparse_config.malloc_func(big - small));
+  EXPECT_EQ(head, a);
+  EXPECT_EQ(tail, a + small);
+  std::memset(head, 1, small);  // both usable to their ends
+  std::memset(tail, 2, big - small);
+  EXPECT_EQ(head[small - 1], 1);
+  EXPECT_EQ(tail[0], 2);
+  SuiteSparse_config.free_func(tail);
+  SuiteSparse_config.free_func(head);
+  release_idle_blocks();
+  a = static_cast<char*>(SuiteSparse_config.malloc_func(big));
+  SuiteSparse_config.free_func(a);
+  head = static_cast<char*>(SuiteSparse_config.malloc_func(small));  // the whole block
+  tail = static_cast<char*>(SuiteSparse_config.malloc_func(big - small));
+  EXPECT_EQ(head, a);
+  EXPECT_NE(tail, a + small);
+  SuiteSparse_config.free_func(tail);
+  SuiteSparse_config.free_func(head);
+  release_idle_blocks();
+}
+
 // rand() and srand() have one state per thread (sparse_cholesky.cpp: METIS orders on several
 // threads at once): the C library's sequence for a seed (glibc's first values for seed 1), and
 // two threads drawing at once each get their seed's sequence.

@@ -233,6 +233,7 @@ LocalPreconditioner::LocalPreconditioner(const Eigen::SparseMatrix<double>& K,
         Kii, ni, ni, [&](int c) { return interior[c]; }, [](int r, int c) { return r <= c; });
     Kii_ = SparseCholesky(ordering);
     try {
+      const KeptAllocations kept;  // (kept for the run: no larger block than it needs)
       Kii_.factorize(Kii, cache);
     } catch (const std::runtime_error&) {
       throw std::runtime_error(

@@ -37,6 +37,7 @@ namespace htfeti {
 
 namespace {
 std::atomic<bool> populate_works{true};
+thread_local bool kept_blocks = false;  // KeptAllocations
 
 std::size_t whole_pages(std::size_t bytes) {
   static const std::size_t page = static_cast<std::size_t>(sysconf(_SC_PAGESIZE));
@@ -75,6 +76,14 @@ class BlockPool {
         p = it->second, capacity = it->first;
         idle_bytes_ -= capacity;
         idle_.erase(it);
+        // A block to be kept for the run (KeptAllocations) takes no more than it asked for:
+        // a tail of kPopulateBytes or more stays idle as a block of its own (the pool's
+        // blocks are page ranges, which mremap and munmap take apart).
+        if (kept_blocks && capacity - want >= kPopulateBytes) {
+          idle_.emplace(capacity - want, static_cast<char*>(p) + want);
+          idle_bytes_ += capacity - want;
+          capacity = want;
+        }
       }
       *reused = p != nullptr;
     }
@@ -227,5 +236,8 @@ void populate_cholmod_allocations() {
 }
 
 void release_idle_blocks() { block_pool().release_idle(); }
+
+KeptAllocations::KeptAllocations() : previous_(kept_blocks) { kept_blocks = true; }
+KeptAllocations::~KeptAllocations() { kept_blocks = previous_; }
 
 }  // namespace htfeti

@@ -50,6 +50,25 @@ void resize_resident(std::vector<T>& v, std::size_t n) {
 /// first factorization; idempotent and thread-safe.
 void populate_cholmod_allocations();
 
+/// While an object of this class lives, CHOLMOD's blocks allocated on its thread are taken
+/// from the pool at their own size: an idle block larger by kPopulateBytes or more gives up its
+/// tail, which stays idle. For factors kept for the whole run beside the subdomains' (the
+/// implicit Dirichlet preconditioner's): served whole, they took the larger blocks that a
+/// subdomain's factorization frees for the next and kept all of them (on the 80^3 METIS cube
+/// with one layer: 2.9 GB more peak memory, and fresh pages for the subdomains' factors that
+/// made the factorization phase 6-9 s longer; docs/performance.md, "The layered Dirichlet
+/// preconditioner"). Nests.
+class KeptAllocations {
+ public:
+  KeptAllocations();
+  ~KeptAllocations();
+  KeptAllocations(const KeptAllocations&) = delete;
+  KeptAllocations& operator=(const KeptAllocations&) = delete;
+
+ private:
+  bool previous_;
+};
+
 /// Returns the pool's idle blocks to the system (after the factorizations of a setup).
 /// Thread-safe.
 void release_idle_blocks();

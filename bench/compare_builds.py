@@ -7,6 +7,7 @@ The "before" binary is built from an older commit, for example:
 
 Usage: bench/compare_builds.py --before /tmp/htfeti-before/b/htfeti [--after build/htfeti]
            [--repeat 3] [--full] [--threads 2] [--cases membranes metis40 ...] [--out NAME.json]
+           [--extra "more solve arguments for every case"]
 Cases: membranes n = 1024, N_s = 32, m = 4 with the VTU written (default), and with --full the
 Table 3 full size (n = 3168, N_s = 32) for m = 4 (about 10 GB and two minutes per run).
 --cases picks among them and the METIS-split cubes of issue 32 (no VTU, so that the phases
@@ -38,6 +39,8 @@ p.add_argument("--cases", nargs="+",
                choices=["membranes", "full", "metis40", "metis80", "metis80pre", "metis40a20",
                         "metis80a20", "bracket", "metis80dry"])
 p.add_argument("--out", default="compare_builds.json")
+p.add_argument("--extra", default="",
+               help="more solve arguments for every case, e.g. \"--preconditioner dirichlet\"")
 a = p.parse_args()
 
 CASES = {
@@ -76,7 +79,7 @@ for name, args, vtu, repeat in cases:
         for label, binary in (("before", a.before), ("after", a.after)):
             walls, reports = runs[label]
             with tempfile.TemporaryDirectory() as d:
-                cmd = [binary, "solve", *args]
+                cmd = [binary, "solve", *args, *a.extra.split()]
                 if not dry:
                     cmd += ["--report", os.path.join(d, "r.json")]
                     cmd += ["--vtu", os.path.join(d, "u.vtu")] if vtu else ["--no-vtu"]
@@ -111,5 +114,6 @@ for name, args, vtu, repeat in cases:
           f"VTU {b['vtu_bytes'] / 1e6:.0f}/{f['vtu_bytes'] / 1e6:.0f} MB)", flush=True)
     rows.append(row)
 cmd = ("bench/compare_builds.py --before BEFORE" + (" --full" if a.full else "") +
-       (" --cases " + " ".join(a.cases) if a.cases else "") + f" --repeat {a.repeat}")
+       (" --cases " + " ".join(a.cases) if a.cases else "") + f" --repeat {a.repeat}" +
+       (f" --extra \"{a.extra}\"" if a.extra else ""))
 print(save(a.out, {"command": cmd, "threads": a.threads, "rows": rows}))

@@ -47,6 +47,49 @@ rtol = {rtol!r}
 """
 
 
+# Coefficient jumps (bench/preconditioners.py, bench/dirichlet_storage.py): Laplace on the unit
+# square, n x n quad4 cells in 8 x 8 subdomains, and plane-strain elasticity on the plate with a
+# hole (examples/meshes/plate-with-hole.msh, {mesh}) in 16 METIS parts; {coef} the coefficient
+# field, {m} the cluster size.
+JUMP_SQUARE_TOML = """[mesh]
+generator = "box"
+size = [1.0, 1.0]
+elements = [{n}, {n}]
+element = "quad4"
+[physics]
+type = "laplace"
+source = 1.0
+coefficient = "{coef}"
+[[dirichlet]]
+group = "x0"
+value = 0.0
+[decomposition]
+subdomains = [8, 8]
+cluster_size = {m}
+[solver]
+rtol = 1e-8
+"""
+JUMP_PLATE_TOML = """[mesh]
+file = "{mesh}"
+[physics]
+type = "elasticity"
+young = 2.1e11
+poisson = 0.3
+coefficient = "{coef}"
+[[dirichlet]]
+group = "left"
+value = [0.0, 0.0]
+[[load]]
+group = "right"
+traction = [1.0e8, 0.0]
+[decomposition]
+subdomains = 16
+cluster_size = {m}
+[solver]
+rtol = 1e-8
+"""
+
+
 def env(threads=1):
     e = dict(os.environ)
     e.update(OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1",

@@ -29,7 +29,7 @@ import os
 import statistics
 import tempfile
 
-from common import ROOT, save, solve
+from common import JUMP_PLATE_TOML, JUMP_SQUARE_TOML, ROOT, save, solve
 import hertz_cases
 
 CASES = ["square16", "square64", "square128", "plate", "cube3d", "metis40", "hertz"]
@@ -41,41 +41,6 @@ p.add_argument("--threads", type=int, default=2)
 p.add_argument("--out", default="dirichlet_storage.json")
 a = p.parse_args()
 
-SQUARE = """[mesh]
-generator = "box"
-size = [1.0, 1.0]
-elements = [{n}, {n}]
-element = "quad4"
-[physics]
-type = "laplace"
-source = 1.0
-coefficient = "x > 0.5 ? 1e4 : 1"
-[[dirichlet]]
-group = "x0"
-value = 0.0
-[decomposition]
-subdomains = [8, 8]
-[solver]
-rtol = 1e-8
-"""
-PLATE = """[mesh]
-file = "{mesh}"
-[physics]
-type = "elasticity"
-young = 2.1e11
-poisson = 0.3
-coefficient = "x > 1 ? 1e3 : 1"
-[[dirichlet]]
-group = "left"
-value = [0.0, 0.0]
-[[load]]
-group = "right"
-traction = [1.0e8, 0.0]
-[decomposition]
-subdomains = 16
-[solver]
-rtol = 1e-8
-"""
 CUBE3D = """[mesh]
 generator = "box"
 size = [100.0, 100.0, 100.0]
@@ -122,9 +87,11 @@ rows = []
 with tempfile.TemporaryDirectory() as d:
     files = {}
     for n, name in [(128, "square16"), (512, "square64"), (1024, "square128")]:
-        files[name] = (os.path.join(d, f"{name}.toml"), SQUARE.format(n=n), [])
-    files["plate"] = (os.path.join(d, "plate.toml"), PLATE.format(
-        mesh=os.path.join(ROOT, "examples", "meshes", "plate-with-hole.msh")), [])
+        files[name] = (os.path.join(d, f"{name}.toml"),
+                       JUMP_SQUARE_TOML.format(n=n, coef="x > 0.5 ? 1e4 : 1", m=1), [])
+    files["plate"] = (os.path.join(d, "plate.toml"), JUMP_PLATE_TOML.format(
+        mesh=os.path.join(ROOT, "examples", "meshes", "plate-with-hole.msh"),
+        coef="x > 1 ? 1e3 : 1", m=1), [])
     files["cube3d"] = (os.path.join(d, "cube3d.toml"), CUBE3D, [])
     for name, (path, text, _) in list(files.items()):
         with open(path, "w") as f:

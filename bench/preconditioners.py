@@ -31,7 +31,7 @@ import os
 import statistics
 import tempfile
 
-from common import RESULTS, ROOT, save, solve
+from common import JUMP_PLATE_TOML, JUMP_SQUARE_TOML, RESULTS, ROOT, save, solve
 
 p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
 p.add_argument("--sections", nargs="+",
@@ -133,43 +133,7 @@ if "membranes" in a.sections:
 
 if "hetero" in a.sections:
     rows = []
-    square = """[mesh]
-generator = "box"
-size = [1.0, 1.0]
-elements = [128, 128]
-element = "quad4"
-[physics]
-type = "laplace"
-source = 1.0
-coefficient = "{coef}"
-[[dirichlet]]
-group = "x0"
-value = 0.0
-[decomposition]
-subdomains = [8, 8]
-cluster_size = {m}
-[solver]
-rtol = 1e-8
-"""
-    plate = """[mesh]
-file = "{mesh}"
-[physics]
-type = "elasticity"
-young = 2.1e11
-poisson = 0.3
-coefficient = "{coef}"
-[[dirichlet]]
-group = "left"
-value = [0.0, 0.0]
-[[load]]
-group = "right"
-traction = [1.0e8, 0.0]
-[decomposition]
-subdomains = 16
-cluster_size = {m}
-[solver]
-rtol = 1e-8
-"""
+    square, plate = JUMP_SQUARE_TOML.replace("{n}", "128"), JUMP_PLATE_TOML
     with tempfile.TemporaryDirectory() as d:
         for jump in [1e3, 1e6]:
             for name, tmpl, coef, m in [

@@ -56,6 +56,9 @@ constexpr double kRefineTarget = 0.1;
 constexpr int kMaxRefinements = 4;
 // The check: the gluing residual of lambda over rtol (it reconstructs u, which the driver keeps).
 using AccuracyCheck = std::function<double(const Vec& lambda)>;
+// One line for --progress where a solve goes on after it converged (the single-precision check,
+// an accuracy refinement); does nothing without --progress.
+using StageNote = std::function<void(const std::string&)>;
 
 // What one solve leaves for its report (make_report).
 struct SolveRecord {

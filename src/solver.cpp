@@ -62,23 +62,34 @@ void perturb_load(SubdomainInput& in, double delta) {
 // to kRefineTarget, between 1/1000 and 1/4 of the last rtol); `again` updates lambda and
 // converged. Returns the steps for the report's solver.accuracy_refinements (one per check).
 nlohmann::json refine_accuracy(const AccuracyCheck& check, const Vec& lambda, double& rtol,
-                               const bool& converged, const std::function<void()>& again) {
+                               const bool& converged, const std::function<void()>& again,
+                               const StageNote& note) {
   nlohmann::json steps = nlohmann::json::array();
   for (int done = 0; converged; ++done) {
     const double ratio = check(lambda);  // in units of the asked rtol
     steps.push_back({{"rtol", rtol}, {"gluing_residual_over_rtol", ratio}});
-    if (!(ratio > (done == 0 ? kRefineRatio : kRefineTarget)) || done >= kMaxRefinements) break;
+    const double limit = done == 0 ? kRefineRatio : kRefineTarget;
+    if (!(ratio > limit) || done >= kMaxRefinements) break;
     rtol *= std::clamp(0.5 * kRefineTarget / ratio, 1e-3, 0.25);
+    char line[200];
+    std::snprintf(line, sizeof line,
+                  "accuracy refinement %d: gluing residual %.3g rtol (above %g); on to rtol %.3g",
+                  done + 1, ratio, limit, rtol);
+    note(line);
     again();
   }
   return steps;
 }
 
+constexpr const char* kSingleCheckNote =
+    "check: converged with the factors' single-precision copies; on with the factors (double)";
+
 // The dual problem without contact (the paper's (11) with equalities only): projected CG from
 // lambda~, preconditioned by P M^{-1} P when a preconditioner was built.
 QpSolve solve_without_contact(DualProblem& dual, DualOperators& ops, Vec& lambda,
                               const SolveOptions& options, const qp::Reducer& red,
-                              const qp::Progress& progress, const AccuracyCheck& check) {
+                              const qp::Progress& progress, const AccuracyCheck& check,
+                              const StageNote& note) {
   const int n = dual.n_owned();
   qp::QuadraticProgram qp;
   qp.hessian = qp::borrow(ops.F);
@@ -105,6 +116,7 @@ QpSolve solve_without_contact(DualProblem& dual, DualOperators& ops, Vec& lambda
   if (dual.single_sweeps()) {
     dual.set_single_sweeps(false);
     if (out.converged) {
+      note(kSingleCheckNote);
       const long before = ops.F.count();
       r = qp::projected_cg(qp, lambda, red, po, progress, ops.preconditioned ? &Z : nullptr);
       out.outer += r.iterations;
@@ -114,11 +126,14 @@ QpSolve solve_without_contact(DualProblem& dual, DualOperators& ops, Vec& lambda
     }
   }
   // The accuracy refinement: PCG again from lambda (in lambda~ + Ker G~) with a smaller rtol.
-  const nlohmann::json steps = refine_accuracy(check, lambda, po.rtol, out.converged, [&]() {
-    r = qp::projected_cg(qp, lambda, red, po, progress, ops.preconditioned ? &Z : nullptr);
-    out.outer += r.iterations;
-    out.converged = r.reason == qp::StopReason::converged;
-  });
+  const nlohmann::json steps = refine_accuracy(
+      check, lambda, po.rtol, out.converged,
+      [&]() {
+        r = qp::projected_cg(qp, lambda, red, po, progress, ops.preconditioned ? &Z : nullptr);
+        out.outer += r.iterations;
+        out.converged = r.reason == qp::StopReason::converged;
+      },
+      note);
   out.matvecs = ops.F.count();
   out.reason = to_string(r.reason);
   out.solver = {{"algorithm", "pcg"},
@@ -135,7 +150,8 @@ QpSolve solve_without_contact(DualProblem& dual, DualOperators& ops, Vec& lambda
 // formed from F v and the coarse image (DualProblem::hessian_from_Fv).
 QpSolve solve_with_contact(DualProblem& dual, DualOperators& ops, Vec& lambda,
                            const SolveOptions& options, const qp::Reducer& red,
-                           const qp::Progress& progress, bool merged, const AccuracyCheck& check) {
+                           const qp::Progress& progress, bool merged, const AccuracyCheck& check,
+                           const StageNote& note) {
   const int n = dual.n_owned();
   qp::QuadraticProgram dual_qp;
   dual_qp.hessian = qp::borrow(ops.F);
@@ -307,6 +323,7 @@ QpSolve solve_with_contact(DualProblem& dual, DualOperators& ops, Vec& lambda,
   if (single) {
     dual.set_single_sweeps(false);
     if (out.converged) {
+      note(kSingleCheckNote);
       const long before = out.matvecs;
       const int outer_before = out.outer;
       refine_again();
@@ -314,7 +331,8 @@ QpSolve solve_with_contact(DualProblem& dual, DualOperators& ops, Vec& lambda,
                       {"check_outer_iterations", out.outer - outer_before}};
     }
   }
-  const nlohmann::json steps = refine_accuracy(check, lambda, so.rtol, out.converged, refine_again);
+  const nlohmann::json steps =
+      refine_accuracy(check, lambda, so.rtol, out.converged, refine_again, note);
   const bool discs = dynamic_cast<const qp::SeparableSet*>(qp.constraints.get()) != nullptr;
   out.solver = {{"algorithm", discs ? "smalbe-m+mpgp" : "smalbe-m+mprgp"},
                 {"projected_gradient", r.projected_gradient},
@@ -569,13 +587,19 @@ SolveOutput solve(std::shared_ptr<const Model> model_ptr, const SolveOptions& op
                  name_of(qp::kExpansionNames, options.smalbe.expansion).c_str());
   auto progress = [&](int it, double gp, double gx) {
     if (!verbose) return;
-    // F applications so far, the norm estimate's included.
+    // F applications so far, the norm estimate's included. A face solve that ends the solve
+    // (SMALBE-M) is its own line.
+    char label[16];
+    if (it == qp::kFaceProgress)
+      std::snprintf(label, sizeof label, "face    ");
+    else
+      std::snprintf(label, sizeof label, "it %5d", it);
     if (contact)
       std::fprintf(stderr,
-                   "  it %5d  ||g^P||/||b|| %.3e  ||PFP|| ||G lambda||/||b|| %.3e  %ld F  %.2f s\n",
-                   it, gp, gx, ops.F.count(), seconds_now() - t_solve);
+                   "  %s  ||g^P||/||b|| %.3e  ||PFP|| ||G lambda||/||b|| %.3e  %ld F  %.2f s\n",
+                   label, gp, gx, ops.F.count(), seconds_now() - t_solve);
     else
-      std::fprintf(stderr, "  it %5d  ||P r||/||P b|| %.3e  %ld F  %.2f s\n", it, gp, ops.F.count(),
+      std::fprintf(stderr, "  %s  ||P r||/||P b|| %.3e  %ld F  %.2f s\n", label, gp, ops.F.count(),
                    seconds_now() - t_solve);
   };
   // The accuracy check reconstructs u; the last check's u is the solution's (its lambda is the
@@ -595,9 +619,12 @@ SolveOutput solve(std::shared_ptr<const Model> model_ptr, const SolveOptions& op
                ? checked_kkt.equality_residual / checked_kkt.equality_scale / options.rtol
                : 0.0;
   };
+  const StageNote note = [&](const std::string& line) {
+    if (verbose) std::fprintf(stderr, "  %s\n", line.c_str());
+  };
   const QpSolve qs =
-      contact ? solve_with_contact(dual, ops, lambda, options, red, progress, merged, check)
-              : solve_without_contact(dual, ops, lambda, options, red, progress, check);
+      contact ? solve_with_contact(dual, ops, lambda, options, red, progress, merged, check, note)
+              : solve_without_contact(dual, ops, lambda, options, red, progress, check, note);
   t_solve = seconds_now() - t_solve - (qs.converged ? t_rec + t_kkt : 0.0);
   const double peak_mb_solve = peak_rss_mb();
   // A contact solve that did not converge may have had no solution to find: a body the load

@@ -7,6 +7,7 @@
 #include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
+#include <sstream>
 #include <string>
 #include <thread>
 
@@ -1579,11 +1580,53 @@ cluster_size = )" << cluster_size
 // rtol until it is at most 0.1 rtol (where TFETI's solves end by themselves). Checked against
 // TFETI on the same parts: the same energy to 2e-5 (measured 7e-6; the unrefined H-TFETI-DP
 // solve was 5e-4 off).
+// --progress on a contact solve: one line per outer iteration and one where a face solve ends
+// the solve (here the single-precision check's: it starts on the face of the first solve's
+// end), with the F applications so far never decreasing; the last line's ||g^P|| / ||b|| is
+// the report's.
+TEST_F(Cli, ProgressLinesOfAContactSolve) {
+  ASSERT_EQ(run(bin + " solve --problem cube-obstacle --elements 12 --subdomains 2 --no-vtu "
+                      "--progress --report p.json"),
+            0)
+      << stderr_text();
+  const std::string text = stderr_text();
+  const auto r = read_json("p.json");
+  ASSERT_TRUE(r["solver"].contains("single_sweeps")) << r["solver"].dump();
+  std::istringstream in(text);
+  std::string line, last;
+  long products = 0;
+  int its = 0, faces = 0;
+  bool check = false;
+  while (std::getline(in, line)) {
+    check = check || line.find("check: converged with the factors'") != std::string::npos;
+    const bool it = line.rfind("  it ", 0) == 0, face = line.rfind("  face ", 0) == 0;
+    if (!it && !face) continue;
+    its += it, faces += face;
+    EXPECT_EQ(face, check) << text;  // the face line comes after the check's announcement
+    const auto f = line.find(" F ");
+    ASSERT_NE(f, std::string::npos) << line;
+    const long p = std::stol(line.substr(line.rfind(' ', f - 1) + 1));
+    EXPECT_GE(p, products) << text;
+    products = p;
+    last = line;
+  }
+  EXPECT_EQ(its, r["outer_iterations"].get<int>()) << text;
+  EXPECT_EQ(faces, 1) << text;
+  char gp[32];
+  std::snprintf(
+      gp, sizeof gp, "%.3e",
+      r["solver"]["projected_gradient"].get<double>() / r["solver"]["rhs_norm"].get<double>());
+  EXPECT_NE(last.find(std::string("||g^P||/||b|| ") + gp), std::string::npos) << last;
+}
+
+// With --progress each solve after the first says why it runs (the lines checked here).
 TEST_F(Cli, AccuracyRefinementBringsTheGluingResidualToRtol) {
   write_metis_cube("cube.toml", 8, "subdomains");
-  ASSERT_EQ(run(bin + " solve cube.toml --no-vtu --report h.json"), 0) << stderr_text();
-  ASSERT_EQ(run(bin + " solve cube.toml --cluster-size 1 --no-vtu --report t.json"), 0)
+  ASSERT_EQ(run(bin + " solve cube.toml --no-vtu --progress --report h.json"), 0) << stderr_text();
+  const std::string hp = stderr_text();
+  ASSERT_EQ(run(bin + " solve cube.toml --cluster-size 1 --no-vtu --progress --report t.json"), 0)
       << stderr_text();
+  const std::string tp = stderr_text();
   std::ifstream fh("h.json"), ft("t.json");
   const auto h = nlohmann::json::parse(fh), t = nlohmann::json::parse(ft);
   EXPECT_EQ(t["clusters"], 64);
@@ -1598,6 +1641,19 @@ TEST_F(Cli, AccuracyRefinementBringsTheGluingResidualToRtol) {
   EXPECT_LE(h["kkt"]["relative_equality_residual"].get<double>(), 1e-5);
   // TFETI meets the test at once and is not refined.
   EXPECT_FALSE(t["solver"].contains("accuracy_refinements"));
+  // The refinement's line gives the gluing residual and the next rtol as the report does; the
+  // TFETI run (single-precision factor sweeps) announces the check with the factors instead.
+  char line[120];
+  std::snprintf(line, sizeof line, "accuracy refinement 1: gluing residual %.3g rtol (above 3)",
+                steps[0]["gluing_residual_over_rtol"].get<double>());
+  EXPECT_NE(hp.find(line), std::string::npos) << hp;
+  EXPECT_EQ(hp.find("accuracy refinement 1:"), hp.rfind("accuracy refinement 1:")) << hp;
+  EXPECT_EQ(hp.find("check: converged with the factors' single-precision"), std::string::npos);
+  ASSERT_TRUE(t["solver"].contains("single_sweeps")) << t["solver"].dump();
+  EXPECT_NE(tp.find("check: converged with the factors' single-precision copies"),
+            std::string::npos)
+      << tp;
+  EXPECT_EQ(tp.find("accuracy refinement"), std::string::npos) << tp;
   const double eh = h["objective"].get<double>(), et = t["objective"].get<double>();
   EXPECT_LT(std::abs(eh - et), 2e-5 * std::abs(et)) << eh << " " << et;
 }

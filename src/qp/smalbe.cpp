@@ -164,6 +164,7 @@ SmalbeResult smalbe(const QuadraticProgram& qp, double normA, Vec& x, const Redu
         res.projected_gradient = gp;
         res.equality_residual = q;
         res.reason = StopReason::converged;
+        if (progress) progress(kFaceProgress, gp / bnorm, normA * q / bnorm);
         return true;
       }
       grad_tol = grad_tol_old, eq_tol = eq_tol_old;

@@ -101,9 +101,7 @@ MemoryEstimate estimate_memory(const Model& model, const FetiOptions& options, c
                            (options.dual_operator == DualOperator::automatic &&
                             automatic_prefers_explicit(options, layout.dim, nodes) &&
                             explicit_bytes <= explicit_budget(options));
-  const Ordering ordering = options.ordering == Ordering::automatic
-                                ? (layout.dim == 3 || is_explicit ? Ordering::metis : Ordering::amd)
-                                : options.ordering;
+  const Ordering ordering = resolve_ordering(options.ordering, layout.dim, is_explicit);
   e.explicit_operator = is_explicit;
   e.explicit_eligible = nodes >= kExplicitMinNodes;
   Subdomain sample(std::move(in.system));

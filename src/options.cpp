@@ -299,9 +299,12 @@ void add_feti_options(std::vector<OptionSpec>& t) {
       +[](RunOptions& r) -> FactorPrecision& { return r.solve.feti.factor_precision; }));
   t.push_back(choice(
       "solver", "ordering", "--ordering",
-      "fill-reducing ordering of subdomain factors: amd | metis | auto (METIS, except AMD for "
-      "the implicit operator in 2D); the explicit operator orders the interface last and the "
-      "rest by constrained AMD (amd) or nested dissection (metis)",
+      "fill-reducing ordering of subdomain factors: amd | metis (METIS's nested dissection) | "
+      "nesdis (CHOLMOD's nested dissection: METIS's separators, constrained AMD on parts of 200 "
+      "rows: 2-3% smaller factors in 3D, a slower analysis) | auto (METIS, except AMD for the "
+      "implicit operator in 2D); "
+      "the explicit operator orders the interface last and the rest by constrained AMD (amd) "
+      "or nested dissection (metis, nesdis)",
       kOrderingNames, +[](RunOptions& r) -> Ordering& { return r.solve.feti.ordering; }));
   t.push_back(choice(
       "solver", "preconditioner", "--preconditioner",

@@ -371,7 +371,7 @@ TEST(SubdomainCache, SharesAnalysesOnlyBetweenEqualPatterns) {
     c.solve(b.data(), x.data());
     return x;
   };
-  for (Ordering ordering : {Ordering::amd, Ordering::metis}) {
+  for (Ordering ordering : {Ordering::amd, Ordering::metis, Ordering::nesdis}) {
     SubdomainCache cache;
     SparseCholesky plain(ordering), shared1(ordering), shared2(ordering), other(ordering);
     plain.factorize(A2);
@@ -936,7 +936,7 @@ Eigen::SparseMatrix<double> grid_matrix(int n, double diagonal) {
 TEST(SparseCholesky, SingleCopySolvesWithTheRoundedFactor) {
   const int N = 12 * 12 * 12;
   const Eigen::SparseMatrix<double> A = grid_matrix(12, 7.0);
-  for (Ordering ordering : {Ordering::amd, Ordering::metis}) {
+  for (Ordering ordering : {Ordering::amd, Ordering::metis, Ordering::nesdis}) {
     SCOPED_TRACE(to_string(ordering));
     SparseCholesky chol(ordering);
     chol.factorize(A);

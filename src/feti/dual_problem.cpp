@@ -224,9 +224,7 @@ void DualProblem::choose_operator(Setup& st) {
   // dissection of the interior: 8% fewer nonzeros than constrained AMD on the 2D Table 3
   // subdomain, 14% less numeric time in 3D; docs/performance.md); AMD for the implicit
   // operator in 2D.
-  ordering_ = options.ordering == Ordering::automatic
-                  ? (layout_.dim == 3 || explicit_ ? Ordering::metis : Ordering::amd)
-                  : options.ordering;
+  ordering_ = resolve_ordering(options.ordering, layout_.dim, explicit_);
 }
 
 void DualProblem::plan_preconditioner(Setup& st) {

@@ -96,9 +96,7 @@ std::optional<OperatorCost> estimate_operator_cost(const Model& model, const Fet
   const int S = model.num_subdomains();
   std::vector<int> ids{0, S / 2, S - 1};
   ids.erase(std::unique(ids.begin(), ids.end()), ids.end());
-  const Ordering ordering = options.ordering == Ordering::automatic
-                                ? (layout.dim == 3 ? Ordering::metis : Ordering::amd)
-                                : options.ordering;
+  const Ordering ordering = resolve_ordering(options.ordering, layout.dim, false);
   // Each sample counted on the rank holding it, in its own slot: the sums below add one
   // nonzero per slot, so every rank gets the same values whatever the number of ranks.
   constexpr int kFields = 6;

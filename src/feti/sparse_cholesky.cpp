@@ -162,7 +162,7 @@ struct SharedFactor {
 // factor, allocated through the cache's own CHOLMOD common.
 struct SubdomainCache::Entry {
   std::uint64_t hash = 0;
-  int method = 0;  // 0 AMD, 1 METIS, 2 constrained AMD with `last` ordered last
+  int method = 0;  // Impl::method, plus 3 with `last` ordered last
   std::vector<int> p, i, last;
   std::uint64_t value_hash = 0;  // numeric entries: the values and their hash
   std::vector<double> x;
@@ -322,7 +322,7 @@ struct SparseCholesky::Impl {
   cholmod_dense* e = nullptr;
   int n = 0;
   int nlast = 0;   // rows ordered last by factorize(A, last)
-  int method = 0;  // 0 AMD, 1 METIS (the constructor's ordering)
+  int method = 0;  // 0 AMD, 1 METIS, 2 nesdis (the constructor's ordering)
   double symbolic_seconds = 0, numeric_seconds = 0;
   std::shared_ptr<SharedFactor> slot;  // shared with a numeric cache entry, if any
   bool memo_solves = false;            // solve() through solve_many's memo (interface-last factors)
@@ -339,14 +339,19 @@ struct SparseCholesky::Impl {
   long refined_solves = 0, refinement_steps = 0;
   bool refactored = false;
 
-  explicit Impl(Ordering ordering) : method(ordering == Ordering::amd ? 0 : 1) {
+  explicit Impl(Ordering ordering)
+      : method(ordering == Ordering::amd      ? 0
+               : ordering == Ordering::nesdis ? 2
+                                              : 1) {
     populate_cholmod_allocations();  // the factors' pages in one call each (fresh_pages.hpp)
     cholmod_start(&common);
     common.print = 0;
     common.error_handler = nullptr;
     common.supernodal = CHOLMOD_SUPERNODAL;
     common.nmethods = 1;
-    common.method[0].ordering = ordering == Ordering::amd ? CHOLMOD_AMD : CHOLMOD_METIS;
+    common.method[0].ordering = method == 0   ? CHOLMOD_AMD
+                                : method == 2 ? CHOLMOD_NESDIS
+                                              : CHOLMOD_METIS;
     common.postorder = 1;
   }
   ~Impl() {
@@ -386,8 +391,9 @@ double SparseCholesky::symbolic_seconds() const { return impl_->symbolic_seconds
 double SparseCholesky::numeric_seconds() const { return impl_->numeric_seconds; }
 
 // The symbolic analysis of A (upper triangle `upper`, CHOLMOD view `view`) with the rows in `last`
-// ordered after all others: constrained AMD (method 0) or METIS on the other rows (method 1),
-// then the rows of `last`; postordered when that keeps them last. Throws if CHOLMOD fails.
+// ordered after all others: constrained AMD (method 0), or nested dissection of the other rows
+// (METIS_NodeND: method 1, CHOLMOD's: method 2), then the rows of `last`; postordered when that
+// keeps them last. Throws if CHOLMOD fails.
 static cholmod_factor* analyze_with_last(cholmod_sparse& view,
                                          const Eigen::SparseMatrix<double>& upper,
                                          const std::vector<int>& last, int method,
@@ -401,7 +407,7 @@ static cholmod_factor* analyze_with_last(cholmod_sparse& view,
     if (!cholmod_camd(&view, nullptr, 0, cmember.data(), perm.data(), &c))
       cholmod_failed(c, "CHOLMOD: constrained ordering failed");
   } else {
-    // METIS nested dissection of the rows not in `last`, then `last`.
+    // Nested dissection of the rows not in `last`, then `last`.
     std::vector<int> inner, index(n, -1);
     for (int r = 0; r < n; ++r)
       if (!cmember[r]) index[r] = static_cast<int>(inner.size()), inner.push_back(r);
@@ -419,7 +425,14 @@ static cholmod_factor* analyze_with_last(cholmod_sparse& view,
       // The matrix is a valid symmetric pattern built here, so METIS fails only when its own
       // allocations do (it reports METIS_ERROR, which CHOLMOD passes on as CHOLMOD_INVALID):
       // out of memory, as measured under an address-space limit.
-      if (!cholmod_metis(&vi, nullptr, 0, 1, pi.data(), &c)) throw std::bad_alloc();
+      if (method == 2) {  // CHOLMOD's nested dissection: its tree of parts is not needed
+        std::vector<int> cparent(ni), cmember_i(ni);
+        if (cholmod_nested_dissection(&vi, nullptr, 0, pi.data(), cparent.data(), cmember_i.data(),
+                                      &c) < 0)
+          throw std::bad_alloc();
+      } else if (!cholmod_metis(&vi, nullptr, 0, 1, pi.data(), &c)) {
+        throw std::bad_alloc();
+      }
     }
     int k = 0;
     for (int q = 0; q < ni; ++q) perm[k++] = inner[pi[q]];
@@ -469,7 +482,7 @@ void SparseCholesky::factorize_impl(const Eigen::SparseMatrix<double>& A,
 
   // The pattern's key for the cache: method, the sorted set ordered last, the upper triangle.
   const int n = static_cast<int>(A.rows()), nnz = static_cast<int>(upper.nonZeros());
-  const int method = last ? 2 + impl_->method : impl_->method;
+  const int method = last ? 3 + impl_->method : impl_->method;
   std::vector<int> last_sorted;
   std::uint64_t hash = 1469598103934665603ULL;  // FNV-1a
   const auto mix = [&hash](const int* v, long len) {

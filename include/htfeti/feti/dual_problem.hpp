@@ -434,11 +434,11 @@ class DualProblem {
   };
   OperatorCheck dual_operator_check() const;
   /// The ordering of the subdomain factors in effect (automatic resolved). The explicit operator
-  /// orders the interface last, the rest by constrained AMD (amd) or by METIS nested dissection.
+  /// orders the interface last, the rest by constrained AMD (amd) or by nested dissection.
   std::string ordering_in_effect() const {
-    return explicit_
-               ? (ordering_ == Ordering::amd ? "camd (interface last)" : "metis (interface last)")
-               : to_string(ordering_);
+    return explicit_ ? (ordering_ == Ordering::amd ? std::string("camd") : to_string(ordering_)) +
+                           " (interface last)"
+                     : to_string(ordering_);
   }
   /// Whether the subdomain factors of some cluster were freed after setup and are rebuilt for the
   /// reconstruction (on any rank), and how many clusters of this rank freed them.

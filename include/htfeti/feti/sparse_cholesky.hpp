@@ -15,12 +15,23 @@
 
 namespace htfeti {
 
-/// Fill-reducing ordering of the subdomain factors. automatic: AMD in 2D (the paper's tables were
-/// measured with it), METIS nested dissection in 3D (27% fewer factor nonzeros on the
-/// cube-obstacle subdomains, docs/performance.md); resolved by the FETI stage.
-enum class Ordering { amd, metis, automatic };
-inline constexpr std::array<EnumName<Ordering>, 3> kOrderingNames{
-    {{Ordering::amd, "amd"}, {Ordering::metis, "metis"}, {Ordering::automatic, "auto"}}};
+/// Fill-reducing ordering of the subdomain factors: AMD, METIS's nested dissection
+/// (METIS_NodeND), or CHOLMOD's nested dissection (nesdis: METIS's vertex separators down to
+/// parts of 200 rows, constrained AMD within them). automatic (resolve_ordering): METIS in 3D
+/// (27% fewer factor nonzeros than AMD on the cube-obstacle subdomains; nesdis saves another
+/// 2-3% of the factor and of F's time but its analysis costs as much more on the METIS cubes,
+/// docs/performance.md) and for the explicit operator's interface-last factors, AMD for the
+/// implicit operator in 2D (the paper's tables were measured with it).
+enum class Ordering { amd, metis, nesdis, automatic };
+inline constexpr std::array<EnumName<Ordering>, 4> kOrderingNames{{{Ordering::amd, "amd"},
+                                                                   {Ordering::metis, "metis"},
+                                                                   {Ordering::nesdis, "nesdis"},
+                                                                   {Ordering::automatic, "auto"}}};
+/// The ordering `automatic` stands for (see Ordering); others are returned as given.
+inline Ordering resolve_ordering(Ordering asked, int dim, bool explicit_operator) {
+  if (asked != Ordering::automatic) return asked;
+  return dim == 3 || explicit_operator ? Ordering::metis : Ordering::amd;
+}
 /// The values the implicit operator's sweeps read (FetiOptions::factor_precision): the factors
 /// in double, or their single-precision copies (sums in double; the solve then verified and, if
 /// need be, finished with the factors: docs/method.md, "Single-precision factor sweeps").

@@ -4,7 +4,7 @@ linux-perf) samples the whole run with CLOCK_MONOTONIC timestamps, the solve pri
 progress lines (timed here on the same clock) and its report gives the phase lengths; the
 samples inside the chosen phase's window are counted by symbol.
 
-Windows: assembly = the timings.setup seconds (assembly and constraints) before the
+Windows: solve = from "setup done" to the reconstruction (the dual solve); assembly = the timings.setup seconds (assembly and constraints) before the
 factorization; coarse = the timings.coarse_problem seconds before "setup done" (the coarse space,
 its factor, lambda~ and the preconditioner's weights end the setup); factorization = the
 timings.factorization seconds before those; output = after
@@ -16,7 +16,7 @@ With --kernel-callers the samples carry call chains (perf -g) and those taken in
 first function of ours (or of a library) above them: who makes the kernel work. --phase all
 takes the whole run.
 
-Usage: bench/profile_phases.py [--phase output|checks|assembly|factorization|coarse|all] [--kernel-callers]
+Usage: bench/profile_phases.py [--phase output|checks|assembly|factorization|coarse|solve|all] [--kernel-callers]
                                [--threads 2] [--top 12] [-- htfeti solve arguments]
 Default case: Table 3 at full size, m = 1, with the VTU written. Prints the shares of the top
 symbols (perf's sampling: about +-1 percentage point at the default case's sample counts),
@@ -33,7 +33,7 @@ import time
 from common import BIN, env
 
 p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-p.add_argument("--phase", choices=["output", "checks", "assembly", "factorization", "coarse", "all"], default="output")
+p.add_argument("--phase", choices=["output", "checks", "assembly", "factorization", "coarse", "solve", "all"], default="output")
 p.add_argument("--kernel-callers", action="store_true",
                help="count kernel samples by the first user-space function above them")
 p.add_argument("--threads", type=int, default=2)
@@ -66,6 +66,9 @@ with tempfile.TemporaryDirectory(dir=os.environ.get("HTFETI_BENCH_TMP")) as d:
     elif a.phase == "factorization":
         hi = marks["setup done"] - t["coarse_problem"]
         lo = hi - t["factorization"]
+    elif a.phase == "solve":  # the dual solve: after the setup, before the reconstruction
+        lo = marks["setup done"]
+        hi = marks["reconstruction done"] - t["reconstruction"]
     elif a.phase == "assembly":  # assembly and the constraints, before the factorization
         hi = marks["setup done"] - t["coarse_problem"] - t["factorization"]
         lo = hi - t["setup"]

@@ -1580,29 +1580,35 @@ cluster_size = )" << cluster_size
 // rtol until it is at most 0.1 rtol (where TFETI's solves end by themselves). Checked against
 // TFETI on the same parts: the same energy to 2e-5 (measured 7e-6; the unrefined H-TFETI-DP
 // solve was 5e-4 off).
-// --progress on a contact solve: one line per outer iteration and one where a face solve ends
-// the solve (here the single-precision check's: it starts on the face of the first solve's
-// end), with the F applications so far never decreasing; the last line's ||g^P|| / ||b|| is
-// the report's.
+// --progress on a contact solve (examples/sphere-on-block.toml: the first solve, the check with
+// the factors after the single-precision sweeps, one accuracy refinement): one `it` line per
+// outer iteration, `it 0` where a continuation's start point passes the test, `face` where a
+// face solve ends a solve, a line before each continuation; the F applications so far never
+// decrease, and the last line's ||g^P|| / ||b|| is the report's.
 TEST_F(Cli, ProgressLinesOfAContactSolve) {
-  ASSERT_EQ(run(bin + " solve --problem cube-obstacle --elements 12 --subdomains 2 --no-vtu "
-                      "--progress --report p.json"),
-            0)
-      << stderr_text();
+  const std::string ex = std::string(HTFETI_SOURCE_DIR) + "/examples/sphere-on-block.toml";
+  ASSERT_EQ(run(bin + " solve " + ex + " --no-vtu --progress --report p.json"), 0) << stderr_text();
   const std::string text = stderr_text();
   const auto r = read_json("p.json");
-  ASSERT_TRUE(r["solver"].contains("single_sweeps")) << r["solver"].dump();
+  const auto& sv = r["solver"];
+  ASSERT_TRUE(sv.contains("single_sweeps")) << sv.dump();
+  ASSERT_TRUE(sv.contains("accuracy_refinements")) << sv.dump();
   std::istringstream in(text);
-  std::string line, last;
+  std::string line, last, after_check, after_refinement;
   long products = 0;
   int its = 0, faces = 0;
-  bool check = false;
+  bool check = false, refinement = false;
   while (std::getline(in, line)) {
-    check = check || line.find("check: converged with the factors'") != std::string::npos;
+    if (line.find("check: converged with the factors'") != std::string::npos) check = true;
+    if (line.find("accuracy refinement 1: gluing residual") != std::string::npos) {
+      EXPECT_TRUE(check) << text;  // the check comes first
+      refinement = true;
+    }
     const bool it = line.rfind("  it ", 0) == 0, face = line.rfind("  face ", 0) == 0;
     if (!it && !face) continue;
-    its += it, faces += face;
-    EXPECT_EQ(face, check) << text;  // the face line comes after the check's announcement
+    if (check && after_check.empty()) after_check = line;
+    if (refinement && after_refinement.empty()) after_refinement = line;
+    its += it && line.rfind("  it     0 ", 0) != 0, faces += face;
     const auto f = line.find(" F ");
     ASSERT_NE(f, std::string::npos) << line;
     const long p = std::stol(line.substr(line.rfind(' ', f - 1) + 1));
@@ -1610,12 +1616,15 @@ TEST_F(Cli, ProgressLinesOfAContactSolve) {
     products = p;
     last = line;
   }
+  EXPECT_TRUE(refinement) << text;
   EXPECT_EQ(its, r["outer_iterations"].get<int>()) << text;
-  EXPECT_EQ(faces, 1) << text;
+  // Each continuation shows where it ended: its start point, a face solve or its iterations.
+  EXPECT_FALSE(after_check.empty()) << text;
+  EXPECT_FALSE(after_refinement.empty()) << text;
+  EXPECT_GE(faces, 1) << text;
   char gp[32];
-  std::snprintf(
-      gp, sizeof gp, "%.3e",
-      r["solver"]["projected_gradient"].get<double>() / r["solver"]["rhs_norm"].get<double>());
+  std::snprintf(gp, sizeof gp, "%.3e",
+                sv["projected_gradient"].get<double>() / sv["rhs_norm"].get<double>());
   EXPECT_NE(last.find(std::string("||g^P||/||b|| ") + gp), std::string::npos) << last;
 }
 

@@ -194,7 +194,9 @@ SmalbeResult smalbe(const QuadraticProgram& qp, double normA, Vec& x, const Redu
   };
   // A warm start tries the face solve first, on the start point's face (one product for the
   // gradient): a continuation (the single-precision check, the accuracy refinement, Coulomb's
-  // next solves) mostly starts on the face of the solution.
+  // next solves) mostly starts on the face of the solution. A start point that passes the
+  // stopping test already (the single-precision check of a solve whose copies were close
+  // enough) ends there, after that one product, as the first inner solve would without faces.
   bool gradient_given = false, done_at_start = false;
   if (use_face && warm && face_cheap()) {
     H.apply(x, g);
@@ -202,8 +204,23 @@ SmalbeResult smalbe(const QuadraticProgram& qp, double normA, Vec& x, const Redu
     Q.apply(x, qx);
     image.tx = qx;
     gradient_given = true;
-    done_at_start = face_finishes();
-    face_kept = false;  // no multiplier update is pending: the loop starts from the face's point
+    face_work.phi.resize(n), face_work.beta.resize(n);
+    split_gradient(x, g, l, u, face_work.phi, face_work.beta);
+    const Vec* ta[3] = {&face_work.phi, &face_work.beta, &qx};
+    double sums[3];
+    red.dots(3, ta, ta, sums);
+    const double gp = std::sqrt(sums[0] + sums[1]), q = std::sqrt(sums[2]);
+    if (gp <= grad_tol && q <= eq_tol) {
+      done_at_start = true;
+      qnorm = q;
+      res.projected_gradient = gp;
+      res.equality_residual = q;
+      res.reason = StopReason::converged;
+      if (progress) progress(0, gp / bnorm, normA * q / bnorm);
+    } else {
+      done_at_start = face_finishes();
+      face_kept = false;  // no multiplier update is pending: the loop starts from the face's point
+    }
     res.M = M;
   }
   for (int k = 0; !done_at_start; ++k) {

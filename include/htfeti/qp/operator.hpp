@@ -102,7 +102,8 @@ inline std::string to_string(StopReason r) {
 /// Called once per (outer) iteration with the iteration number and the stopping measures
 /// relative to their scales: PCG ||P r|| / ||P b|| and 0; SMALBE-M ||g^P|| / ||b|| and
 /// ||A|| ||G x|| / ||b|| (smalbe.hpp), and also where a face solve ends the solve, with
-/// kFaceProgress for the iteration number.
+/// kFaceProgress for the iteration number, and with 0 where a continuation's start point passes
+/// the test.
 using Progress = std::function<void(int, double, double)>;
 inline constexpr int kFaceProgress = -1;
 

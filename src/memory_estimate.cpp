@@ -9,6 +9,7 @@
 #include <limits>
 #include <stdexcept>
 
+#include "htfeti/feti/dual_preconditioner.hpp"
 #include "htfeti/feti/operator_cost.hpp"
 #include "htfeti/feti/subdomain.hpp"
 #include "htfeti/model/problem_spec.hpp"
@@ -51,10 +52,11 @@ double machine_available_mb(const FetiOptions& options, MPI_Comm node) {
 }
 
 // Whether the run will apply the Dirichlet preconditioner on the whole interior with factors of
-// K_ii (DualPreconditioner::plan's automatic storage: implicit in 3D).
+// K_ii (DualPreconditioner::implicit_storage; in 2D the automatic storage is counted as dense,
+// which the budget bounds).
 bool implicit_dirichlet(const FetiOptions& o, int dim) {
   return o.preconditioner == PreconditionerKind::dirichlet && o.dirichlet_layers == 0 &&
-         (o.dirichlet_storage == 2 || (o.dirichlet_storage == 0 && dim == 3));
+         DualPreconditioner::implicit_storage(o, dim, true);
 }
 
 // Counted as half of the factors: 0.57 to 0.69 of them measured (memory_estimate.hpp).

@@ -33,6 +33,11 @@ void DualPreconditioner::start(const FetiOptions& options, const FetiLayout& lay
   if (exact_node_scaling_) node_copies_.resize(nsub);
 }
 
+bool DualPreconditioner::implicit_storage(const FetiOptions& options, int dim, bool dense_fits) {
+  return options.dirichlet_storage == 2 ||
+         (options.dirichlet_storage == 0 && (dim == 3 || !dense_fits));
+}
+
 std::vector<std::vector<int>> DualPreconditioner::plan(const FetiOptions& options,
                                                        const Multipliers& m, const Comm& comm) {
   // The preconditioner's interface per subdomain: the dofs its rows of B~ touch (sorted), and
@@ -59,7 +64,6 @@ std::vector<std::vector<int>> DualPreconditioner::plan(const FetiOptions& option
   // the measured parts) and forming S_i from n_b right-hand sides costs 15 to 35 times the
   // implicit setup, so 3D takes the implicit storage whatever the budget.
   const bool fits = comm.max(dense_bytes) <= options.dirichlet_dense_budget_bytes;
-  const bool dense_automatic = dim_ == 2 && fits;
   if (kind_ == PreconditionerKind::dirichlet && options.dirichlet_storage == 0 && dim_ == 2 &&
       !fits && options.dirichlet_fallback != PreconditionerKind::dirichlet) {
     kind_ = options.dirichlet_fallback;
@@ -69,8 +73,7 @@ std::vector<std::vector<int>> DualPreconditioner::plan(const FetiOptions& option
       node_copies_ = {};
     }
   }
-  dense_ = kind_ == PreconditionerKind::dirichlet &&
-           (options.dirichlet_storage == 1 || (options.dirichlet_storage == 0 && dense_automatic));
+  dense_ = kind_ == PreconditionerKind::dirichlet && !implicit_storage(options, dim_, fits);
   if (built()) local_.resize(nsub);
   return interface;
 }

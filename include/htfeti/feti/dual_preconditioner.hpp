@@ -41,6 +41,11 @@ class DualPreconditioner {
   /// (docs/method.md, "Preconditioners": measured faster and smaller there). Collective.
   std::vector<std::vector<int>> plan(const FetiOptions& options, const Multipliers& m,
                                      const Comm& comm);
+  /// Whether the Dirichlet preconditioner applies S_i with factors of K_ii rather than storing
+  /// it dense: asked for (dirichlet_storage 2), or the automatic storage in 3D, or in 2D when the
+  /// dense S_i do not fit the budget (dense_fits). plan() decides with it, and so does the memory
+  /// check (memory_estimate.cpp).
+  static bool implicit_storage(const FetiOptions& options, int dim, bool dense_fits);
   /// Whether set_up_subdomain needs the diagonal of K at the row entries (stiffness scaling).
   bool wants_diagonal() const { return built() && scaling_ == Scaling::stiffness; }
 

@@ -14,7 +14,8 @@ Table 3 full size (n = 3168, N_s = 32) for m = 4 (about 10 GB and two minutes pe
 compare): metis40 (bench/cases/cube40_metis64.toml), metis80 (cube80_metis512.toml, one run:
 about a minute and 7 GB), metis80pre (the same with --mprgp-expansion preconditioned),
 metis40a20 and metis80a20 (the same cubes with the obstacle's amplitude A = 20, *_a20.toml),
-bracket (examples/bracket.toml, tet4), metis80dry (the 80^3 cube at A = 20 with --dry-run:
+bracket (examples/bracket.toml, tet4), hertz and hertztet (the strongly graded hex8 Hertz block
+and the tet4 one of bench/hertz_cases.py, meshed by gmsh into a temporary directory), metis80dry (the 80^3 cube at A = 20 with --dry-run:
 reading, generating and splitting the mesh and planning, nothing set up; wall time only, medians
 of --repeat). The builds take turns run by run, so that the drift of a
 shared machine falls on both alike. Each row keeps the phase timings of every run.
@@ -37,7 +38,7 @@ p.add_argument("--threads", type=int, default=2)
 p.add_argument("--full", action="store_true")
 p.add_argument("--cases", nargs="+",
                choices=["membranes", "full", "metis40", "metis80", "metis80pre", "metis40a20",
-                        "metis80a20", "bracket", "metis80dry"])
+                        "metis80a20", "bracket", "hertz", "hertztet", "metis80dry"])
 p.add_argument("--out", default="compare_builds.json")
 p.add_argument("--extra", default="",
                help="more solve arguments for every case, e.g. \"--preconditioner dirichlet\"")
@@ -68,6 +69,13 @@ CASES = {
                     "--dry-run"], False, a.repeat),
 }
 names = a.cases or (["membranes", "full"] if a.full else ["membranes"])
+if "hertz" in names or "hertztet" in names:  # the Hertz blocks' meshes and problem files
+    import hertz_cases
+    hertz = hertz_cases.contact_problems(tempfile.mkdtemp())
+    CASES["hertz"] = ("graded Hertz block, hex8, strong grading, 16 METIS parts (no VTU)",
+                      [hertz[0][1]], False, a.repeat)
+    CASES["hertztet"] = ("Hertz block, tet4, 16 METIS parts (no VTU)", [hertz[3][1]], False,
+                         a.repeat)
 cases = [CASES[n] for n in names]
 
 rows = []

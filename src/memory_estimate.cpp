@@ -59,8 +59,12 @@ bool implicit_dirichlet(const FetiOptions& o, int dim) {
          DualPreconditioner::implicit_storage(o, dim, true);
 }
 
-// Counted as half of the factors: 0.57 to 0.69 of them measured (memory_estimate.hpp).
-constexpr double kImplicitDirichletShare = 0.5;
+// Its factors of K_ii as a share of the subdomains' factors (memory_estimate.hpp): half, 0.57
+// to 0.69 of them measured, with double solves; 0.3, 0.36 measured, with the single-precision
+// copies (the doubles freed) that every precision but double takes.
+double implicit_dirichlet_share(const FetiOptions& o) {
+  return o.factor_precision == FactorPrecision::double_ ? 0.5 : 0.3;
+}
 
 }  // namespace
 
@@ -84,7 +88,8 @@ MemoryEstimate estimate_memory(const Model& model, const FetiOptions& options, c
   e.factors_mb = lower_nnz * 8.0 / kMiB;  // L has at least the nonzeros of K's lower triangle
   e.factors_held_mb = e.factors_mb;
   const bool implicit_preconditioner = implicit_dirichlet(options, layout.dim);
-  if (implicit_preconditioner) e.preconditioner_mb = kImplicitDirichletShare * e.factors_mb;
+  if (implicit_preconditioner)
+    e.preconditioner_mb = implicit_dirichlet_share(options) * e.factors_mb;
   if (!sample_one || per_subdomain > kMaxSampleUnknowns) return e;
   // Sample: the rank's first subdomain, assembled and analysed with the ordering in effect.
   SubdomainInput in = model.input(s0);
@@ -134,7 +139,8 @@ MemoryEstimate estimate_memory(const Model& model, const FetiOptions& options, c
   e.factors_held_mb = e.factors_mb;
   // The preconditioner's factors of K_ii, shared as the subdomains' factors are (the numeric
   // cache serves both).
-  if (implicit_preconditioner) e.preconditioner_mb = kImplicitDirichletShare * e.factors_mb;
+  if (implicit_preconditioner)
+    e.preconditioner_mb = implicit_dirichlet_share(options) * e.factors_mb;
   // The implicit operator's single-precision copies (4 of a value's 8 bytes), where every
   // cluster of the rank is one subdomain (TFETI: no primal constraints).
   bool one_per_cluster = true;

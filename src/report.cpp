@@ -113,6 +113,12 @@ void report_problem_and_solve(nlohmann::json& rep, const Model& model, DualProbl
   // The Dirichlet preconditioner's layers of interior dofs (0: all of them).
   if (ops.preconditioned && dual.preconditioner() == PreconditionerKind::dirichlet)
     rep["preconditioner_layers"] = dual.preconditioner_layers();
+  // The implicit Dirichlet preconditioner's solves with K_ii: single-precision factor copies
+  // unless --factor-precision double.
+  if (ops.preconditioned && dual.preconditioner() == PreconditionerKind::dirichlet &&
+      comm.min(dual.preconditioner_dense() ? 1.0 : 0.0) == 0)
+    rep["preconditioner_precision"] =
+        comm.max(dual.preconditioner_single() ? 1.0 : 0.0) > 0 ? "single" : "double";
   rep["converged"] = qs.converged;
   rep["stop_reason"] = qs.reason;
   rep["outer_iterations"] = qs.outer;

@@ -342,7 +342,11 @@ TEST(MemoryEstimate, CountsTheImplicitDirichletPreconditioner) {
   const MemoryEstimate dirichlet = estimate_memory(*model, o, comm);
   ASSERT_TRUE(dirichlet.sampled);
   EXPECT_GT(dirichlet.preconditioner_mb, 0);
-  EXPECT_DOUBLE_EQ(dirichlet.preconditioner_mb, 0.5 * dirichlet.factors_mb);
+  // Single-precision copies of the factors of K_ii (every precision but double), else double.
+  EXPECT_DOUBLE_EQ(dirichlet.preconditioner_mb, 0.3 * dirichlet.factors_mb);
+  o.factor_precision = FactorPrecision::double_;
+  EXPECT_DOUBLE_EQ(estimate_memory(*model, o, comm).preconditioner_mb, 0.5 * dirichlet.factors_mb);
+  o.factor_precision = FactorPrecision::automatic;
   EXPECT_GE(dirichlet.peak_mb(), lumped.peak_mb());
   o.dirichlet_storage = 1;  // dense S_i: bounded by the budget, not counted
   EXPECT_EQ(estimate_memory(*model, o, comm).preconditioner_mb, 0);
@@ -353,9 +357,17 @@ TEST(MemoryEstimate, CountsTheImplicitDirichletPreconditioner) {
   SolveOptions so;
   so.feti.dual_operator = DualOperator::implicit;
   so.max_iterations = 2;
-  const SolveOutput out = solve(model, so, comm);
-  EXPECT_EQ(out.report["preconditioner_storage"], "implicit");
-  const double counted = out.report["memory"]["estimate_mb"]["preconditioner"];
-  EXPECT_NEAR(counted, comm.sum(dirichlet.preconditioner_mb), 1e-9 * counted);
-  EXPECT_LE(counted, out.report["memory"]["preconditioner_mb"].get<double>());
+  o.dirichlet_layers = 0;
+  for (const FactorPrecision precision : {FactorPrecision::automatic, FactorPrecision::double_}) {
+    so.feti.factor_precision = precision;
+    o.factor_precision = precision;
+    const SolveOutput out = solve(model, so, comm);
+    EXPECT_EQ(out.report["preconditioner_storage"], "implicit");
+    EXPECT_EQ(out.report["preconditioner_precision"],
+              precision == FactorPrecision::double_ ? "double" : "single");
+    const double counted = out.report["memory"]["estimate_mb"]["preconditioner"];
+    EXPECT_NEAR(counted, comm.sum(estimate_memory(*model, o, comm).preconditioner_mb),
+                1e-9 * counted);
+    EXPECT_LE(counted, out.report["memory"]["preconditioner_mb"].get<double>());
+  }
 }

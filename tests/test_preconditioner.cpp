@@ -54,6 +54,22 @@ Eigen::MatrixXd dense_schur(const Eigen::MatrixXd& Kd, const std::vector<int>& b
   return Kbb - Ksb.transpose() * Kss.ldlt().solve(Ksb);
 }
 
+// The dofs of the nodes the subdomain shares (b, sorted) and the others (interior), of input in.
+void shared_and_interior(const SubdomainInput& in, std::vector<int>& b,
+                         std::vector<int>& interior) {
+  const int dpn = in.system.dofs_per_node, n = static_cast<int>(in.system.K.rows());
+  b.clear(), interior.clear();
+  for (int k = 0; k < in.sharing.num_nodes(); ++k)
+    if (in.sharing.num_copies(k) > 1)
+      for (int d = 0; d < dpn; ++d) b.push_back(k * dpn + d);
+  const int nb = static_cast<int>(b.size());
+  for (int d = 0, j = 0; d < n; ++d)
+    if (j < nb && b[j] == d)
+      ++j;
+    else
+      interior.push_back(d);
+}
+
 // The matrix of a local preconditioner: its application to each unit vector.
 Eigen::MatrixXd operator_matrix(LocalPreconditioner& p) {
   const int nb = p.size();
@@ -77,21 +93,12 @@ TEST(LocalPreconditioner, MatchesTheDenseSchurComplement) {
        {builtin(ProblemKind::poisson2d, 8, 2, 1, Glue::averages), cube(1, true)}) {
     const SubdomainInput in = model->input(0);
     const Eigen::SparseMatrix<double>& K = in.system.K;
-    const int dpn = in.system.dofs_per_node;
-    std::vector<int> b;  // the dofs of shared nodes and of nodes on the domain boundary
-    for (int k = 0; k < in.sharing.num_nodes(); ++k)
-      if (in.sharing.num_copies(k) > 1)
-        for (int d = 0; d < dpn; ++d) b.push_back(k * dpn + d);
+    std::vector<int> b, interior;  // the dofs of shared nodes, and the others
+    shared_and_interior(in, b, interior);
     const int n = static_cast<int>(K.rows()), nb = static_cast<int>(b.size());
     ASSERT_GT(nb, 0);
     ASSERT_LT(nb, n);
     const Eigen::MatrixXd Kd(K);
-    std::vector<int> interior;
-    for (int d = 0, j = 0; d < n; ++d)
-      if (j < nb && b[j] == d)
-        ++j;
-      else
-        interior.push_back(d);
     Eigen::MatrixXd Kbb(nb, nb);
     for (int i = 0; i < nb; ++i)
       for (int j = 0; j < nb; ++j) Kbb(i, j) = Kd(b[i], b[j]);
@@ -130,6 +137,41 @@ TEST(LocalPreconditioner, MatchesTheDenseSchurComplement) {
       EXPECT_GT(eig.eigenvalues().minCoeff(), 1e-8 * eig.eigenvalues().maxCoeff()) << dense;
     }
   }
+}
+
+// The implicit Dirichlet operator with single-precision solves (the default, with every factor
+// precision but double): within single-precision round-off of the exact S (relative to the
+// largest diagonal entry of K_bb, as the dense form), not the same bits as the double solves
+// (so the copy is what is read), and its factor held in fewer bytes, the doubles freed.
+TEST(LocalPreconditioner, SinglePrecisionSolvesOfTheImplicitForm) {
+  Comm comm;
+  if (comm.rank() != 0) return;
+  const auto model = cube(1, true);
+  const SubdomainInput in = model->input(0);
+  const Eigen::SparseMatrix<double>& K = in.system.K;
+  std::vector<int> b, interior;
+  shared_and_interior(in, b, interior);
+  const int nb = static_cast<int>(b.size());
+  ASSERT_GT(nb, 0);
+  ASSERT_GT(interior.size(), 0u);
+  const Eigen::MatrixXd Kd(K);
+  const Eigen::MatrixXd S = dense_schur(Kd, b, interior);
+  const double scale = Kd.diagonal().maxCoeff();
+  LocalPreconditioner dbl(K, b, PreconditionerKind::dirichlet, false, Ordering::metis, nullptr,
+                          nullptr, 0, false);
+  LocalPreconditioner sgl(K, b, PreconditionerKind::dirichlet, false, Ordering::metis, nullptr,
+                          nullptr, 0, true);
+  EXPECT_FALSE(dbl.single());
+  EXPECT_TRUE(sgl.single());
+  const Eigen::MatrixXd Md = operator_matrix(dbl), Ms = operator_matrix(sgl);
+  EXPECT_LT((Md - S).norm(), 1e-11 * scale * std::sqrt(nb));
+  EXPECT_LT((Ms - S).norm(), 1e-5 * scale * std::sqrt(nb));
+  EXPECT_GT((Ms - Md).norm(), 0.0);
+  EXPECT_LT(sgl.bytes(), dbl.bytes());
+  // Symmetric up to the same round-off, and positive semidefinite as S is (S >= 0 holds to it).
+  EXPECT_LT((Ms - Ms.transpose()).norm(), 1e-5 * scale * std::sqrt(nb));
+  Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(0.5 * (Ms + Ms.transpose()));
+  EXPECT_GT(eig.eigenvalues().minCoeff(), -1e-5 * scale);
 }
 
 // The layered Dirichlet operator S^(k) = K_bb - K_bs K_ss^{-1} K_sb (s: the interior dofs within
@@ -264,19 +306,28 @@ TEST_P(Preconditioners, SymmetricPositiveDefiniteOnKerG) {
     Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(A);
     EXPECT_GT(eig.eigenvalues().minCoeff(), 1e-10 * eig.eigenvalues().maxCoeff()) << c.name;
   }
-  if (kind == PreconditionerKind::dirichlet) {  // dense and implicit S_i agree
+  if (kind == PreconditionerKind::dirichlet) {
+    // Dense and implicit S_i agree (the implicit one's solves with K_ii in double); with the
+    // default single-precision copies of those factors to single-precision round-off.
     FetiOptions dense = opt, imp = opt;
     dense.dirichlet_storage = 1;
     imp.dirichlet_storage = 2;
+    FetiOptions single = imp;
+    imp.factor_precision = FactorPrecision::double_;
     dual = test::make_dual(*model, comm, dense);
     auto other = test::make_dual(*model, comm, imp);
+    auto rounded = test::make_dual(*model, comm, single);
     EXPECT_TRUE(dual->preconditioner_dense());
     EXPECT_FALSE(other->preconditioner_dense());
+    EXPECT_FALSE(other->preconditioner_single());
+    EXPECT_TRUE(comm.max(rounded->preconditioner_single() ? 1.0 : 0.0) > 0);
     const Eigen::VectorXd x = test::pseudo_random(*dual, 4.0);
-    Eigen::VectorXd a, b;
+    Eigen::VectorXd a, b, r;
     dual->apply_preconditioner(x, a);
     other->apply_preconditioner(x, b);
+    rounded->apply_preconditioner(x, r);
     EXPECT_LT(std::sqrt(dot(a - b, a - b)), 1e-9 * std::sqrt(dot(a, a))) << c.name;
+    EXPECT_LT(std::sqrt(dot(a - r, a - r)), 1e-5 * std::sqrt(dot(a, a))) << c.name;
   }
 }
 

@@ -22,10 +22,13 @@
 //    contact rows.
 //  - preconditioner: the implicit Dirichlet preconditioner's factors of K_ii (3D with the
 //    automatic storage, or --dirichlet-storage implicit; the whole interior), counted as half
-//    of the factors (measured 0.57 to 0.69 of them on METIS parts of the cube-obstacle and the
-//    graded Hertz blocks, hex8 and tet4: docs/performance.md, "The Dirichlet preconditioner's
-//    storage"). Dense S_i (at most dirichlet_budget_gb per rank with the automatic storage) and
-//    the layered preconditioner's thinner factors are not counted.
+//    of the factors with --factor-precision double (measured 0.57 to 0.69 of them on METIS parts
+//    of the cube-obstacle and the graded Hertz blocks, hex8 and tet4: docs/performance.md, "The
+//    Dirichlet preconditioner's storage"), else, with single-precision copies in place of the
+//    factors' values, 0.3 of them (measured 0.36 on the 40^3 METIS cube and the graded Hertz
+//    block: "Single-precision solves in the Dirichlet preconditioner"). Dense S_i (at most
+//    dirichlet_budget_gb per rank with the automatic storage) and the layered preconditioner's
+//    thinner factors are not counted.
 // The matrices are freed cluster by cluster as the factors grow. With the explicit operator and
 // the automatic factor release, clusters free their factors once memory runs short, so the
 // factors held are bounded by the working set of the clusters being set up at one time
@@ -53,8 +56,9 @@ namespace htfeti {
 
 struct MemoryEstimate {
   double matrices_mb = 0, factors_mb = 0, vectors_mb = 0, explicit_mb = 0;
-  /// The implicit Dirichlet preconditioner's factors of K_ii: half of factors_mb (0 for other
-  /// preconditioners, dense S_i and the layered one).
+  /// The implicit Dirichlet preconditioner's factors of K_ii: half of factors_mb with double
+  /// solves, 0.3 of it with single-precision copies (0 for other preconditioners, dense S_i and
+  /// the layered one).
   double preconditioner_mb = 0;
   /// The factors held at the peak: factors_mb, or the working set when they are released.
   double factors_held_mb = 0;

@@ -20,6 +20,7 @@ void DualPreconditioner::start(const FetiOptions& options, const FetiLayout& lay
   kind_ = options.preconditioner;
   scaling_ = options.scaling;
   layers_ = options.dirichlet_layers;
+  single_ = options.factor_precision != FactorPrecision::double_;
   dim_ = layout.dim;
   // Exact stiffness scaling on the nodes needs their copy counts. Copies joined primally (corner
   // glue) form groups, for which the identity used there does not hold: those runs weight each
@@ -82,7 +83,7 @@ void DualPreconditioner::set_up_subdomain(int s, const Eigen::SparseMatrix<doubl
                                           std::vector<int> interface, Ordering ordering,
                                           const Eigen::MatrixXd* kernel, SubdomainCache* cache) {
   local_[s] = std::make_unique<LocalPreconditioner>(K, std::move(interface), kind_, dense_,
-                                                    ordering, kernel, cache, layers_);
+                                                    ordering, kernel, cache, layers_, single_);
 }
 
 void DualPreconditioner::finish(Multipliers& m, const std::vector<std::vector<double>>& rho,

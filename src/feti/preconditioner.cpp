@@ -76,7 +76,7 @@ LocalPreconditioner::LocalPreconditioner(const Eigen::SparseMatrix<double>& K,
                                          std::vector<int> interface, PreconditionerKind kind,
                                          bool dense, Ordering ordering,
                                          const Eigen::MatrixXd* kernel, SubdomainCache* cache,
-                                         int layers)
+                                         int layers, bool single)
     : interface_(std::move(interface)), kind_(kind) {
   if (kind == PreconditionerKind::none) throw std::logic_error("LocalPreconditioner: no kind");
   if (layers < 0) throw std::invalid_argument("LocalPreconditioner: layers must be >= 0");
@@ -240,6 +240,11 @@ LocalPreconditioner::LocalPreconditioner(const Eigen::SparseMatrix<double>& K,
           "Dirichlet preconditioner: the interface does not restrain a subdomain (K_ii is "
           "singular); use --preconditioner lumped");
     }
+    if (single) {  // half the bytes per application; the double values freed
+      Kii_.make_single();
+      Kii_.drop_double();
+      single_ = true;
+    }
   }
   work_.resize(ni);
   // One solve here makes the factor's solve workspace (CHOLMOD's dense work arrays, kept between
@@ -248,7 +253,7 @@ LocalPreconditioner::LocalPreconditioner(const Eigen::SparseMatrix<double>& K,
   // reported ("out of memory", exit 2), not inside a loop that cannot pass it on.
   if (ni > 0) {
     work_.setZero();
-    Kii_.solve(work_.data(), work_.data());
+    solve_interior();
   }
 }
 
@@ -264,7 +269,7 @@ void LocalPreconditioner::apply(const double* x, double* y) {
   if (kind_ == PreconditionerKind::lumped) return;
   if (work_.size() > 0) {
     work_.noalias() = Kib_ * xv;
-    Kii_.solve(work_.data(), work_.data());
+    solve_interior();
     yv.noalias() -= Kib_.transpose() * work_;
   }
   if (Q_.cols() > 0) {
@@ -279,7 +284,7 @@ long LocalPreconditioner::bytes() const {
   };
   long b =
       8 * static_cast<long>(S_.size() + Q_.size()) + sparse(Kbb_) + sparse(Kib_) + 8 * work_.size();
-  if (!dense_ && work_.size() > 0) b += Kii_.factor_bytes();
+  if (!dense_ && work_.size() > 0) b += Kii_.held_bytes();
   return b;
 }
 

@@ -813,6 +813,22 @@ bool SparseCholesky::keep_single_only(Eigen::SparseMatrix<double>&& A) {
   return true;
 }
 
+void SparseCholesky::drop_double() {
+  Impl& m = *impl_;
+  if (!m.factor || !m.xs) throw std::logic_error("drop_double: no single-precision copy");
+  if (m.shared || !has_double()) return;  // the holders of a shared factor keep its values
+  if (!cholmod_change_factor(CHOLMOD_PATTERN, 1, 1, 1, 1, m.factor, &m.common))
+    cholmod_failed(m.common, "CHOLMOD: cannot drop the factor's values");
+}
+
+long SparseCholesky::held_bytes() const {
+  const cholmod_factor* L = impl_->factor;
+  if (!L) return 0;
+  long bytes = factor_bytes();  // counts the values as built
+  if (L->is_super && !has_double()) bytes -= static_cast<long>(L->xsize) * 8;
+  return bytes + single_bytes();
+}
+
 bool SparseCholesky::refines() const { return impl_->refine; }
 
 long SparseCholesky::refinement_bytes() const {

@@ -68,6 +68,13 @@ class DualPreconditioner {
   bool dense() const { return dense_; }
   /// The Dirichlet preconditioner's layers (FetiOptions::dirichlet_layers; 0: the whole interior).
   int layers() const { return layers_; }
+  /// Whether the implicit Dirichlet preconditioner solves with single-precision copies of the
+  /// factors of K_ii on this rank (FetiOptions::factor_precision other than double).
+  bool single() const {
+    for (const auto& l : local_)
+      if (l && l->single()) return true;
+    return false;
+  }
   long bytes() const;  ///< on this rank
 
  private:
@@ -82,6 +89,7 @@ class DualPreconditioner {
   Scaling scaling_ = Scaling::multiplicity;
   bool dense_ = true;
   int layers_ = 0;
+  bool single_ = false;  // the implicit form's solves with K_ii in single precision (start)
   int dim_ = 2;
   std::vector<std::unique_ptr<LocalPreconditioner>> local_;  // per local subdomain
   // Per local subdomain, per row entry: the interface position of its dof, and (stiffness

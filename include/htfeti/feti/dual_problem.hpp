@@ -227,6 +227,8 @@ class DualProblem {
   /// Whether the Dirichlet S_i are stored dense on every rank (false: implicit somewhere).
   bool preconditioner_dense() const { return preconditioner_.dense(); }
   int preconditioner_layers() const { return preconditioner_.layers(); }
+  /// Whether the implicit Dirichlet preconditioner solves in single precision on this rank.
+  bool preconditioner_single() const { return preconditioner_.single(); }
   long preconditioner_bytes() const { return preconditioner_.bytes(); }  ///< on this rank
   /// Global sums that do not depend on the number of ranks: per owner cluster (the cluster of the
   /// lowest subdomain a multiplier touches) a partial sum over its entries in global order, the

@@ -30,7 +30,9 @@
 //
 // Cost of one application: lumped 2 nnz(K_bb) flops; Dirichlet dense 2 n_b^2; implicit
 // 2 nnz(K_ib) + 2 nnz(K_bb) + one solve with the factor of K_ii (about 4 nnz(L_ii)), K_ii and
-// K_ib of the k layers for the layered one.
+// K_ib of the k layers for the layered one. The implicit solve reads a single-precision copy of
+// that factor (4 bytes a value, sums in double; SparseCholesky::solve_single) unless the caller
+// asks for double: a preconditioner needs no more, and the copy halves the bytes it streams.
 #pragma once
 
 #include <Eigen/Dense>
@@ -77,22 +79,34 @@ class LocalPreconditioner {
   /// layers (Dirichlet only): 0 the Schur complement on the whole interior; k >= 1 S_i^(k) of
   /// the k layers of interior dofs next to the interface (no kernel term where any dof is
   /// clamped: S_i^(k) is then positive definite).
+  /// single (implicit storage only): the solves with K_ii read a single-precision copy of its
+  /// factor (SparseCholesky::solve_single, sums in double) and the double values are freed.
   LocalPreconditioner(const Eigen::SparseMatrix<double>& K, std::vector<int> interface,
                       PreconditionerKind kind, bool dense, Ordering ordering,
                       const Eigen::MatrixXd* kernel = nullptr, SubdomainCache* cache = nullptr,
-                      int layers = 0);
+                      int layers = 0, bool single = false);
   int size() const { return static_cast<int>(interface_.size()); }
   const std::vector<int>& interface() const { return interface_; }
   bool dense() const { return dense_; }
+  /// Whether the implicit form solves with the single-precision copy of K_ii's factor.
+  bool single() const { return single_; }
   /// y = K_bb x (lumped) or y = S_i x (Dirichlet), vectors of size(); allocates nothing.
   void apply(const double* x, double* y);
   /// Bytes held (dense S, sparse blocks, factor).
   long bytes() const;
 
  private:
+  // work_ <- K_ii^{-1} work_ (in double, or with the single-precision copy).
+  void solve_interior() {
+    if (single_)
+      Kii_.solve_single(work_.data(), work_.data());
+    else
+      Kii_.solve(work_.data(), work_.data());
+  }
   std::vector<int> interface_;
   PreconditionerKind kind_;
   bool dense_ = false;
+  bool single_ = false;
   Eigen::MatrixXd S_;                      // dense Schur complement
   Eigen::SparseMatrix<double> Kbb_, Kib_;  // interface block; interior x interface block
   SparseCholesky Kii_;                     // implicit Dirichlet

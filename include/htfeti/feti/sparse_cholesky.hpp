@@ -172,9 +172,18 @@ class SparseCholesky {
   /// changed) without the copy, or for a factor with rows ordered last (the explicit operator's,
   /// whose solves go through the memo). factor_bytes() still counts the values as built.
   bool keep_single_only(Eigen::SparseMatrix<double>&& A);
-  /// Whether the double-precision values are held (false after keep_single_only(), unless
-  /// shared or factored again).
+  /// Keeps the single-precision copy alone, with no refinement: the factor's values are freed
+  /// (to the block pool, as in keep_single_only) and only solve_single() may be called after it,
+  /// for a use that needs a solve to single precision only (a preconditioner's). A factor shared
+  /// through the numeric cache keeps its values for its other holders. Needs make_single()
+  /// (std::logic_error otherwise).
+  void drop_double();
+  /// Whether the double-precision values are held (false after keep_single_only() or
+  /// drop_double(), unless shared or factored again).
   bool has_double() const;
+  /// Bytes held now: the factor's structure, its values if held (a shared factor's counted by
+  /// every holder) and the single-precision copy.
+  long held_bytes() const;
   /// Bytes kept for the refinement (A and two work vectors; 0 without keep_single_only()).
   long refinement_bytes() const;
   /// Whether solve() refines (keep_single_only(), until a matrix is factored again in double).

@@ -126,6 +126,15 @@ SmalbeResult smalbe(const QuadraticProgram& qp, double normA, Vec& x, const Redu
     const double q = image.norm >= 0 ? image.norm : red.norm(image.tx);
     return (gp <= grad_tol && q <= eq_tol) || gp <= std::min(M * q, eta);
   };
+  // A solve that ends outside MPRGP's loop (a face solve, or a warm start already converged):
+  // its final norms and reason, and its --progress line (label: the iteration or kFaceProgress).
+  const auto converged_here = [&](double gp, double q, int label) {
+    qnorm = q;
+    res.projected_gradient = gp;
+    res.equality_residual = q;
+    res.reason = StopReason::converged;
+    if (progress) progress(label, gp / bnorm, normA * q / bnorm);
+  };
   // The face solve: CG on the face of x's active set with G x = 0 held exactly. It either ends
   // the solve (x and the face's multiplier pass the global test: true) or SMALBE-M restarts
   // from where it stopped: x (inside the bounds, G x = 0) with the face's multiplier as mu, M
@@ -160,11 +169,7 @@ SmalbeResult smalbe(const QuadraticProgram& qp, double normA, Vec& x, const Redu
         nu = fnu;
         g = face_work.c;
         qx = face_work.t;
-        qnorm = q;
-        res.projected_gradient = gp;
-        res.equality_residual = q;
-        res.reason = StopReason::converged;
-        if (progress) progress(kFaceProgress, gp / bnorm, normA * q / bnorm);
+        converged_here(gp, q, kFaceProgress);
         return true;
       }
       grad_tol = grad_tol_old, eq_tol = eq_tol_old;
@@ -212,11 +217,7 @@ SmalbeResult smalbe(const QuadraticProgram& qp, double normA, Vec& x, const Redu
     const double gp = std::sqrt(sums[0] + sums[1]), q = std::sqrt(sums[2]);
     if (gp <= grad_tol && q <= eq_tol) {
       done_at_start = true;
-      qnorm = q;
-      res.projected_gradient = gp;
-      res.equality_residual = q;
-      res.reason = StopReason::converged;
-      if (progress) progress(0, gp / bnorm, normA * q / bnorm);
+      converged_here(gp, q, 0);
     } else {
       done_at_start = face_finishes();
       face_kept = false;  // no multiplier update is pending: the loop starts from the face's point

@@ -8,6 +8,7 @@
 
 #include <CLI/CLI.hpp>
 #include <algorithm>
+#include <cmath>
 #include <csignal>
 #include <cstdio>
 #include <filesystem>
@@ -165,10 +166,12 @@ struct ProblemArgs {
   std::string elements = "128", subdomains = "8";
   int cluster_size = 1;
   int seed = kDefaultPartitionSeed;
+  double jump_ratio = kDefaultJumpRatio;
   double amplitude = 1.0;
   CLI::Option *o_problem = nullptr, *o_elements = nullptr, *o_subdomains = nullptr, *o_m = nullptr,
               *o_glue = nullptr, *o_element = nullptr, *o_amplitude = nullptr,
-              *o_objective = nullptr, *o_cluster_split = nullptr, *o_seed = nullptr;
+              *o_objective = nullptr, *o_cluster_split = nullptr, *o_seed = nullptr,
+              *o_jump_ratio = nullptr;
 };
 
 void add_problem_args(CLI::App* cmd, ProblemArgs& p) {
@@ -213,6 +216,13 @@ void add_problem_args(CLI::App* cmd, ProblemArgs& p) {
                              "solver's iterations vary with them [decomposition.seed]")
                  ->capture_default_str()
                  ->check(kStrictInt);
+  p.o_jump_ratio =
+      cmd->add_option("--partition-jump-ratio", p.jump_ratio,
+                      "problem files split by METIS with a coefficient field: a facet across "
+                      "which the coefficient changes by more than this factor is a jump, and no "
+                      "subdomain straddles one (each region between jumps gets its own "
+                      "subdomains); 0 = off [decomposition.jump_ratio]")
+          ->capture_default_str();
   p.o_cluster_split =
       cmd->add_option("--cluster-split", p.cluster_split,
                       "problem files split by METIS, H-TFETI-DP: how clusters are formed, mesh "
@@ -305,6 +315,16 @@ std::shared_ptr<const Model> file_model(const ProblemArgs& p, const TableArgs& a
       throw std::invalid_argument(
           "--partition-seed is for meshes split by METIS (decomposition.subdomains = N)");
   }
+  if (p.o_jump_ratio->count()) {
+    if (!std::isfinite(p.jump_ratio) || !(p.jump_ratio == 0 || p.jump_ratio > 1))
+      throw std::invalid_argument(
+          "--partition-jump-ratio must be 0 (off) or a number greater "
+          "than 1");
+    spec.partition_jump_ratio = p.jump_ratio;
+    if (spec.subdomains.size() != 1 || !spec.mesh_parts.empty())
+      throw std::invalid_argument(
+          "--partition-jump-ratio is for meshes split by METIS (decomposition.subdomains = N)");
+  }
   if (p.o_cluster_split->count()) {
     spec.cluster_split = parse_cluster_split(p.cluster_split);
     if (spec.subdomains.size() != 1 || !spec.mesh_parts.empty())
@@ -357,6 +377,8 @@ std::shared_ptr<const Model> builtin_model(const ProblemArgs& p, const TableArgs
     throw std::invalid_argument("--cluster-split is for problem files split by METIS");
   if (p.o_seed->count())
     throw std::invalid_argument("--partition-seed is for problem files split by METIS");
+  if (p.o_jump_ratio->count())
+    throw std::invalid_argument("--partition-jump-ratio is for problem files split by METIS");
   DecompositionOptions& d = run.solve.decomposition;
   d.problem = parse_problem(p.problem);
   d.element = parse_element(p.element);

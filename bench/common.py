@@ -69,6 +69,29 @@ cluster_size = {m}
 [solver]
 rtol = 1e-8
 """
+# A 24^3 hex8 cube [0, 100]^3 clamped at x = 0 under its own weight, with a coefficient field
+# (placeholders field, split: METIS's N or boxes [sx, sy, sz], rtol).
+JUMP_CUBE_TOML = """[mesh]
+generator = "box"
+size = [100.0, 100.0, 100.0]
+elements = [24, 24, 24]
+element = "hex8"
+[physics]
+type = "elasticity"
+young = 2.1e7
+poisson = 0.3
+density = 7850
+gravity = [0.0, 0.0, -9.8066]
+coefficient = "{field}"
+[[dirichlet]]
+group = "x0"
+value = [0.0, 0.0, 0.0]
+[decomposition]
+subdomains = {split}
+[solver]
+rtol = {rtol}
+"""
+
 JUMP_PLATE_TOML = """[mesh]
 file = "{mesh}"
 [physics]

@@ -29,7 +29,7 @@ import os
 import statistics
 import tempfile
 
-from common import JUMP_PLATE_TOML, JUMP_SQUARE_TOML, ROOT, save, solve
+from common import JUMP_CUBE_TOML, JUMP_PLATE_TOML, JUMP_SQUARE_TOML, ROOT, save, solve
 import hertz_cases
 
 CASES = ["square16", "square64", "square128", "plate", "cube3d", "metis40", "hertz"]
@@ -41,26 +41,7 @@ p.add_argument("--threads", type=int, default=2)
 p.add_argument("--out", default="dirichlet_storage.json")
 a = p.parse_args()
 
-CUBE3D = """[mesh]
-generator = "box"
-size = [100.0, 100.0, 100.0]
-elements = [24, 24, 24]
-element = "hex8"
-[physics]
-type = "elasticity"
-young = 2.1e7
-poisson = 0.3
-density = 7850
-gravity = [0.0, 0.0, -9.8066]
-coefficient = "x > 50 ? 1e3 : 1"
-[[dirichlet]]
-group = "x0"
-value = [0.0, 0.0, 0.0]
-[decomposition]
-subdomains = [4, 4, 4]
-[solver]
-rtol = 1e-8
-"""
+CUBE3D = JUMP_CUBE_TOML.format(field="x > 50 ? 1e3 : 1", split="[4, 4, 4]", rtol="1e-8")
 
 
 def row_of(r):

@@ -442,8 +442,9 @@ void read_conditions(const toml::table& root, ProblemSpec& spec) {
 // objective and seed (METIS's).
 void read_decomposition(const toml::table& root, ProblemSpec& spec) {
   if (const toml::table* dec = table_of(root, "decomposition", false)) {
-    check_keys(*dec, "decomposition",
-               {"subdomains", "cluster_size", "glue", "objective", "cluster_split", "seed"});
+    check_keys(
+        *dec, "decomposition",
+        {"subdomains", "cluster_size", "glue", "objective", "cluster_split", "seed", "jump_ratio"});
     if (const toml::node* s = dec->get("subdomains")) {
       spec.subdomains.clear();
       if (s->is_integer()) {
@@ -495,6 +496,14 @@ void read_decomposition(const toml::table& root, ProblemSpec& spec) {
     if (seed < 0 || seed > 999999999LL)
       bad("decomposition.seed", "must be an integer from 0 to 999999999");
     spec.partition_seed = static_cast<int>(seed);
+    if (dec->contains("jump_ratio") && (!spec.mesh_parts.empty() || spec.subdomains.size() != 1))
+      bad("decomposition.jump_ratio",
+          "is for meshes split by METIS (decomposition.subdomains = N); a mesh partitioned in "
+          "advance keeps its parts, a box split into boxes cuts along its planes");
+    const double ratio = get_double(*dec, "decomposition", "jump_ratio", spec.partition_jump_ratio);
+    if (!(ratio == 0 || ratio > 1))
+      bad("decomposition.jump_ratio", "must be 0 (off) or a number greater than 1");
+    spec.partition_jump_ratio = ratio;
   }
 }
 

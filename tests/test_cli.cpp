@@ -561,6 +561,48 @@ TEST_F(Cli, PartitionSeed) {
   EXPECT_FALSE(fs::exists("q.json"));
 }
 
+// The jump ratio of a METIS split (decomposition.jump_ratio, --partition-jump-ratio): named in
+// the report with the regions split apart; the flag and the key take 0 or a number above 1, and
+// are refused where nothing is split by METIS (a built-in problem, a box split into boxes).
+TEST_F(Cli, PartitionJumpRatio) {
+  const std::string box =
+      "[mesh]\ngenerator = \"box\"\nsize = [1.0, 1.0]\nelements = [24, 24]\n"
+      "element = \"quad4\"\n[physics]\ntype = \"laplace\"\nsource = 1.0\n"
+      "coefficient = \"x > 0.4 ? 1e4 : 1\"\n[[dirichlet]]\ngroup = \"x0\"\nvalue = 0.0\n"
+      "[decomposition]\n";
+  std::ofstream("jump.toml") << box << "subdomains = 8\n";
+  std::vector<double> energy;
+  for (const char* ratio : {"10", "0"}) {
+    ASSERT_EQ(run(bin + " solve jump.toml --partition-jump-ratio " + ratio +
+                  " --rtol 1e-10 --no-vtu --report r.json"),
+              0)
+        << stderr_text();
+    std::ifstream f("r.json");
+    const auto j = nlohmann::json::parse(f);
+    EXPECT_EQ(j["partition_jump_ratio"].get<double>(), std::stod(ratio));
+    EXPECT_EQ(j["partition_jump_regions"].get<int>(), std::string(ratio) == "0" ? 0 : 2);
+    EXPECT_EQ(j["partition_jump_splits_declined"].get<int>(), 0);
+    energy.push_back(j["objective"].get<double>());
+  }
+  EXPECT_NEAR(energy[0], energy[1], 1e-8 * std::abs(energy[0]));
+  for (const char* bad : {"1", "0.5", "-2", "nan"}) {
+    EXPECT_EQ(
+        run(bin + " solve jump.toml --partition-jump-ratio " + bad + " --no-vtu --report q.json"),
+        2)
+        << bad;
+    EXPECT_NE(stderr_text().find("--partition-jump-ratio"), std::string::npos) << stderr_text();
+    EXPECT_FALSE(fs::exists("q.json"));
+  }
+  std::ofstream("key.toml") << box << "subdomains = 8\njump_ratio = 1\n";
+  EXPECT_EQ(run(bin + " solve key.toml --no-vtu --report q.json"), 2);
+  EXPECT_NE(stderr_text().find("decomposition.jump_ratio"), std::string::npos) << stderr_text();
+  std::ofstream("boxes.toml") << box << "subdomains = [2, 2]\njump_ratio = 100\n";
+  EXPECT_EQ(run(bin + " solve boxes.toml --no-vtu --report q.json"), 2);
+  EXPECT_NE(stderr_text().find("decomposition.jump_ratio"), std::string::npos) << stderr_text();
+  EXPECT_EQ(run(bin + " solve --problem membranes --partition-jump-ratio 5 --no-vtu"), 2);
+  EXPECT_FALSE(fs::exists("q.json"));
+}
+
 TEST_F(Cli, CheckedDualOperator) {
   // The explicit operator in single precision, checked against the implicit one: the same
   // iterates as the explicit operator alone, the rounding of its blocks measured and reported

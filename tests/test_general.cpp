@@ -115,6 +115,19 @@ ProblemSpec hex8_stretched_box() {
 ProblemSpec laplace_plate() { return laplace_on("plate-with-hole.msh", "left", "hole"); }
 ProblemSpec laplace_bracket() { return laplace_on("bracket.msh", "x0", "hole"); }
 
+// Coefficient jumps of 1e3 that a METIS split must not straddle (partition.hpp): the plate's
+// right part conducts better, the box's far end is stiffer.
+ProblemSpec laplace_plate_jump() {
+  ProblemSpec s = laplace_plate();
+  s.physics.coefficient = "x > 1 ? 1000 : 1";
+  return s;
+}
+ProblemSpec hex8_box_jump() {
+  ProblemSpec s = hex8_box();
+  s.physics.coefficient = "x > 2.6 ? 1000 : 1";
+  return s;
+}
+
 // Every element type and physics, with a coefficient field too, split in a few subdomains: the
 // cases of the element-wise checks below.
 std::vector<ProblemSpec> element_cases() {
@@ -274,6 +287,10 @@ TEST_P(AgainstUndecomposed, SameSolution) {
     EXPECT_EQ(coarse, k * model->num_clusters());
   }
   EXPECT_EQ(coarse, out.report["cluster_kernel_dimension_sum"].get<int>());
+  if (!spec.physics.coefficient.empty()) {  // the jump cases: split at the jump
+    EXPECT_GT(out.report["partition_jump_regions"].get<int>(), 0);
+    EXPECT_EQ(out.report["partition_jump_splits_declined"].get<int>(), 0);
+  }
 }
 
 INSTANTIATE_TEST_SUITE_P(
@@ -315,6 +332,9 @@ INSTANTIATE_TEST_SUITE_P(
              1,
              Glue::averages,
              PartitionObjective::area},
+        Case{"laplace_tri3_jump_tfeti", laplace_plate_jump, {8}, 1, Glue::averages},
+        Case{"hex8_box_jump_tfeti", hex8_box_jump, {6}, 1, Glue::averages},
+        Case{"hex8_box_jump_averages", hex8_box_jump, {6}, 3, Glue::averages},
         Case{"hinged_square_3", hinged_square, {3}, 1, Glue::averages},
         Case{"hinged_square_4", hinged_square, {4}, 1, Glue::averages},
         Case{"hinged_square_6", hinged_square, {6}, 1, Glue::averages}),
@@ -425,6 +445,57 @@ TEST(Partition, SeedChoosesAmongSplitsAndRepeats) {
     std::vector<int> part(p->cell_subdomain.begin(), p->cell_subdomain.end());
     EXPECT_EQ(repair_parts(square, part, 0.0), 0) << "every part in one piece, none hinged";
   }
+}
+
+// A coefficient jump (cells of x > 0.3 conduct 1e4 times better): with jump_ratio 10 no
+// subdomain holds cells of both sides, the two regions get 4 and 8 of the 12 subdomains (their
+// shares of the cells, largest remainders), and each subdomain is in one piece. With the ratio
+// 0, without the field or with a smooth field (neighbours within the ratio) the split is the
+// plain one. Many small regions (single stiff cells) would leave the rest of the mesh too few
+// subdomains: the split is declined and counted.
+TEST(Partition, NoSubdomainStraddlesACoefficientJump) {
+  const Mesh square = quad_strip(48, 48, 1.0, 1.0);
+  const int ne = square.num_cells();
+  const auto field = [&](const std::function<double(double, double)>& f) {
+    std::vector<double> c(ne);
+    for (int e = 0; e < ne; ++e) c[e] = f((e % 48 + 0.5) / 48, (e / 48 + 0.5) / 48);
+    return c;
+  };
+  const std::vector<double> jump = field([](double x, double) { return x > 0.3 ? 1e4 : 1.0; });
+  const auto split = [&](const std::vector<double>* c, double ratio) {
+    return partition_mesh(square, 12, 1, PartitionObjective::volume, ClusterSplit::mesh,
+                          kDefaultPartitionSeed, c, ratio);
+  };
+  const MeshPartition p = split(&jump, kDefaultJumpRatio);
+  EXPECT_EQ(p.jump_regions, 2);
+  EXPECT_EQ(p.jump_splits_declined, 0);
+  int soft = 0, stiff = 0;
+  for (const auto& cells : p.subdomain_cells) {
+    ASSERT_FALSE(cells.empty());
+    const double c0 = jump[cells[0]];
+    for (int e : cells) EXPECT_EQ(jump[e], c0) << "a subdomain straddles the jump";
+    ++(c0 > 1 ? stiff : soft);
+  }
+  EXPECT_EQ(soft, 4);  // 14 of 48 columns: 3.5 -> 4 of 12
+  EXPECT_EQ(stiff, 8);
+  std::vector<int> part(p.cell_subdomain.begin(), p.cell_subdomain.end());
+  EXPECT_EQ(repair_parts(square, part, 0.0), 0) << "every part in one piece, none hinged";
+  const MeshPartition plain = split(nullptr, 0);
+  EXPECT_EQ(split(&jump, 0).cell_subdomain, plain.cell_subdomain);
+  const std::vector<double> smooth = field([](double x, double y) { return 1 + 8 * x * y; });
+  const MeshPartition s = split(&smooth, kDefaultJumpRatio);
+  EXPECT_EQ(s.cell_subdomain, plain.cell_subdomain);
+  EXPECT_EQ(s.jump_regions, 0);
+  bool straddles = false;  // the plain split does cut through the jump
+  for (const auto& cells : plain.subdomain_cells)
+    for (int e : cells) straddles = straddles || jump[e] != jump[cells[0]];
+  EXPECT_TRUE(straddles);
+  std::vector<double> specks(ne, 1.0);
+  for (int k = 0; k < 10; ++k) specks[(4 * k + 2) * 48 + 4 * k + 3] = 1e3;
+  const MeshPartition d = split(&specks, kDefaultJumpRatio);
+  EXPECT_EQ(d.jump_regions, 0);
+  EXPECT_EQ(d.jump_splits_declined, 1);
+  EXPECT_EQ(d.cell_subdomain, plain.cell_subdomain);
 }
 
 // Clusters split from the mesh (ClusterSplit::mesh): the subdomains are numbered cluster-major,

@@ -96,6 +96,21 @@ Eigen::MatrixXd element_matrix(const SubdomainMesh& mesh, const Physics& ph, int
 
 }  // namespace
 
+double cell_coefficient(const Expression& field, CellType type, const std::vector<double>& coords,
+                        const int* cell) {
+  const int nc = cell_nodes(type);
+  double x[24];
+  for (int a = 0; a < nc; ++a)
+    for (int d = 0; d < 3; ++d) x[3 * a + d] = coords[3 * static_cast<size_t>(cell[a]) + d];
+  const auto c = cell_centroid(type, x);
+  const double value = field(c);
+  if (!(value > 0))
+    throw std::invalid_argument("physics.coefficient must be positive; it is " +
+                                std::to_string(value) + " at (" + std::to_string(c[0]) + ", " +
+                                std::to_string(c[1]) + ", " + std::to_string(c[2]) + ")");
+  return value;
+}
+
 namespace {
 
 // Calls visit(e, ke, scale) for every cell: its element matrix (computed once per period on a
@@ -114,18 +129,8 @@ void for_each_element_matrix(const SubdomainMesh& mesh, const Physics& ph, Visit
     if (period == 0) local = element_matrix(mesh, ph, e);
     const Eigen::MatrixXd& ke = period > 0 ? cache[e % period] : local;
     const int* cn = mesh.cells.data() + static_cast<size_t>(e) * nc;
-    double scale = 1.0;
-    if (coefficient) {
-      double x[24];
-      for (int a = 0; a < nc; ++a)
-        for (int d = 0; d < 3; ++d) x[3 * a + d] = mesh.coords[3 * static_cast<size_t>(cn[a]) + d];
-      const auto c = cell_centroid(mesh.type, x);
-      scale = (*coefficient)(c);
-      if (!(scale > 0))
-        throw std::invalid_argument("physics.coefficient must be positive; it is " +
-                                    std::to_string(scale) + " at (" + std::to_string(c[0]) + ", " +
-                                    std::to_string(c[1]) + ", " + std::to_string(c[2]) + ")");
-    }
+    const double scale =
+        coefficient ? cell_coefficient(*coefficient, mesh.type, mesh.coords, cn) : 1.0;
     visit(cn, ke, scale);
   }
 }

@@ -8,6 +8,7 @@
 #include "htfeti/clock.hpp"
 #include "htfeti/errors.hpp"
 #include "htfeti/expression.hpp"
+#include "htfeti/fem/physics.hpp"
 #include "htfeti/feti/input.hpp"
 #include "htfeti/mesh/mesh.hpp"
 #include "htfeti/model/contact_pairs.hpp"
@@ -129,12 +130,24 @@ class MetisSplit final : public MeshSource {
         mesh_->facet_groups[name] = {fg.facet_nodes, fg.nodes};
     }
   }
-  // Split after the physics was checked (the dimension comes from the mesh).
-  void split(const ProblemSpec& spec) {
+  // Split after the physics was checked (the dimension comes from the mesh). With a coefficient
+  // field, its values at the cells' centroids (as the assembly takes them) keep the subdomains
+  // off its jumps (partition.hpp).
+  void split(const ProblemSpec& spec, const Physics& physics) {
     const double t0 = seconds_now();
+    std::vector<double> coefficient;
+    if (!physics.coefficient.empty() && spec.partition_jump_ratio > 0) {
+      const Expression field(physics.coefficient);
+      const int ne = mesh_->num_cells(), nc = cell_nodes(mesh_->type);
+      coefficient.resize(ne);
+      for (int e = 0; e < ne; ++e)
+        coefficient[e] = cell_coefficient(field, mesh_->type, mesh_->coords,
+                                          mesh_->cells.data() + static_cast<size_t>(e) * nc);
+    }
     part_ = std::make_unique<MeshPartition>(
         partition_mesh(*mesh_, spec.subdomains.at(0), spec.cluster_size, spec.partition_objective,
-                       spec.cluster_split, spec.partition_seed));
+                       spec.cluster_split, spec.partition_seed,
+                       coefficient.empty() ? nullptr : &coefficient, spec.partition_jump_ratio));
     part_->seconds = seconds_now() - t0;
   }
   int dim() const override { return mesh_->dim; }
@@ -179,6 +192,9 @@ class MetisSplit final : public MeshSource {
     if (spec.cluster_size > 1) j["cluster_split"] = to_string(part_->cluster_split);
     if (spec.partition_objective == PartitionObjective::automatic)
       j["stretched_cells"] = part_->stretched_share;
+    j["partition_jump_ratio"] = spec.partition_jump_ratio;
+    j["partition_jump_regions"] = part_->jump_regions;
+    j["partition_jump_splits_declined"] = part_->jump_splits_declined;
   }
 
  private:
@@ -213,7 +229,7 @@ class ScatteredSplit final : public HeldSubdomains {
       whole = std::make_unique<MetisSplit>(spec);
       ph.dim = whole->dim();
       ph.validate();
-      whole->split(spec);
+      whole->split(spec, ph);
       const int ns = whole->num_subdomains(), nk = whole->num_clusters();
       head.pod(whole->dim()), head.pod(ns), head.pod(whole->num_nodes());
       head.pod(whole->subdomain_nodes());
@@ -393,7 +409,7 @@ class GroupModel final : public Model {
         physics_.dim = metis->dim();
         physics_.validate();
       }
-      metis->split(spec);
+      metis->split(spec, physics_);
       mesh_source_ = std::move(metis);
     }
     check_groups();

@@ -497,7 +497,8 @@ long repair_parts(const Mesh& mesh, std::vector<int>& part, double max_share) {
 }
 
 MeshPartition partition_mesh(const Mesh& mesh, int subdomains, int cluster_size,
-                             PartitionObjective objective, ClusterSplit split, int seed) {
+                             PartitionObjective objective, ClusterSplit split, int seed,
+                             const std::vector<double>* cell_coefficient, double jump_ratio) {
   if (subdomains < 1) throw std::invalid_argument("decomposition.subdomains must be positive");
   if (cluster_size < 1) throw std::invalid_argument("decomposition.cluster_size must be positive");
   const int ne = mesh.num_cells(), nn = mesh.num_nodes(), nc = cell_nodes(mesh.type);
@@ -574,6 +575,88 @@ MeshPartition partition_mesh(const Mesh& mesh, int subdomains, int cluster_size,
                                   " subdomains without one hinged at a node (a mechanism): use "
                                   "fewer subdomains");
   };
+  // Coefficient jumps: each cell's neighbours through facets without a jump (none at a jump).
+  const bool jumps = cell_coefficient && jump_ratio > 1;
+  if (jumps && static_cast<int>(cell_coefficient->size()) != ne)
+    throw std::invalid_argument("partition_mesh: one coefficient per cell expected");
+  std::vector<int> smooth_offset, smooth_list;
+  bool any_jump = false;
+  if (jumps) {
+    const std::vector<double>& c = *cell_coefficient;
+    std::vector<std::pair<int, int>> pairs;
+    for (size_t i = 0; i < facets.size();) {
+      size_t j = i;
+      while (j < facets.size() && facets[j].first == facets[i].first) ++j;
+      if (j - i == 2) {
+        const int a = facets[i].second, b = facets[i + 1].second;
+        const double lo = std::min(c[a], c[b]), hi = std::max(c[a], c[b]);
+        if (hi > jump_ratio * lo)
+          any_jump = true;
+        else
+          pairs.push_back({a, b});
+      }
+      i = j;
+    }
+    smooth_offset.assign(ne + 1, 0);
+    for (const auto& [a, b] : pairs) ++smooth_offset[a + 1], ++smooth_offset[b + 1];
+    for (int e = 0; e < ne; ++e) smooth_offset[e + 1] += smooth_offset[e];
+    smooth_list.resize(smooth_offset[ne]);
+    std::vector<int> pos(smooth_offset.begin(), smooth_offset.end() - 1);
+    for (const auto& [a, b] : pairs) smooth_list[pos[a]++] = b, smooth_list[pos[b]++] = a;
+  }
+  // The regions of a set of cells: connected through facets without a jump (breadth first,
+  // in the order of the set's cells).
+  std::vector<int> in_set(any_jump ? ne : 0, 0), seen(any_jump ? ne : 0, 0);
+  const auto regions_of = [&](const std::vector<int>& set) {
+    std::vector<std::vector<int>> regions;
+    for (int e : set) in_set[e] = 1;
+    for (int e0 : set) {
+      if (seen[e0]) continue;
+      std::vector<int> region{e0};
+      seen[e0] = 1;
+      for (size_t q = 0; q < region.size(); ++q) {
+        const int e = region[q];
+        for (int k = smooth_offset[e]; k < smooth_offset[e + 1]; ++k) {
+          const int f = smooth_list[k];
+          if (in_set[f] && !seen[f]) seen[f] = 1, region.push_back(f);
+        }
+      }
+      regions.push_back(std::move(region));
+    }
+    for (int e : set) in_set[e] = 0, seen[e] = 0;
+    return regions;
+  };
+  // Splits the cells `region` (subset: nullptr for the whole mesh) into k subdomains of `out`:
+  // each of its regions between jumps into its own share of them where it has enough.
+  const auto split_subdomains = [&](const std::vector<int>* subset, const std::vector<int>& region,
+                                    int k, std::vector<idx_t>& out, const std::string& what) {
+    if (any_jump && k > 1) {
+      std::vector<std::vector<int>> regions = regions_of(region);
+      const int nr = static_cast<int>(regions.size());
+      if (nr > 1 && nr <= k) {
+        std::vector<long long> counts(nr);
+        for (int r = 0; r < nr; ++r) counts[r] = static_cast<long long>(regions[r].size());
+        const std::vector<int> kr = parts_per_body(counts, k);
+        // Taken when the shares add up and no region's subdomains average more than
+        // kJumpImbalance times the set's mean (many small regions would leave the rest few).
+        int total = 0;
+        double largest = 0;
+        for (int r = 0; r < nr; ++r)
+          total += kr[r], largest = std::max(largest, static_cast<double>(counts[r]) / kr[r]);
+        if (total == k && largest <= kJumpImbalance * static_cast<double>(region.size()) / k) {
+          for (int r = 0, offset = 0; r < nr; offset += kr[r], ++r) {
+            split_region(&regions[r], regions[r], kr[r], out, true,
+                         what + ", region " + std::to_string(r + 1) + " between jumps");
+            for (int e : regions[r]) out[e] += offset;
+          }
+          p.jump_regions += nr;
+          return;
+        }
+      }
+      if (nr > 1) ++p.jump_splits_declined;
+    }
+    split_region(subset, region, k, out, true, what);
+  };
   const bool by_mesh = split == ClusterSplit::mesh && cluster_size > 1;
   std::vector<int> cluster_of;  // by_mesh: the cluster of each subdomain
   for (int b = 0; b < nb; ++b) {
@@ -582,7 +665,7 @@ MeshPartition partition_mesh(const Mesh& mesh, int subdomains, int cluster_size,
     const int nclusters = (n[b] + cluster_size - 1) / cluster_size;
     const int first_cluster = cluster_of.empty() ? 0 : cluster_of.back() + 1;
     if (!by_mesh || nclusters == 1) {
-      split_region(subset, cells[b], n[b], part, true, body);
+      split_subdomains(subset, cells[b], n[b], part, body);
       for (int e : cells[b]) part[e] += body_first[b];
       if (by_mesh) cluster_of.insert(cluster_of.end(), n[b], first_cluster);
     } else {
@@ -599,8 +682,8 @@ MeshPartition partition_mesh(const Mesh& mesh, int subdomains, int cluster_size,
       }
       const std::vector<int> k = parts_per_body(cluster_cells, n[b]);
       for (int c = 0, offset = body_first[b]; c < nclusters; offset += k[c], ++c) {
-        split_region(&in[c], in[c], k[c], part, true,
-                     "cluster " + std::to_string(first_cluster + c) + " (" + body + ")");
+        split_subdomains(&in[c], in[c], k[c], part,
+                         "cluster " + std::to_string(first_cluster + c) + " (" + body + ")");
         for (int e : in[c]) part[e] += offset;
         cluster_of.insert(cluster_of.end(), k[c], first_cluster + c);
       }

@@ -69,6 +69,13 @@ struct AssembledSubdomain {
 /// for bit as Eigen's setFromTriplets of them (tested); assembled column by column in work arrays
 /// kept per thread, so that only the matrix itself is allocated.
 Eigen::SparseMatrix<double> assemble_stiffness(const SubdomainMesh& mesh, const Physics& physics);
+
+class Expression;
+/// The coefficient field at the centroid of the cell whose nodes are `cell` (coords: 3 per
+/// node), as the assembly takes it; throws std::invalid_argument naming the point where it is
+/// not positive.
+double cell_coefficient(const Expression& field, CellType type, const std::vector<double>& coords,
+                        const int* cell);
 /// The nonzero entries of every element's stiffness matrix (times the coefficient at its
 /// centroid) as (row, column, value), cell by cell in cell order.
 std::vector<Eigen::Triplet<double>> stiffness_triplets(const SubdomainMesh& mesh,

@@ -77,6 +77,9 @@ struct ProblemSpec {
   ClusterSplit cluster_split = ClusterSplit::mesh;
   /// METIS's random seed when a mesh is split (METIS_OPTION_SEED; partition.hpp).
   int partition_seed = kDefaultPartitionSeed;
+  /// A METIS split with a coefficient field: facets across which the coefficient changes by more
+  /// than this factor are jumps, and no subdomain straddles one (partition.hpp); 0: off.
+  double partition_jump_ratio = kDefaultJumpRatio;
 };
 
 /// The cube-obstacle benchmark (DESIGN.md; the paper's Table 4, ESPRESO's former obstacle

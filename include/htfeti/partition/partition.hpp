@@ -83,6 +83,12 @@ struct MeshPartition {
   /// repair them (repair_parts), and splits redone by METIS with connected parts asked for.
   long repaired_cells = 0;
   int contiguous_splits = 0;
+  /// Coefficient jumps (partition_mesh's cell_coefficient): the regions between jumps that were
+  /// split apart (each into its own subdomains; 0 when none was: no coefficient field, no jump,
+  /// or jump_ratio 0), and the bodies or clusters whose subdomains were too few for their regions
+  /// and were split as a whole (their subdomains may straddle a jump).
+  int jump_regions = 0;
+  int jump_splits_declined = 0;
   /// Wall seconds of the split (set by the model that made it; the report's timings.partition).
   double seconds = 0;
   /// The mesh's groups by subdomain, for extract_subdomain (built once by partition_mesh, so that
@@ -114,10 +120,24 @@ double stretched_cell_share(const Mesh& mesh);
 /// cluster_size: subdomains per cluster (1: TFETI); split: how clusters are formed.
 /// seed: METIS's random seed (METIS_OPTION_SEED) for every METIS call of the split (subdomains,
 /// clusters).
+/// cell_coefficient (optional, one positive value per cell: the coefficient field at the cells'
+/// centroids) and jump_ratio > 1: a jump is a facet whose two cells' coefficients differ by more
+/// than jump_ratio times; the cells of every body (or cluster split from the mesh) fall into
+/// regions, connected through facets without a jump, and each region is split into its own
+/// subdomains, in number proportional to its cells (at least one each): no subdomain straddles
+/// a jump, the case in which FETI's preconditioners with stiffness scaling stay robust (Klawonn
+/// and Widlund 2001). Where a body or cluster has more regions than subdomains, it is split as
+/// a whole (counted in jump_splits_declined), and so is one where a region's subdomains would
+/// average more than kJumpImbalance times the mean subdomain (many small regions: an inclusion
+/// of a few cells each would leave the rest of the mesh too few subdomains).
 MeshPartition partition_mesh(const Mesh& mesh, int subdomains, int cluster_size,
                              PartitionObjective objective = PartitionObjective::automatic,
                              ClusterSplit split = ClusterSplit::mesh,
-                             int seed = kDefaultPartitionSeed);
+                             int seed = kDefaultPartitionSeed,
+                             const std::vector<double>* cell_coefficient = nullptr,
+                             double jump_ratio = 0);
+/// The default jump_ratio of a METIS split (decomposition.jump_ratio).
+inline constexpr double kDefaultJumpRatio = 10, kJumpImbalance = 2;
 
 /// Clusters of subdomains (H-TFETI-DP): METIS k-way on the subdomain graph of each body apart
 /// (subdomains [body_first[b], body_first[b + 1]) form body b; adjacency[s] maps each neighbour

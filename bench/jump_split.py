@@ -1,9 +1,12 @@
 #!/usr/bin/env python3
 """METIS splits of meshes with coefficient jumps, with and without the jump split
-(`--partition-jump-ratio`, partition.hpp): the same problem split by METIS so that subdomains
-may straddle a jump (ratio 0, before) and so that none does (ratio 10, the default), beside the
-box split where a jump runs along the boxes' planes. Automatic settings otherwise (a coefficient
-field: the Dirichlet preconditioner with stiffness scaling), TFETI, 1 rank.
+(`--partition-jump-ratio`, partition.hpp) and the weighted projector in PCG's preconditioner
+(`--pcg-projector`, solver.hpp): the same problem split by METIS so that subdomains may straddle
+a jump (ratio 0; the automatic projector is then orthogonal) and so that none does (ratio 10,
+the default), with the orthogonal and the automatic (weighted) projector, beside the box split
+where a jump runs along the boxes' planes (orthogonal and automatic). Automatic settings
+otherwise (a coefficient field: the Dirichlet preconditioner with stiffness scaling), TFETI,
+1 rank.
 
 Cases:
   square_1e4, square_1e6  Laplace on the unit square, 128 x 128 quad4, unit source, u = 0 on
@@ -19,8 +22,8 @@ Cases:
                           x > 1 1e3 (1e6) times stiffer, rtol 1e-8 (docs/results.md,
                           "Coefficient jumps").
 Per run: the stop reason, PCG iterations (products with F), the regions split apart, the
-energy, the report's total seconds (median of --repeat runs); energies of the METIS runs that
-converged against the box split's where there is one.
+projector used, the energy, the report's total seconds (median of --repeat runs); energies of
+the runs that converged against the box split's (automatic) where there is one.
 
 Usage: bench/jump_split.py [--cases ...] [--repeat 1] [--threads 2] [--out jump_split.json]"""
 import argparse
@@ -84,6 +87,7 @@ def row_of(runs):
     return {"stop_reason": r["stop_reason"], "converged": r["converged"],
             "products": r["matvecs"], "regions": r.get("partition_jump_regions"),
             "declined": r.get("partition_jump_splits_declined"), "energy": r["objective"],
+            "projector": r["solver"].get("pcg_projector"),
             "total_s": statistics.median(x["timings"]["total"] for x in runs)}
 
 
@@ -95,21 +99,25 @@ with tempfile.TemporaryDirectory() as d:
         with open(path, "w") as f:
             f.write(metis)
         row = {"case": name}
-        for label, ratio in (("straddling", "0"), ("jump_split", "10")):
-            row[label] = row_of([solve([path, "--partition-jump-ratio", ratio], threads=a.threads)
-                                 for _ in range(a.repeat)])
+        runs = [("straddling", path, ["--partition-jump-ratio", "0"]),
+                ("jump_split_orthogonal", path, ["--pcg-projector", "orthogonal"]),
+                ("jump_split", path, [])]
         if box:
             bpath = os.path.join(d, name + "_box.toml")
             with open(bpath, "w") as f:
                 f.write(box)
-            row["box"] = row_of([solve([bpath], threads=a.threads) for _ in range(a.repeat)])
-            for label in ("straddling", "jump_split"):
-                if row[label]["converged"] and row["box"]["converged"]:
+            runs += [("box_orthogonal", bpath, ["--pcg-projector", "orthogonal"]),
+                     ("box", bpath, [])]
+        for label, f, extra in runs:
+            row[label] = row_of([solve([f, *extra], threads=a.threads) for _ in range(a.repeat)])
+        if box:
+            for label, _, _ in runs:
+                if label != "box" and row[label]["converged"] and row["box"]["converged"]:
                     row[label]["energy_vs_box"] = (abs(row[label]["energy"] - row["box"]["energy"])
                                                    / abs(row["box"]["energy"]))
         rows.append(row)
-        cols = [f"{k}: {row[k]['products']} ({row[k]['stop_reason']}, {row[k]['total_s']:.2f} s)"
-                for k in ("straddling", "jump_split", "box") if k in row]
+        cols = [f"{k}: {row[k]['products']} ({row[k]['stop_reason']}, {row[k]['projector']}, "
+                f"{row[k]['total_s']:.2f} s)" for k, _, _ in runs]
         print(f"{name:12s} " + " | ".join(cols), flush=True)
 
 save(a.out, {"repeat": a.repeat, "threads": a.threads, "rows": rows})

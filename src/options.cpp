@@ -319,6 +319,13 @@ void add_feti_options(std::vector<OptionSpec>& t) {
       "B_D of the preconditioner: multiplicity | stiffness (weights by the diagonal of K, for "
       "coefficient jumps between subdomains) | auto (stiffness with a coefficient field)",
       kScalingNames, +[](RunOptions& r) -> Scaling& { return r.solve.feti.scaling; }));
+  t.push_back(choice(
+      "solver", "pcg_projector", "--pcg-projector",
+      "the projector in PCG's preconditioner (no contact): orthogonal (P M^-1 P) | weighted "
+      "(P_Q M^-1 P_Q^T, Q the stiffness of each multiplier's copies: for coefficient jumps "
+      "between subdomains; needs stiffness scaling) | auto (weighted with stiffness scaling "
+      "where no subdomain's coefficient varies by more than 10 times, else orthogonal)",
+      kPcgProjectorNames, +[](RunOptions& r) -> PcgProjector& { return r.solve.pcg_projector; }));
   t.push_back({"solver", "dirichlet_storage", "--dirichlet-storage", "", OptionType::choice, "",
                "Dirichlet preconditioner: dense (S_i stored, 8 n_b^2 bytes per subdomain) | "
                "implicit (applied with a factor of K_ii) | auto (3D: implicit; 2D: dense when "
@@ -538,6 +545,13 @@ void check_option_combinations(const RunOptions& run) {
     refuse(
         "solver.keep_factors (--keep-factors) and solver.release_factors (--release-factors) "
         "contradict each other");
+  if (run.solve.pcg_projector == PcgProjector::weighted &&
+      (run.solve.feti.preconditioner == PreconditionerKind::none ||
+       run.solve.feti.scaling == Scaling::multiplicity))
+    refuse(
+        "solver.pcg_projector = weighted (--pcg-projector) weights by the stiffness scaling: it "
+        "needs a preconditioner (--preconditioner lumped or dirichlet) and --scaling stiffness "
+        "(or auto with a coefficient field)");
 }
 
 nlohmann::json options_json(const RunOptions& run) {

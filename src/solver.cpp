@@ -99,8 +99,33 @@ QpSolve solve_without_contact(DualProblem& dual, DualOperators& ops, Vec& lambda
   po.rtol = options.rtol;
   po.max_iterations = options.max_iterations > 0 ? options.max_iterations : 1000;
   // PCG applies Z only to projected residuals w = P w, so Z = P M^{-1} is P M^{-1} P there.
-  Vec pz(ops.preconditioned ? n : 0);
+  // With the weighted projector Z = P_Q M^{-1} P_Q^T: P_Q^T P = P_Q^T, so on projected residuals
+  // it is the preconditioner of Rixen and Farhat's FETI with Q, and it maps into Ker G~ as P
+  // does; the iterates and the stopping test stay those of the orthogonal P.
+  const bool stiffness = ops.preconditioned && dual.scaling() == Scaling::stiffness;
+  if (options.pcg_projector == PcgProjector::weighted && !stiffness)
+    throw std::invalid_argument(
+        "solver.pcg_projector = weighted needs a preconditioner with stiffness scaling");
+  const bool weighted = stiffness &&
+                        (options.pcg_projector == PcgProjector::weighted ||
+                         (options.pcg_projector == PcgProjector::automatic &&
+                          dual.coefficient_spread() <= kWeightedProjectorSpread)) &&
+                        dual.set_weighted_projector();
+  Vec pz(ops.preconditioned ? n : 0), qx(weighted ? n : 0);
+  long weighted_projections = 0;
+  double weighted_seconds = 0;
   qp::FunctionOperator Z([&](const Vec& x, Vec& y) {
+    if (weighted) {
+      double t = seconds_now();
+      dual.project_weighted(x, qx, true);
+      weighted_seconds += seconds_now() - t;
+      ops.M.apply(qx, pz);
+      t = seconds_now();
+      dual.project_weighted(pz, y, false);
+      weighted_seconds += seconds_now() - t;
+      weighted_projections += 2;
+      return;
+    }
     ops.M.apply(x, pz);
     ops.P.apply(pz, y);
   });
@@ -138,7 +163,12 @@ QpSolve solve_without_contact(DualProblem& dual, DualOperators& ops, Vec& lambda
   out.reason = to_string(r.reason);
   out.solver = {{"algorithm", "pcg"},
                 {"projected_residual", r.projected_residual},
-                {"projected_rhs", r.projected_rhs}};
+                {"projected_rhs", r.projected_rhs},
+                {"pcg_projector", weighted ? "weighted" : "orthogonal"},
+                {"coefficient_spread", dual.coefficient_spread()}};
+  if (weighted)
+    out.solver["weighted_projections"] = weighted_projections,
+    out.solver["weighted_projection_seconds"] = weighted_seconds;
   if (!single_check.is_null()) out.solver["single_sweeps"] = single_check;
   if (steps.size() > 1) out.solver["accuracy_refinements"] = steps;
   return out;

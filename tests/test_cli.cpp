@@ -6,6 +6,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <nlohmann/json.hpp>
 #include <sstream>
 #include <string>
@@ -601,6 +602,32 @@ TEST_F(Cli, PartitionJumpRatio) {
   EXPECT_NE(stderr_text().find("decomposition.jump_ratio"), std::string::npos) << stderr_text();
   EXPECT_EQ(run(bin + " solve --problem membranes --partition-jump-ratio 5 --no-vtu"), 2);
   EXPECT_FALSE(fs::exists("q.json"));
+}
+
+// The projector of PCG's preconditioner (solver.pcg_projector, --pcg-projector): the automatic
+// choice on examples/heterogeneous.toml (stiffness scaling, no subdomain across the jump) is the
+// weighted one, and the orthogonal one gives the same energy; weighted without stiffness scaling
+// and an unknown name are refused with exit 2 and nothing written.
+TEST_F(Cli, PcgProjector) {
+  const std::string ex = std::string(HTFETI_SOURCE_DIR) + "/examples/heterogeneous.toml";
+  std::map<std::string, double> energy;
+  for (const char* p : {"auto", "orthogonal"}) {
+    ASSERT_EQ(run(bin + " solve " + ex + " --pcg-projector " + p + " --no-vtu --report r.json"), 0)
+        << stderr_text();
+    std::ifstream f("r.json");
+    const auto j = nlohmann::json::parse(f);
+    EXPECT_EQ(j["solver"]["pcg_projector"], std::string(p) == "auto" ? "weighted" : p);
+    EXPECT_EQ(j["solver"]["coefficient_spread"].get<double>(), 1.0);
+    energy[p] = j["objective"].get<double>();
+  }
+  EXPECT_NEAR(energy["auto"], energy["orthogonal"], 1e-7 * std::abs(energy["orthogonal"]));
+  for (const char* bad :
+       {" --pcg-projector weighted --scaling multiplicity",
+        " --pcg-projector weighted --preconditioner none", " --pcg-projector skew"}) {
+    EXPECT_EQ(run(bin + " solve " + ex + bad + " --no-vtu --report q.json"), 2) << bad;
+    EXPECT_NE(stderr_text().find("pcg"), std::string::npos) << stderr_text();
+    EXPECT_FALSE(fs::exists("q.json"));
+  }
 }
 
 TEST_F(Cli, CheckedDualOperator) {

@@ -287,9 +287,10 @@ TEST_P(AgainstUndecomposed, SameSolution) {
     EXPECT_EQ(coarse, k * model->num_clusters());
   }
   EXPECT_EQ(coarse, out.report["cluster_kernel_dimension_sum"].get<int>());
-  if (!spec.physics.coefficient.empty()) {  // the jump cases: split at the jump
+  if (!spec.physics.coefficient.empty()) {  // the jump cases: split at the jump, then weighted
     EXPECT_GT(out.report["partition_jump_regions"].get<int>(), 0);
     EXPECT_EQ(out.report["partition_jump_splits_declined"].get<int>(), 0);
+    EXPECT_EQ(out.report["solver"]["pcg_projector"], "weighted");
   }
 }
 

@@ -13,6 +13,7 @@
 
 #include "helpers.hpp"
 #include "htfeti/feti/dual_reducer.hpp"
+#include "htfeti/problem_file.hpp"
 #include "htfeti/qp/pcg.hpp"
 #include "htfeti/qp/smalbe.hpp"
 #include "htfeti/solver.hpp"
@@ -135,6 +136,28 @@ TEST(HotPath, PreconditionerAllocatesNothingFromItsFirstApplication) {
     EXPECT_EQ(counting.allocations(), 0) << to_string(kind);
     EXPECT_GT(z.norm(), 0.0);
   }
+}
+
+// The weighted projector of PCG's preconditioner (both directions): nothing allocated from its
+// first application on, as the orthogonal projector.
+TEST(HotPath, WeightedProjectorAllocatesNothingFromItsFirstApplication) {
+  Comm comm;
+  ProblemSpec spec = cube_obstacle_spec({4, 4, 4}, {2, 2, 2}, 1);
+  spec.physics.coefficient = "x > 50 ? 1000 : 1";
+  const auto model = make_model(spec);
+  FetiOptions o;
+  o.preconditioner = PreconditionerKind::lumped;
+  o.scaling = Scaling::stiffness;
+  auto dual = test::make_dual(*model, comm, o);
+  ASSERT_TRUE(dual->set_weighted_projector());
+  const int n = dual->n_owned();
+  const Eigen::VectorXd x = test::pseudo_random(*dual, 1.0);
+  Eigen::VectorXd y(n), z(n);
+  Counting counting;
+  dual->project_weighted(x, y, true);
+  dual->project_weighted(y, z, false);
+  EXPECT_EQ(counting.allocations(), 0);
+  EXPECT_GT(z.norm(), 0.0);
 }
 
 INSTANTIATE_TEST_SUITE_P(

@@ -12,6 +12,7 @@
 #include <gtest/gtest.h>
 
 #include <functional>
+#include <map>
 
 #include "helpers.hpp"
 #include "htfeti/problem_file.hpp"
@@ -487,4 +488,88 @@ TEST(AutomaticPreconditioner, DirichletStorageByDimension) {
   const SolveOutput asked = solve(square, o, comm);
   EXPECT_EQ(asked.report["preconditioner"], "dirichlet");
   EXPECT_EQ(asked.report["preconditioner_storage"], "implicit");
+}
+
+// The weighted projector P_Q = I - Q G~^T (G~ Q G~^T)^{-1} G~ (Q: the stiffness scaling's row
+// stiffness) on the cube with a jump of 1e3: it maps into Ker G~ (P y = y) and is a projection
+// (P_Q y = y there); P_Q^T vanishes on Im G~^T = Im (I - P) and is P_Q's adjoint; with the jump
+// it is not P. PCG's preconditioner P_Q M^{-1} P_Q^T is symmetric and positive on Ker G~.
+TEST(WeightedProjector, ProjectsOntoKerGAlongTheStiffness) {
+  Comm comm;
+  const auto model = cube(1, true);
+  FetiOptions opt;
+  opt.preconditioner = PreconditionerKind::dirichlet;
+  opt.scaling = Scaling::stiffness;
+  auto dual = test::make_dual(*model, comm, opt);
+  ASSERT_TRUE(dual->set_weighted_projector());
+  auto dot = [&](const Eigen::VectorXd& a, const Eigen::VectorXd& b) { return dual->dot(a, b); };
+  auto norm = [&](const Eigen::VectorXd& a) { return std::sqrt(dot(a, a)); };
+  for (double seed : {1.0, 2.0}) {
+    const Eigen::VectorXd x = test::pseudo_random(*dual, seed),
+                          z = test::pseudo_random(*dual, seed + 5);
+    Eigen::VectorXd y, py, yy, px, v, qv, qz, p;
+    dual->project_weighted(x, y, false);
+    dual->project(y, py);
+    EXPECT_LT(norm(py - y), 1e-10 * norm(y)) << "P_Q x in Ker G~";
+    dual->project_weighted(y, yy, false);
+    EXPECT_LT(norm(yy - y), 1e-10 * norm(y)) << "P_Q P_Q = P_Q";
+    dual->project(x, px);
+    EXPECT_GT(norm(y - px), 1e-3 * norm(px)) << "the jump weights P_Q away from P";
+    v = x - px;  // in Im G~^T
+    dual->project_weighted(v, qv, true);
+    EXPECT_LT(norm(qv), 1e-10 * norm(v)) << "P_Q^T on Im G~^T";
+    dual->project_weighted(z, qz, true);
+    EXPECT_NEAR(dot(y, z), dot(x, qz), 1e-10 * norm(x) * norm(z)) << "P_Q^T is the adjoint";
+    // The preconditioner: symmetric, positive on Ker G~.
+    auto Z = [&](const Eigen::VectorXd& w) {
+      Eigen::VectorXd a, b, c;
+      dual->project_weighted(w, a, true);
+      dual->apply_preconditioner(a, b);
+      dual->project_weighted(b, c, false);
+      return c;
+    };
+    Eigen::VectorXd pz;
+    dual->project(z, pz);
+    EXPECT_NEAR(dot(Z(px), pz), dot(px, Z(pz)), 1e-10 * norm(Z(px)) * norm(pz));
+    EXPECT_GT(dot(Z(px), px), 1e-8 * norm(Z(px)) * norm(px));
+  }
+}
+
+// PCG with the weighted projector: the same solution as with the orthogonal one; auto takes it
+// where no subdomain straddles the jump (a square of 4 x 4 boxes, the jump on x = 0.5) and not
+// where one does (3 x 3 boxes); refused without stiffness scaling.
+TEST(WeightedProjector, SameSolutionAndTheAutomaticChoice) {
+  Comm comm;
+  for (const auto& [boxes, automatic] : {std::pair{4, "weighted"}, std::pair{3, "orthogonal"}}) {
+    ProblemSpec spec;
+    spec.box.dim = 2;
+    spec.box.cell = CellType::quad4;
+    spec.box.size = {1, 1, 0};
+    spec.box.elements = {24, 24, 0};
+    spec.subdomains = {boxes, boxes};
+    spec.physics.kind = PhysicsKind::laplace;
+    spec.physics.coefficient = "x > 0.5 ? 1e4 : 1";
+    spec.source = "1";
+    spec.dirichlet.push_back({"x0", {0, 0, 0}, {}});
+    const std::shared_ptr<const Model> model = make_model(spec);
+    SolveOptions o;
+    o.rtol = 1e-10;
+    o.check_memory = false;
+    std::map<std::string, double> energy;
+    for (auto projector :
+         {PcgProjector::automatic, PcgProjector::orthogonal, PcgProjector::weighted}) {
+      o.pcg_projector = projector;
+      const SolveOutput out = solve(model, o, comm);
+      const std::string name = name_of(kPcgProjectorNames, projector);
+      ASSERT_TRUE(out.converged) << boxes << " " << name;
+      const std::string used = out.report["solver"]["pcg_projector"];
+      EXPECT_EQ(used, projector == PcgProjector::automatic ? std::string(automatic) : name);
+      energy[name] = out.report["objective"].get<double>();
+    }
+    EXPECT_NEAR(energy["weighted"], energy["orthogonal"], 1e-9 * std::abs(energy["orthogonal"]));
+    EXPECT_NEAR(energy["auto"], energy["orthogonal"], 1e-9 * std::abs(energy["orthogonal"]));
+    o.pcg_projector = PcgProjector::weighted;
+    o.feti.scaling = Scaling::multiplicity;
+    EXPECT_THROW(solve(model, o, comm), std::invalid_argument);
+  }
 }

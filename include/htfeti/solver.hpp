@@ -3,11 +3,13 @@
 // -> primal reconstruction -> report. Collective over the communicator.
 #pragma once
 
+#include <array>
 #include <memory>
 #include <nlohmann/json.hpp>
 #include <optional>
 #include <string>
 
+#include "htfeti/enum_names.hpp"
 #include "htfeti/feti/dual_problem.hpp"
 #include "htfeti/feti/operator_cost.hpp"
 #include "htfeti/model/model.hpp"
@@ -15,6 +17,19 @@
 #include "htfeti/qp/smalbe.hpp"
 
 namespace htfeti {
+
+/// The projector in PCG's preconditioner (problems without contact): orthogonal, P M^{-1} P;
+/// weighted, P_Q M^{-1} P_Q^T with P_Q = I - Q G~^T (G~ Q G~^T)^{-1} G~ and Q the stiffness of
+/// each multiplier's copies (the stiffness scaling's harmonic mean; Klawonn and Widlund 2001's
+/// projector for coefficient jumps between subdomains); automatic, weighted where the scaling is
+/// stiffness and no subdomain's coefficient varies by more than kWeightedProjectorSpread (the
+/// weighted projector loses where a jump runs through subdomains: docs/results.md).
+enum class PcgProjector { automatic, orthogonal, weighted };
+inline constexpr std::array<EnumName<PcgProjector>, 3> kPcgProjectorNames{
+    {{PcgProjector::automatic, "auto"},
+     {PcgProjector::orthogonal, "orthogonal"},
+     {PcgProjector::weighted, "weighted"}}};
+inline constexpr double kWeightedProjectorSpread = 10;
 
 inline FetiOptions automatic_preconditioner() {
   FetiOptions o;
@@ -42,6 +57,7 @@ struct SolveOptions {
   /// one machine no time per product (docs/performance.md); its gain is one synchronization per
   /// product over many ranks. Projected CG (no contact) always takes 2.
   int coarse_steps_per_product = 2;
+  PcgProjector pcg_projector = PcgProjector::automatic;  ///< see PcgProjector
   bool progress = false;  ///< print one line per (outer) iteration on rank 0 (stderr)
   /// The report's per-row contact arrays up to this many contact rows (output.report_contact_rows;
   /// above: the count and the summary per condition only). 0: never.

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <memory>
 #include <numeric>
 #include <stdexcept>
@@ -295,6 +296,16 @@ AssembledSubdomain assemble_subdomain(const SubdomainMesh& mesh, const Physics& 
   const int nn = mesh.num_nodes();
   assemble_stiffness(mesh, ph).swap(out.K);
   out.f = Eigen::VectorXd::Zero(static_cast<Eigen::Index>(nn) * dpn);
+  if (!ph.coefficient.empty() && ne > 0) {
+    const Expression field(ph.coefficient);
+    double lo = std::numeric_limits<double>::infinity(), hi = 0;
+    for (int e = 0; e < ne; ++e) {
+      const double c = cell_coefficient(field, mesh.type, mesh.coords,
+                                        mesh.cells.data() + static_cast<size_t>(e) * nc);
+      lo = std::min(lo, c), hi = std::max(hi, c);
+    }
+    out.coefficient_spread = hi / lo;
+  }
   double x[24];
   const int period = mesh.uniform_period;
   std::vector<double> measures(period > 0 ? std::min(period, ne) : 0);

@@ -361,6 +361,32 @@ bool CoarseSpace::set_face(const Vec& free) {
   return face_set_;
 }
 
+void CoarseSpace::set_weighted(const std::vector<double>& q) {
+  q_ = Eigen::Map<const Vec>(q.data(), static_cast<Eigen::Index>(q.size()));
+  qx_.resize(q_.size());
+  assemble(q, weighted_);
+  weighted_set_ = true;
+  work_.setZero(dimension());  // the factor's solve work arrays, allocated here once
+  solve_with(weighted_, work_);
+}
+
+void CoarseSpace::project_weighted(const Vec& x, Vec& y, bool transpose) {
+  if (!weighted_set_) throw std::logic_error("CoarseSpace::project_weighted: no weights set");
+  const int n = m_.layout.n_owned();
+  if (transpose) {
+    qx_ = q_.cwiseProduct(x);
+    apply_G(qx_, work_);
+  } else {
+    apply_G(x, work_);
+  }
+  solve_with(weighted_, work_);
+  gt_into_ext(work_);
+  if (transpose)
+    y = x - m_.ext_out.head(n);
+  else
+    y = x - q_.cwiseProduct(m_.ext_out.head(n));
+}
+
 void CoarseSpace::face_correction(const Vec& v, Vec& y) {
   if (!face_set_) throw std::logic_error("CoarseSpace::face_correction: no face is set");
   apply_G(v, work_);

@@ -120,6 +120,24 @@ void DualPreconditioner::build_scaling(Multipliers& m, const std::vector<std::ve
       if (r.cls == RowClass::node) bpair[p] = r.value;
     }
   const Vec rs = (den.array() > 0).select(num.cwiseQuotient(den.cwiseMax(1e-300)), 0.0);
+  {  // per row: sum_s b^2 / sum_s (b^2 / rho): the harmonic mean of the copies' stiffness
+    Vec inv = Vec::Zero(npairs);
+    for (int s = 0; s < nsub; ++s)
+      for (size_t e = 0; e < m.rows[s].size(); ++e) {
+        const BRowEntry& r = m.rows[s][e];
+        if (rho[s][e] > 0) inv[m.pair_first[s] + r.j] += r.value * r.value / rho[s][e];
+      }
+    m.pairs = inv;
+    m.combine_subdomains();
+    const Vec a = m.ext_out.head(n_own);
+    m.pairs = den;
+    m.combine_subdomains();
+    const Vec b = m.ext_out.head(n_own);
+    row_stiffness_.assign(n_own, 1.0);
+    has_row_stiffness_ = true;
+    for (int k = 0; k < n_own; ++k)
+      if (a[k] > 0 && b[k] > 0) row_stiffness_[k] = b[k] / a[k];
+  }
   m.pairs = rs;
   m.combine_subdomains();
   m.gather(m.ext_out.head(n_own).eval());

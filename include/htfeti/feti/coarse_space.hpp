@@ -128,6 +128,13 @@ class CoarseSpace {
   /// H_rho v = P F P v + rho Q v from fv = F v with one global reduction (DualProblem).
   void hessian_from_Fv(const Vec& v, const Vec& fv, double rho, Vec& y, Vec& qv);
 
+  /// The projector weighted by Q = diag(q) (q > 0 per owned multiplier): forms and factors
+  /// G~ Q G~^T (collective). Then project_weighted applies P_Q = I - Q G~^T (G~ Q G~^T)^{-1} G~
+  /// (onto Ker G~) or, with transpose, P_Q^T = I - G~^T (G~ Q G~^T)^{-1} G~ Q (zero on Im G~^T).
+  void set_weighted(const std::vector<double>& q);
+  void project_weighted(const Vec& x, Vec& y, bool transpose);
+  bool weighted() const { return weighted_set_; }
+
  private:
   // The coarse matrix G~ W G~^T (W = diag(weight)) and its factor. Sparse Cholesky; if that
   // finds the matrix singular (a floating body that no constraint restrains: a pure Neumann
@@ -237,7 +244,10 @@ class CoarseSpace {
   Vec pairs_;                      // work: one value per (cluster, multiplier) pair
   Vec work_;                       // work: one coarse vector
   Factor factor_;
-  Factor face_;  // G~ D G~^T of the last set_face
+  Factor face_;                // G~ D G~^T of the last set_face
+  Factor weighted_;            // G~ Q G~^T (set_weighted)
+  Vec q_, qx_;                 // Q's diagonal (owned multipliers), and Q x
+  bool weighted_set_ = false;  // set_weighted was called (a rank may own no multipliers)
   bool face_set_ = false;
   // The parts of G~ W G~^T that do not depend on the bounded rows' weights (set by factor(), or
   // at the first set_face): the summed entries of the never-held rows' products (on the ranks

@@ -61,6 +61,11 @@ class DualPreconditioner {
   /// y = M^{-1} x (owned parts). Requires built(). Collective.
   void apply(Multipliers& m, const Vec& x, Vec& y);
 
+  /// Stiffness scaling: per owned row, the b^2-weighted harmonic mean of diag K over the row's
+  /// entries (the weights of the projector P_Q); empty otherwise.
+  const std::vector<double>& row_stiffness() const { return row_stiffness_; }
+  /// Whether row_stiffness() was formed (on every rank alike; a rank may own no rows).
+  bool has_row_stiffness() const { return has_row_stiffness_; }
   bool built() const { return kind_ != PreconditionerKind::none; }
   PreconditionerKind kind() const { return kind_; }
   Scaling scaling() const { return scaling_; }
@@ -96,6 +101,8 @@ class DualPreconditioner {
   // scaling) the scaled value of B_D.
   std::vector<std::vector<int>> interface_position_;
   std::vector<std::vector<double>> scaled_value_;
+  std::vector<double> row_stiffness_;
+  bool has_row_stiffness_ = false;
   std::vector<Vec> in_, out_;  // work: per subdomain, on its interface
   // The exact node scaling (build_scaling): per local subdomain the copies of each node (until
   // finish), and per interface position with per-node gluing rows its copy count and weight.

@@ -258,6 +258,18 @@ class DualProblem {
   int unrestrained_at_solution() const { return reconstruction_null_; }
   /// y = P x (x and y may alias).
   void project(const Vec& x, Vec& y) { coarse_.project(x, y); }
+  /// The largest coefficient spread of a subdomain (SubdomainSystem::coefficient_spread).
+  double coefficient_spread() const { return coefficient_spread_; }
+  /// The projector weighted by the stiffness scaling's row stiffness (PCG's preconditioner
+  /// P_Q M^{-1} P_Q^T); false when there is no stiffness scaling. Collective.
+  bool set_weighted_projector() {
+    if (!preconditioner_.has_row_stiffness()) return false;
+    coarse_.set_weighted(preconditioner_.row_stiffness());
+    return true;
+  }
+  void project_weighted(const Vec& x, Vec& y, bool transpose) {
+    coarse_.project_weighted(x, y, transpose);
+  }
   /// The face of the bounds for SMALBE-M's face solve (CoarseSpace::set_face, face_correction):
   /// free is 1 on the owned multipliers not held at a bound. Collective.
   bool set_face(const Vec& free) { return coarse_.set_face(free); }
@@ -524,9 +536,10 @@ class DualProblem {
   bool checked_ = false;  // the explicit operator checked against the implicit one
   bool factors_released_ = false;
   bool single_sweeps_ = false;
-  std::vector<char> released_;   // per local cluster: factors freed after setup
-  bool by_object_ = false;       // the clusters' K_i^+ C_i^T by object (Cluster)
-  bool outer_parallel_ = false;  // threads over clusters (true) or inside each cluster
+  std::vector<char> released_;     // per local cluster: factors freed after setup
+  bool by_object_ = false;         // the clusters' K_i^+ C_i^T by object (Cluster)
+  double coefficient_spread_ = 1;  // the largest SubdomainSystem::coefficient_spread
+  bool outer_parallel_ = false;    // threads over clusters (true) or inside each cluster
   Ordering ordering_ = Ordering::amd;
 };
 

@@ -630,6 +630,30 @@ TEST_F(Cli, PcgProjector) {
   }
 }
 
+// A METIS split off a coefficient jump with the weighted projector: the same iterations and the
+// same energy bit for bit on 1 rank x 2 threads, 1 x 1 and 2 ranks x 1 thread.
+TEST_F(Cli, JumpSplitAndWeightedProjectorOnEveryRankCount) {
+  std::ofstream("jump.toml")
+      << "[mesh]\ngenerator = \"box\"\nsize = [1.0, 1.0]\nelements = [32, 32]\n"
+         "element = \"quad4\"\n[physics]\ntype = \"laplace\"\nsource = 1.0\n"
+         "coefficient = \"x > 0.4 ? 1e4 : 1\"\n[[dirichlet]]\ngroup = \"x0\"\nvalue = 0.0\n"
+         "[decomposition]\nsubdomains = 12\n[solver]\nrtol = 1e-8\n";
+  std::vector<std::pair<long long, double>> runs;
+  for (const std::string& how :
+       {"OMP_NUM_THREADS=2 " + bin, "OMP_NUM_THREADS=1 " + bin, mpiexec + " -n 2 " + bin}) {
+    ASSERT_EQ(run(how + " solve jump.toml --no-vtu --report r.json"), 0) << stderr_text();
+    std::ifstream f("r.json");
+    const auto j = nlohmann::json::parse(f);
+    EXPECT_EQ(j["solver"]["pcg_projector"], "weighted") << how;
+    EXPECT_EQ(j["partition_jump_regions"].get<int>(), 2) << how;
+    runs.push_back({j["matvecs"].get<long long>(), j["objective"].get<double>()});
+  }
+  for (const auto& r : runs) {
+    EXPECT_EQ(r.first, runs[0].first);
+    EXPECT_EQ(r.second, runs[0].second);  // bit for bit
+  }
+}
+
 TEST_F(Cli, CheckedDualOperator) {
   // The explicit operator in single precision, checked against the implicit one: the same
   // iterates as the explicit operator alone, the rounding of its blocks measured and reported

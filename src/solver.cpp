@@ -109,7 +109,8 @@ QpSolve solve_without_contact(DualProblem& dual, DualOperators& ops, Vec& lambda
   const bool weighted = stiffness &&
                         (options.pcg_projector == PcgProjector::weighted ||
                          (options.pcg_projector == PcgProjector::automatic &&
-                          dual.coefficient_spread() <= kWeightedProjectorSpread)) &&
+                          dual.coefficient_spread() <= kWeightedProjectorSpread &&
+                          dual.coefficient_range() > kWeightedProjectorSpread)) &&
                         dual.set_weighted_projector();
   Vec pz(ops.preconditioned ? n : 0), qx(weighted ? n : 0);
   long weighted_projections = 0;
@@ -165,7 +166,8 @@ QpSolve solve_without_contact(DualProblem& dual, DualOperators& ops, Vec& lambda
                 {"projected_residual", r.projected_residual},
                 {"projected_rhs", r.projected_rhs},
                 {"pcg_projector", weighted ? "weighted" : "orthogonal"},
-                {"coefficient_spread", dual.coefficient_spread()}};
+                {"coefficient_spread", dual.coefficient_spread()},
+                {"coefficient_range", dual.coefficient_range()}};
   if (weighted)
     out.solver["weighted_projections"] = weighted_projections,
     out.solver["weighted_projection_seconds"] = weighted_seconds;

@@ -618,6 +618,7 @@ TEST_F(Cli, PcgProjector) {
     const auto j = nlohmann::json::parse(f);
     EXPECT_EQ(j["solver"]["pcg_projector"], std::string(p) == "auto" ? "weighted" : p);
     EXPECT_EQ(j["solver"]["coefficient_spread"].get<double>(), 1.0);
+    EXPECT_EQ(j["solver"]["coefficient_range"].get<double>(), 1e4);
     energy[p] = j["objective"].get<double>();
   }
   EXPECT_NEAR(energy["auto"], energy["orthogonal"], 1e-7 * std::abs(energy["orthogonal"]));

@@ -22,8 +22,9 @@ namespace htfeti {
 /// weighted, P_Q M^{-1} P_Q^T with P_Q = I - Q G~^T (G~ Q G~^T)^{-1} G~ and Q the stiffness of
 /// each multiplier's copies (the stiffness scaling's harmonic mean; Klawonn and Widlund 2001's
 /// projector for coefficient jumps between subdomains); automatic, weighted where the scaling is
-/// stiffness and no subdomain's coefficient varies by more than kWeightedProjectorSpread (the
-/// weighted projector loses where a jump runs through subdomains: docs/results.md).
+/// stiffness, the coefficient varies by more than kWeightedProjectorSpread over the mesh and by
+/// no more than that over any subdomain (the weighted projector loses where a jump runs through
+/// subdomains, and gains nothing where the field hardly varies: docs/results.md).
 enum class PcgProjector { automatic, orthogonal, weighted };
 inline constexpr std::array<EnumName<PcgProjector>, 3> kPcgProjectorNames{
     {{PcgProjector::automatic, "auto"},

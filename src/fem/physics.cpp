@@ -304,7 +304,7 @@ AssembledSubdomain assemble_subdomain(const SubdomainMesh& mesh, const Physics& 
                                         mesh.cells.data() + static_cast<size_t>(e) * nc);
       lo = std::min(lo, c), hi = std::max(hi, c);
     }
-    out.coefficient_spread = hi / lo;
+    out.coefficient_min = lo, out.coefficient_max = hi;
   }
   double x[24];
   const int period = mesh.uniform_period;

@@ -119,9 +119,10 @@ void DualProblem::assemble_subdomains(const std::function<SubdomainInput(int)>& 
   outer_parallel_ = omp_get_max_threads() > 1 && ncl >= omp_get_max_threads();
   std::string error;
   bool input_error = false;
-  ObjectRowCache object_rows;             // the rows of equal averaged objects computed once
-  std::vector<char> framed(nsub, 0);      // the model gave a kernel frame: a generated box
-  std::vector<double> spread(nsub, 1.0);  // the coefficient's spread on each subdomain
+  ObjectRowCache object_rows;         // the rows of equal averaged objects computed once
+  std::vector<char> framed(nsub, 0);  // the model gave a kernel frame: a generated box
+  // The coefficient's spread (largest over smallest value) on each subdomain, its extremes.
+  std::vector<double> spread(nsub, 1.0), lowest(nsub, 1.0), highest(nsub, 1.0);
 #pragma omp parallel for schedule(dynamic) if (outer_parallel_)
   for (int c = 0; c < ncl; ++c) {
     try {
@@ -144,7 +145,9 @@ void DualProblem::assemble_subdomains(const std::function<SubdomainInput(int)>& 
             pooled[i] = cache_->intern_matrix(in[i].system.K);  // leaves system.K empty
           subdomain_rows(layout_, in[i], local_rows[sub_of(c, i)], &object_rows);
           framed[sub_of(c, i)] = in[i].sharing.kernel_frame ? 1 : 0;
-          spread[sub_of(c, i)] = in[i].system.coefficient_spread;
+          spread[sub_of(c, i)] = in[i].system.coefficient_max / in[i].system.coefficient_min;
+          lowest[sub_of(c, i)] = in[i].system.coefficient_min;
+          highest[sub_of(c, i)] = in[i].system.coefficient_max;
           if (preconditioner_.collects_node_copies()) {
             auto& nc = preconditioner_.node_copies(sub_of(c, i));
             for (int k = 0; k < in[i].sharing.num_nodes(); ++k)
@@ -181,6 +184,9 @@ void DualProblem::assemble_subdomains(const std::function<SubdomainInput(int)>& 
       0;
   coefficient_spread_ =
       comm_.max(spread.empty() ? 1.0 : *std::max_element(spread.begin(), spread.end()));
+  coefficient_range_ =
+      comm_.max(highest.empty() ? 1.0 : *std::max_element(highest.begin(), highest.end())) /
+      comm_.min(lowest.empty() ? 1.0 : *std::min_element(lowest.begin(), lowest.end()));
   setup_.shared_matrices = cache_->matrix_reuses();
   setup_.assembly = seconds_now() - t;
   setup_.peak_mb_assembly = peak_rss_mb();

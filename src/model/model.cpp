@@ -46,7 +46,8 @@ SubdomainInput Model::input(int s) const {
   in.system.R = std::move(a.R);
   in.system.fixed_dofs = std::move(a.fixed_dofs);
   in.system.repeats = m.uniform_period > 0;
-  in.system.coefficient_spread = a.coefficient_spread;
+  in.system.coefficient_min = a.coefficient_min;
+  in.system.coefficient_max = a.coefficient_max;
   const Physics ph = physics_;
   const Model* self = this;
   in.system.assemble = [self, ph, s]() { return assemble_stiffness(self->mesh(s), ph); };

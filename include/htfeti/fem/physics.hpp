@@ -62,8 +62,8 @@ struct AssembledSubdomain {
   Eigen::MatrixXd R;            ///< orthonormal kernel basis
   std::vector<int> fixed_dofs;  ///< R.cols() dofs fixed for K^+
   int parts = 1;                ///< connected parts of the subdomain
-  /// The coefficient field's largest over its smallest value on the cells (1 without a field).
-  double coefficient_spread = 1;
+  /// The coefficient field's smallest and largest value on the cells (1 without a field).
+  double coefficient_min = 1, coefficient_max = 1;
 };
 
 /// Stiffness only (for rebuilding K after it was freed): the element matrices' nonzero entries

@@ -258,8 +258,10 @@ class DualProblem {
   int unrestrained_at_solution() const { return reconstruction_null_; }
   /// y = P x (x and y may alias).
   void project(const Vec& x, Vec& y) { coarse_.project(x, y); }
-  /// The largest coefficient spread of a subdomain (SubdomainSystem::coefficient_spread).
+  /// The coefficient field's largest ratio max / min over one subdomain's cells, and over all
+  /// cells (SubdomainSystem::coefficient_min, coefficient_max; 1 without a field).
   double coefficient_spread() const { return coefficient_spread_; }
+  double coefficient_range() const { return coefficient_range_; }
   /// The projector weighted by the stiffness scaling's row stiffness (PCG's preconditioner
   /// P_Q M^{-1} P_Q^T); false when there is no stiffness scaling. Collective.
   bool set_weighted_projector() {
@@ -538,7 +540,8 @@ class DualProblem {
   bool single_sweeps_ = false;
   std::vector<char> released_;     // per local cluster: factors freed after setup
   bool by_object_ = false;         // the clusters' K_i^+ C_i^T by object (Cluster)
-  double coefficient_spread_ = 1;  // the largest SubdomainSystem::coefficient_spread
+  double coefficient_spread_ = 1;  // the largest coefficient max / min of one subdomain
+  double coefficient_range_ = 1;   // the coefficient's max / min over all subdomains
   bool outer_parallel_ = false;    // threads over clusters (true) or inside each cluster
   Ordering ordering_ = Ordering::amd;
 };

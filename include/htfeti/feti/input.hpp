@@ -47,9 +47,9 @@ struct SubdomainSystem {
   /// single-precision copy (Subdomain::SingleCopy). A property of the subdomain alone, so that
   /// which solves are refined does not depend on how subdomains are spread over the ranks.
   bool repeats = false;
-  /// The coefficient field's largest over its smallest value on the subdomain's cells (1 without
-  /// a field): above kWeightedProjectorSpread a jump runs through it (solver.hpp).
-  double coefficient_spread = 1;
+  /// The coefficient field's smallest and largest value on the subdomain's cells (1 without a
+  /// field): their ratio above kWeightedProjectorSpread, a jump runs through it (solver.hpp).
+  double coefficient_min = 1, coefficient_max = 1;
 };
 
 struct DofSharing {

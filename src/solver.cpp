@@ -533,6 +533,11 @@ SolveOutput solve(std::shared_ptr<const Model> model_ptr, const SolveOptions& op
 
   FetiOptions feti = options.feti;
   const std::string preconditioner_reason = resolve_preconditioner(model, feti);
+  // The weighted projector is PCG's; asked for on a contact problem it would not be used.
+  if (options.pcg_projector == PcgProjector::weighted && model.has_contact())
+    throw std::invalid_argument(
+        "solver.pcg_projector = weighted is for problems without contact (projected CG); "
+        "SMALBE-M keeps the orthogonal projector: leave pcg_projector at auto or orthogonal");
   // The automatic operator's cost model (operator_cost.hpp): once the memory check's lower
   // bound fits, before its sample is assembled (which counts the operator chosen).
   std::optional<OperatorCost> cost;

@@ -622,6 +622,13 @@ TEST_F(Cli, PcgProjector) {
     energy[p] = j["objective"].get<double>();
   }
   EXPECT_NEAR(energy["auto"], energy["orthogonal"], 1e-7 * std::abs(energy["orthogonal"]));
+  // On a contact problem (SMALBE-M, which keeps P) weighted is refused, not ignored.
+  EXPECT_EQ(run(bin + " solve " + std::string(HTFETI_SOURCE_DIR) +
+                "/examples/cube-obstacle.toml --pcg-projector weighted --scaling stiffness "
+                "--no-vtu --report q.json"),
+            2);
+  EXPECT_NE(stderr_text().find("without contact"), std::string::npos) << stderr_text();
+  EXPECT_FALSE(fs::exists("q.json"));
   for (const char* bad :
        {" --pcg-projector weighted --scaling multiplicity",
         " --pcg-projector weighted --preconditioner none", " --pcg-projector skew"}) {

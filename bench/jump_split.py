@@ -3,8 +3,8 @@
 (`--partition-jump-ratio`, partition.hpp) and the weighted projector in PCG's preconditioner
 (`--pcg-projector`, solver.hpp): the same problem split by METIS so that subdomains may straddle
 a jump (ratio 0; the automatic projector is then orthogonal) and so that none does (ratio 10,
-the default), with the orthogonal and the automatic (weighted) projector, beside the box split
-where a jump runs along the boxes' planes (orthogonal and automatic). Automatic settings
+the default), with the orthogonal and the automatic projector (and the straddling split with the weighted
+one), beside the box split (orthogonal, weighted and automatic). Automatic settings
 otherwise (a coefficient field: the Dirichlet preconditioner with stiffness scaling), TFETI,
 1 rank.
 
@@ -17,7 +17,10 @@ Cases:
                           weight, the half x > 50 1e3 (1e6) times stiffer, 64 METIS parts /
                           4 x 4 x 4 boxes, rtol 1e-6;
   stiff_ball, soft_ball   the same cube with a ball of radius 30 at its centre 1e3 times stiffer
-                          (softer) than the rest, 64 METIS parts, rtol 1e-6;
+                          (softer) than the rest, 64 METIS parts (and 4 x 4 x 4 boxes, which
+                          the ball cuts through, for the stiff one), rtol 1e-6;
+  smooth                  the same cube with the smooth field 1 + x/10 (no jump), 64 METIS
+                          parts / 4 x 4 x 4 boxes, rtol 1e-6;
   plate_1e3, plate_1e6    plane strain on the Gmsh plate-with-hole, 16 METIS parts, the part
                           x > 1 1e3 (1e6) times stiffer, rtol 1e-8 (docs/results.md,
                           "Coefficient jumps").
@@ -68,7 +71,8 @@ CASES = {
     "square_1e6": (SQUARE.format(jump="1e6", split="64"), SQUARE.format(jump="1e6", split="[8, 8]")),
     "cube_1e3": (cube("x > 50 ? 1e3 : 1", "64"), cube("x > 50 ? 1e3 : 1", "[4, 4, 4]")),
     "cube_1e6": (cube("x > 50 ? 1e6 : 1", "64"), cube("x > 50 ? 1e6 : 1", "[4, 4, 4]")),
-    "stiff_ball": (cube(BALL.format(c="1e3"), "64"), None),
+    "stiff_ball": (cube(BALL.format(c="1e3"), "64"), cube(BALL.format(c="1e3"), "[4, 4, 4]")),
+    "smooth": (cube("1 + x/10", "64"), cube("1 + x/10", "[4, 4, 4]")),
     "soft_ball": (cube(BALL.format(c="1e-3"), "64"), None),
     "plate_1e3": (plate("1e3"), None),
     "plate_1e6": (plate("1e6"), None),
@@ -100,6 +104,8 @@ with tempfile.TemporaryDirectory() as d:
             f.write(metis)
         row = {"case": name}
         runs = [("straddling", path, ["--partition-jump-ratio", "0"]),
+                ("straddling_weighted", path,
+                 ["--partition-jump-ratio", "0", "--pcg-projector", "weighted"]),
                 ("jump_split_orthogonal", path, ["--pcg-projector", "orthogonal"]),
                 ("jump_split", path, [])]
         if box:
@@ -107,6 +113,7 @@ with tempfile.TemporaryDirectory() as d:
             with open(bpath, "w") as f:
                 f.write(box)
             runs += [("box_orthogonal", bpath, ["--pcg-projector", "orthogonal"]),
+                     ("box_weighted", bpath, ["--pcg-projector", "weighted"]),
                      ("box", bpath, [])]
         for label, f, extra in runs:
             row[label] = row_of([solve([f, *extra], threads=a.threads) for _ in range(a.repeat)])

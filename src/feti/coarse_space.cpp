@@ -264,10 +264,14 @@ void CoarseSpace::apply_Gt(const Vec& coarse, Vec& lambda) {
   lambda = m_.ext_out.head(m_.layout.n_owned());
 }
 
+void CoarseSpace::coarse_correction(const Vec& v, Factor& factor) {
+  apply_G(v, work_);          // G~ v
+  solve_with(factor, work_);  // (G~ W G~^T)^{-1} G~ v
+  gt_into_ext(work_);         // G~^T (G~ W G~^T)^{-1} G~ v, owned part in m_.ext_out
+}
+
 void CoarseSpace::project(const Vec& x, Vec& y) {
-  apply_G(x, work_);   // G~ x
-  solve(work_);        // (G~ G~^T)^{-1} G~ x
-  gt_into_ext(work_);  // G~^T (G~ G~^T)^{-1} G~ x, owned part in m_.ext_out
+  coarse_correction(x, factor_);
   y = x - m_.ext_out.head(m_.layout.n_owned());
 }
 
@@ -373,14 +377,8 @@ void CoarseSpace::set_weighted(const std::vector<double>& q) {
 void CoarseSpace::project_weighted(const Vec& x, Vec& y, bool transpose) {
   if (!weighted_set_) throw std::logic_error("CoarseSpace::project_weighted: no weights set");
   const int n = m_.layout.n_owned();
-  if (transpose) {
-    qx_ = q_.cwiseProduct(x);
-    apply_G(qx_, work_);
-  } else {
-    apply_G(x, work_);
-  }
-  solve_with(weighted_, work_);
-  gt_into_ext(work_);
+  if (transpose) qx_ = q_.cwiseProduct(x);
+  coarse_correction(transpose ? qx_ : x, weighted_);
   if (transpose)
     y = x - m_.ext_out.head(n);
   else
@@ -389,9 +387,7 @@ void CoarseSpace::project_weighted(const Vec& x, Vec& y, bool transpose) {
 
 void CoarseSpace::face_correction(const Vec& v, Vec& y) {
   if (!face_set_) throw std::logic_error("CoarseSpace::face_correction: no face is set");
-  apply_G(v, work_);
-  solve_with(face_, work_);
-  gt_into_ext(work_);
+  coarse_correction(v, face_);
   y = m_.ext_out.head(m_.layout.n_owned());
 }
 

@@ -133,7 +133,6 @@ class CoarseSpace {
   /// (onto Ker G~) or, with transpose, P_Q^T = I - G~^T (G~ Q G~^T)^{-1} G~ Q (zero on Im G~^T).
   void set_weighted(const std::vector<double>& q);
   void project_weighted(const Vec& x, Vec& y, bool transpose);
-  bool weighted() const { return weighted_set_; }
 
  private:
   // The coarse matrix G~ W G~^T (W = diag(weight)) and its factor. Sparse Cholesky; if that
@@ -165,6 +164,8 @@ class CoarseSpace {
   // or on the group's first rank and broadcast in the group.
   void solve_with(Factor& factor, Vec& x);
   void gt_into_ext(const Vec& coarse);  // m_.ext_out = G~^T coarse (owners summed)
+  // m_.ext_out = G~^T factor^{-1} G~ v: the coarse correction of P, P_Q and the face.
+  void coarse_correction(const Vec& v, Factor& factor);
   // The passes over one local cluster's rows (entry_*: see below); allocate nothing.
   static constexpr int kFusedRows = 16;  // kernel dimensions up to this: one pass for all rows
   void apply_rows(int c, const double* x, double* out) const;

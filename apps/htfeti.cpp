@@ -162,7 +162,7 @@ const CLI::Validator kPositive(
 // built-ins' sizes. Each has a problem-file key of its own in [mesh] or [decomposition].
 struct ProblemArgs {
   std::string file, problem = "membranes", element = "q1", glue = "averages", objective = "auto",
-                    cluster_split = "mesh";
+                    cluster_split = "mesh", shape = "compact";
   std::string elements = "128", subdomains = "8";
   int cluster_size = 1;
   int seed = kDefaultPartitionSeed;
@@ -171,7 +171,7 @@ struct ProblemArgs {
   CLI::Option *o_problem = nullptr, *o_elements = nullptr, *o_subdomains = nullptr, *o_m = nullptr,
               *o_glue = nullptr, *o_element = nullptr, *o_amplitude = nullptr,
               *o_objective = nullptr, *o_cluster_split = nullptr, *o_seed = nullptr,
-              *o_jump_ratio = nullptr;
+              *o_jump_ratio = nullptr, *o_shape = nullptr;
 };
 
 void add_problem_args(CLI::App* cmd, ProblemArgs& p) {
@@ -223,6 +223,11 @@ void add_problem_args(CLI::App* cmd, ProblemArgs& p) {
                       "subdomain straddles one (each region between jumps gets its own "
                       "subdomains); 0 = off [decomposition.jump_ratio]")
           ->capture_default_str();
+  p.o_shape = cmd->add_option("--partition-shape", p.shape,
+                              "problem files split by METIS: compact (METIS's split moved toward "
+                              "compact parts of equal cell counts, kept where it cuts fewer "
+                              "facets) | metis (METIS's parts as they are) [decomposition.shape]")
+                  ->capture_default_str();
   p.o_cluster_split =
       cmd->add_option("--cluster-split", p.cluster_split,
                       "problem files split by METIS, H-TFETI-DP: how clusters are formed, mesh "
@@ -325,6 +330,12 @@ std::shared_ptr<const Model> file_model(const ProblemArgs& p, const TableArgs& a
       throw std::invalid_argument(
           "--partition-jump-ratio is for meshes split by METIS (decomposition.subdomains = N)");
   }
+  if (p.o_shape->count()) {
+    spec.partition_shape = parse_partition_shape(p.shape);
+    if (spec.subdomains.size() != 1 || !spec.mesh_parts.empty())
+      throw std::invalid_argument(
+          "--partition-shape is for meshes split by METIS (decomposition.subdomains = N)");
+  }
   if (p.o_cluster_split->count()) {
     spec.cluster_split = parse_cluster_split(p.cluster_split);
     if (spec.subdomains.size() != 1 || !spec.mesh_parts.empty())
@@ -379,6 +390,8 @@ std::shared_ptr<const Model> builtin_model(const ProblemArgs& p, const TableArgs
     throw std::invalid_argument("--partition-seed is for problem files split by METIS");
   if (p.o_jump_ratio->count())
     throw std::invalid_argument("--partition-jump-ratio is for problem files split by METIS");
+  if (p.o_shape->count())
+    throw std::invalid_argument("--partition-shape is for problem files split by METIS");
   DecompositionOptions& d = run.solve.decomposition;
   d.problem = parse_problem(p.problem);
   d.element = parse_element(p.element);

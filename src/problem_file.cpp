@@ -442,9 +442,9 @@ void read_conditions(const toml::table& root, ProblemSpec& spec) {
 // objective and seed (METIS's).
 void read_decomposition(const toml::table& root, ProblemSpec& spec) {
   if (const toml::table* dec = table_of(root, "decomposition", false)) {
-    check_keys(
-        *dec, "decomposition",
-        {"subdomains", "cluster_size", "glue", "objective", "cluster_split", "seed", "jump_ratio"});
+    check_keys(*dec, "decomposition",
+               {"subdomains", "cluster_size", "glue", "objective", "cluster_split", "seed",
+                "jump_ratio", "shape"});
     if (const toml::node* s = dec->get("subdomains")) {
       spec.subdomains.clear();
       if (s->is_integer()) {
@@ -504,6 +504,16 @@ void read_decomposition(const toml::table& root, ProblemSpec& spec) {
     if (!(ratio == 0 || ratio > 1))
       bad("decomposition.jump_ratio", "must be 0 (off) or a number greater than 1");
     spec.partition_jump_ratio = ratio;
+    if (dec->contains("shape") && (!spec.mesh_parts.empty() || spec.subdomains.size() != 1))
+      bad("decomposition.shape",
+          "is for meshes split by METIS (decomposition.subdomains = N); a mesh partitioned in "
+          "advance keeps its parts, a box split into boxes has box parts");
+    try {
+      spec.partition_shape =
+          parse_partition_shape(get_string(*dec, "decomposition", "shape", "compact"));
+    } catch (const std::invalid_argument& e) {
+      bad("decomposition.shape", e.what());
+    }
   }
 }
 

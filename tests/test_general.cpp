@@ -102,6 +102,7 @@ struct Case {
   int cluster_size;
   Glue glue;
   PartitionObjective objective = PartitionObjective::volume;
+  PartitionShape shape = PartitionShape::compact;
 };
 
 // The box of hex8_box meshed with stretched cells (0.5 x 0.125 x 0.125: faces 4 : 1), which the
@@ -265,6 +266,7 @@ TEST_P(AgainstUndecomposed, SameSolution) {
   spec.cluster_size = c.cluster_size;
   spec.glue = c.glue;
   spec.partition_objective = c.objective;
+  spec.partition_shape = c.shape;
   std::shared_ptr<const Model> model = make_model(spec);
   SolveOptions opt;
   opt.rtol = 1e-12;
@@ -308,6 +310,13 @@ INSTANTIATE_TEST_SUITE_P(
         Case{"hex8_box_tfeti", hex8_box, {4, 2, 2}, 1, Glue::averages},
         Case{"hex8_box_averages", hex8_box, {4, 2, 2}, 2, Glue::averages},
         Case{"hex8_box_metis", hex8_box, {6}, 3, Glue::averages},
+        Case{"hex8_box_metis_shape",
+             hex8_box,
+             {6},
+             1,
+             Glue::averages,
+             PartitionObjective::volume,
+             PartitionShape::metis},
         Case{"plane_strain_metis_cut",
              plane_strain_plate,
              {8},
@@ -446,6 +455,61 @@ TEST(Partition, SeedChoosesAmongSplitsAndRepeats) {
     std::vector<int> part(p->cell_subdomain.begin(), p->cell_subdomain.end());
     EXPECT_EQ(repair_parts(square, part, 0.0), 0) << "every part in one piece, none hinged";
   }
+}
+
+// Compact parts (PartitionShape::compact) on a 48 x 48 square in 12 parts: fewer cut facets
+// than METIS's own split (kCompactGain), every part in one piece, the counts within
+// kCompactImbalance of the mean, counted as taken; the same split again, on one thread or two,
+// and METIS's own split with PartitionShape::metis. A strip of 8 x 1 cells in 2 parts, which METIS
+// cuts at one facet already: nothing to gain, so METIS's split stays, counted as declined.
+TEST(Partition, CompactPartsCutFewerFacets) {
+  const Mesh square = quad_strip(48, 48, 1.0, 1.0);
+  const auto split = [&](const Mesh& mesh, int k, PartitionShape shape) {
+    return partition_mesh(mesh, k, 1, PartitionObjective::volume, ClusterSplit::mesh,
+                          kDefaultPartitionSeed, nullptr, 0, shape);
+  };
+  const auto cut = [](const MeshPartition& p, int nx, int ny) {  // facets between two parts
+    int c = 0;
+    for (int j = 0; j < ny; ++j)
+      for (int i = 0; i < nx; ++i) {
+        const int e = j * nx + i;
+        if (i + 1 < nx) c += p.cell_subdomain[e] != p.cell_subdomain[e + 1];
+        if (j + 1 < ny) c += p.cell_subdomain[e] != p.cell_subdomain[e + nx];
+      }
+    return c;
+  };
+  const MeshPartition metis = split(square, 12, PartitionShape::metis);
+  const MeshPartition compact = split(square, 12, PartitionShape::compact);
+  EXPECT_EQ(metis.compact_splits + metis.compact_declined, 0);
+  EXPECT_EQ(compact.compact_splits, 1);
+  EXPECT_EQ(compact.compact_declined, 0);
+  EXPECT_LE(cut(compact, 48, 48), kCompactGain * cut(metis, 48, 48))
+      << cut(compact, 48, 48) << " against " << cut(metis, 48, 48);
+  EXPECT_EQ(metis.cell_subdomain,
+            partition_mesh(square, 12, 1, PartitionObjective::volume, ClusterSplit::mesh,
+                           kDefaultPartitionSeed, nullptr, 0, PartitionShape::metis)
+                .cell_subdomain);
+  ASSERT_EQ(compact.num_subdomains, 12);
+  for (const auto& c : compact.subdomain_cells) {
+    EXPECT_GE(c.size(), 1u);
+    EXPECT_LE(static_cast<double>(c.size()), kCompactImbalance * 48 * 48 / 12);
+  }
+  std::vector<int> part(compact.cell_subdomain.begin(), compact.cell_subdomain.end());
+  EXPECT_EQ(repair_parts(square, part, 0.0), 0) << "every part in one piece, none hinged";
+  const int threads = omp_get_max_threads();
+  omp_set_num_threads(1);
+  const MeshPartition one = split(square, 12, PartitionShape::compact);
+  omp_set_num_threads(2);
+  const MeshPartition two = split(square, 12, PartitionShape::compact);
+  omp_set_num_threads(threads);
+  EXPECT_EQ(one.cell_subdomain, compact.cell_subdomain);
+  EXPECT_EQ(two.cell_subdomain, compact.cell_subdomain);
+  const Mesh strip = quad_strip(8, 1, 8.0, 1.0);
+  const MeshPartition kept = split(strip, 2, PartitionShape::compact);
+  EXPECT_EQ(kept.compact_splits, 0);
+  EXPECT_EQ(kept.compact_declined, 1);
+  EXPECT_EQ(cut(kept, 8, 1), 1);
+  EXPECT_EQ(kept.cell_subdomain, split(strip, 2, PartitionShape::metis).cell_subdomain);
 }
 
 // A coefficient jump (cells of x > 0.3 conduct 1e4 times better): with jump_ratio 10 no

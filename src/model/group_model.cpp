@@ -144,10 +144,10 @@ class MetisSplit final : public MeshSource {
         coefficient[e] = cell_coefficient(field, mesh_->type, mesh_->coords,
                                           mesh_->cells.data() + static_cast<size_t>(e) * nc);
     }
-    part_ = std::make_unique<MeshPartition>(
-        partition_mesh(*mesh_, spec.subdomains.at(0), spec.cluster_size, spec.partition_objective,
-                       spec.cluster_split, spec.partition_seed,
-                       coefficient.empty() ? nullptr : &coefficient, spec.partition_jump_ratio));
+    part_ = std::make_unique<MeshPartition>(partition_mesh(
+        *mesh_, spec.subdomains.at(0), spec.cluster_size, spec.partition_objective,
+        spec.cluster_split, spec.partition_seed, coefficient.empty() ? nullptr : &coefficient,
+        spec.partition_jump_ratio, spec.partition_shape));
     part_->seconds = seconds_now() - t0;
   }
   int dim() const override { return mesh_->dim; }
@@ -195,6 +195,9 @@ class MetisSplit final : public MeshSource {
     j["partition_jump_ratio"] = spec.partition_jump_ratio;
     j["partition_jump_regions"] = part_->jump_regions;
     j["partition_jump_splits_declined"] = part_->jump_splits_declined;
+    j["partition_shape"] = to_string(spec.partition_shape);
+    j["partition_compact_splits"] = part_->compact_splits;
+    j["partition_compact_declined"] = part_->compact_declined;
   }
 
  private:

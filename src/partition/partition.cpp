@@ -330,6 +330,135 @@ long repair_split(const std::vector<int>& cells, std::vector<idx_t>& part,
   return -1;
 }
 
+// The cells' facet neighbours (CSR over all cells) from all_facets(mesh).
+struct CellNeighbours {
+  std::vector<int> offset, list;
+};
+CellNeighbours facet_neighbours(int ne, const std::vector<std::pair<FacetKey, int>>& facets) {
+  CellNeighbours g;
+  g.offset.assign(ne + 1, 0);
+  for (size_t i = 1; i < facets.size(); ++i)
+    if (facets[i].first == facets[i - 1].first)
+      ++g.offset[facets[i].second + 1], ++g.offset[facets[i - 1].second + 1];
+  for (int e = 0; e < ne; ++e) g.offset[e + 1] += g.offset[e];
+  g.list.resize(g.offset[ne]);
+  std::vector<int> pos(g.offset.begin(), g.offset.end() - 1);
+  for (size_t i = 1; i < facets.size(); ++i)
+    if (facets[i].first == facets[i - 1].first) {
+      const int a = facets[i].second, b = facets[i - 1].second;
+      g.list[pos[a]++] = b, g.list[pos[b]++] = a;
+    }
+  return g;
+}
+
+// The cells' centroids (3 per cell: the mean of its nodes).
+std::vector<double> cell_centroids(const Mesh& mesh) {
+  const int ne = mesh.num_cells(), nc = cell_nodes(mesh.type);
+  std::vector<double> x(3 * static_cast<size_t>(ne), 0.0);
+  for (int e = 0; e < ne; ++e)
+    for (int a = 0; a < nc; ++a)
+      for (int d = 0; d < 3; ++d)
+        x[3 * static_cast<size_t>(e) + d] +=
+            mesh.coords[3 * static_cast<size_t>(mesh.cells[static_cast<size_t>(e) * nc + a]) + d] /
+            nc;
+  return x;
+}
+
+// Compact parts (partition.hpp, PartitionShape::compact): a split of the cells `region` into k
+// parts (`part`, values 0..k-1 on the region's cells) moved toward a centroidal power diagram of
+// the cells' centroids with equal cell counts: Lloyd's iteration with a weight per part, the
+// balanced k-means of geometric partitioners. A round computes each part's centroid c_j and its
+// cells' mean squared distance I_j from it, then sweeps: every cell on a part boundary goes to
+// the part, among its own and its facet neighbours', that minimizes |x - c_j|^2 - w_j (x: the
+// cell's centroid; ties keep the cell where it is, then take the lower part); after each sweep
+// w_j += kCompactStep (t - n_j) / t I_j (t: the mean count, n_j: the part's count), so that the
+// counts move toward t, by a step scaled to the part's size. A round ends when the counts are
+// within kCompactImbalance of t, or after kCompactBalanceSweeps sweeps; the iteration, when a
+// balanced round moved fewer than kCompactSettled of the cells, or after kCompactRounds rounds.
+// A sweep reads the last sweep's parts only, so it runs on the threads and its result does not
+// depend on them. One sweep costs O(cells x facets per cell). Returns the sweeps, or -1 with
+// `part` unchanged when the counts did not come within kCompactImbalance of t.
+// `local`: -1 for every cell on entry, and so on return (the region's cells' indices meanwhile).
+int compact_split(const std::vector<int>& region, int k, std::vector<idx_t>& part,
+                  const std::vector<double>& centroid, const CellNeighbours& g,
+                  std::vector<int>& local) {
+  const int n = static_cast<int>(region.size());
+  if (k <= 1 || n <= k) return 0;
+  struct Restore {
+    const std::vector<int>& region;
+    std::vector<int>& local;
+    ~Restore() {
+      for (int e : region) local[e] = -1;
+    }
+  } restore{region, local};
+  for (int i = 0; i < n; ++i) local[region[i]] = i;
+  std::vector<int> p(n), q(n);
+  for (int i = 0; i < n; ++i) p[i] = static_cast<int>(part[region[i]]);
+  const double t = static_cast<double>(n) / k;
+  const long hi = static_cast<long>(std::floor(kCompactImbalance * t));
+  std::vector<double> c(3 * static_cast<size_t>(k)), w(k, 0.0), inertia(k);
+  std::vector<long> count(k);
+  const auto x = [&](int i, int d) { return centroid[3 * static_cast<size_t>(region[i]) + d]; };
+  const auto balanced = [&] {
+    return *std::max_element(count.begin(), count.end()) <= hi &&
+           *std::min_element(count.begin(), count.end()) > 0;
+  };
+  int sweeps = 0;
+  for (int round = 0; round < kCompactRounds; ++round) {
+    std::fill(c.begin(), c.end(), 0.0);
+    std::fill(count.begin(), count.end(), 0);
+    for (int i = 0; i < n; ++i) {
+      ++count[p[i]];
+      for (int d = 0; d < 3; ++d) c[3 * p[i] + d] += x(i, d);
+    }
+    for (int j = 0; j < k; ++j)
+      for (int d = 0; d < 3; ++d) c[3 * j + d] /= std::max<long>(1, count[j]);
+    std::fill(inertia.begin(), inertia.end(), 0.0);
+    for (int i = 0; i < n; ++i)
+      for (int d = 0; d < 3; ++d)
+        inertia[p[i]] += (x(i, d) - c[3 * p[i] + d]) * (x(i, d) - c[3 * p[i] + d]);
+    for (int j = 0; j < k; ++j) inertia[j] /= std::max<long>(1, count[j]);
+    long moved_round = 0;
+    for (int s = 0; s < kCompactBalanceSweeps; ++s) {
+      ++sweeps;
+      long moved = 0;
+#pragma omp parallel for schedule(static) reduction(+ : moved)  // each cell reads the last sweep's parts
+      for (int i = 0; i < n; ++i) {
+        const int e = region[i], own = p[i];
+        int best = own;
+        double best_d = 0;
+        bool first = true;
+        for (int a = g.offset[e]; a < g.offset[e + 1]; ++a) {
+          const int f = local[g.list[a]];
+          if (f < 0 || p[f] == own) continue;
+          if (first) {
+            best_d = -w[own];
+            for (int d = 0; d < 3; ++d)
+              best_d += (x(i, d) - c[3 * own + d]) * (x(i, d) - c[3 * own + d]);
+            first = false;
+          }
+          const int j = p[f];
+          double dj = -w[j];
+          for (int d = 0; d < 3; ++d) dj += (x(i, d) - c[3 * j + d]) * (x(i, d) - c[3 * j + d]);
+          if (dj < best_d || (dj == best_d && j < best && best != own)) best = j, best_d = dj;
+        }
+        q[i] = best;
+        moved += best != own;
+      }
+      p.swap(q);
+      moved_round += moved;
+      std::fill(count.begin(), count.end(), 0);
+      for (int i = 0; i < n; ++i) ++count[p[i]];
+      for (int j = 0; j < k; ++j) w[j] += kCompactStep * (t - count[j]) / t * inertia[j];
+      if (balanced()) break;
+    }
+    if (balanced() && moved_round < kCompactSettled * n) break;
+  }
+  if (!balanced()) return -1;
+  for (int i = 0; i < n; ++i) part[region[i]] = p[i];
+  return sweeps;
+}
+
 // Subdomains per body, proportional to the bodies' cell counts (largest remainders, at least
 // one each), summing to `subdomains`.
 std::vector<int> parts_per_body(const std::vector<long long>& cells_of_body, int subdomains) {
@@ -374,6 +503,12 @@ PartitionObjective parse_partition_objective(const std::string& name) {
 std::string to_string(PartitionObjective objective) {
   return name_of(kPartitionObjectiveNames, objective);
 }
+
+PartitionShape parse_partition_shape(const std::string& name) {
+  return parse_name(kPartitionShapeNames, name, "partition shape");
+}
+
+std::string to_string(PartitionShape shape) { return name_of(kPartitionShapeNames, shape); }
 
 ClusterSplit parse_cluster_split(const std::string& name) {
   return parse_name(kClusterSplitNames, name, "cluster split");
@@ -498,7 +633,8 @@ long repair_parts(const Mesh& mesh, std::vector<int>& part, double max_share) {
 
 MeshPartition partition_mesh(const Mesh& mesh, int subdomains, int cluster_size,
                              PartitionObjective objective, ClusterSplit split, int seed,
-                             const std::vector<double>* cell_coefficient, double jump_ratio) {
+                             const std::vector<double>* cell_coefficient, double jump_ratio,
+                             PartitionShape shape) {
   if (subdomains < 1) throw std::invalid_argument("decomposition.subdomains must be positive");
   if (cluster_size < 1) throw std::invalid_argument("decomposition.cluster_size must be positive");
   const int ne = mesh.num_cells(), nn = mesh.num_nodes(), nc = cell_nodes(mesh.type);
@@ -549,13 +685,59 @@ MeshPartition partition_mesh(const Mesh& mesh, int subdomains, int cluster_size,
   for (int b = 0; b < nb; ++b) counts[b] = static_cast<long long>(cells[b].size());
   const std::vector<int> n =
       nb == 1 ? std::vector<int>{subdomains} : parts_per_body(counts, subdomains);
+  // Compact parts (compact_split) where asked: kept when the parts stay whole (a few cells in
+  // pieces moved by repair_split) and the cut facets fall to kCompactGain of METIS's split's or
+  // fewer; else METIS's split stays.
+  CellNeighbours neighbours;
+  std::vector<double> centroids;
+  std::vector<char> inside;
+  std::vector<int> local;
+  const auto compact_region = [&](const std::vector<int>& region, int k, std::vector<idx_t>& out) {
+    if (shape != PartitionShape::compact || k <= 1) return;
+    if (centroids.empty()) {
+      centroids = cell_centroids(mesh);
+      neighbours = facet_neighbours(ne, facets);
+      inside.assign(ne, 0);
+      local.assign(ne, -1);
+    }
+    for (int e : region) inside[e] = 1;
+    const auto cut = [&] {  // facets between two parts of the region, counted from both sides
+      long c = 0;
+      for (int e : region)
+        for (int a = neighbours.offset[e]; a < neighbours.offset[e + 1]; ++a) {
+          const int f = neighbours.list[a];
+          c += inside[f] && out[e] != out[f];
+        }
+      return c;
+    };
+    const long cut_metis = cut();
+    std::vector<idx_t> metis(region.size());
+    for (size_t i = 0; i < region.size(); ++i) metis[i] = out[region[i]];
+    bool kept = compact_split(region, k, out, centroids, neighbours, local) >= 0;
+    if (kept) {
+      const SplitDefects d = defects_of(region, out);
+      if (d.hinged || d.pieces) {
+        const long moved = repair_split(region, out, facets, kRepairShare);
+        const SplitDefects left = moved >= 0 ? defects_of(region, out) : d;
+        kept = moved >= 0 && !left.hinged && !left.pieces;
+      }
+    }
+    kept = kept && static_cast<double>(cut()) <= kCompactGain * static_cast<double>(cut_metis);
+    for (int e : region) inside[e] = 0;
+    if (kept) {
+      ++p.compact_splits;
+    } else {
+      ++p.compact_declined;
+      for (size_t i = 0; i < region.size(); ++i) out[region[i]] = metis[i];
+    }
+  };
   // Splits the cells `region` (subset: nullptr for the whole mesh) into k parts of `out`.
   const auto split_region = [&](const std::vector<int>* subset, const std::vector<int>& region,
                                 int k, std::vector<idx_t>& out, bool subdomain_parts,
                                 const std::string& what) {
     split_cells(mesh, subset, k, objective, seed, out);
     const SplitDefects defects = k > 1 ? defects_of(region, out) : SplitDefects{};
-    if (!defects.hinged && !defects.pieces) return;
+    if (!defects.hinged && !defects.pieces) return compact_region(region, k, out);
     // A few cells in pieces: moved to a neighbouring part (repair_split); METIS's split is kept
     // otherwise. Larger defects: METIS again with connected parts asked for.
     const std::vector<idx_t> metis_split = out;
@@ -564,7 +746,7 @@ MeshPartition partition_mesh(const Mesh& mesh, int subdomains, int cluster_size,
       const SplitDefects left = defects_of(region, out);
       if (!left.hinged && !left.pieces) {
         p.repaired_cells += moved;
-        return;
+        return compact_region(region, k, out);
       }
       out = metis_split;
     }
@@ -574,6 +756,7 @@ MeshPartition partition_mesh(const Mesh& mesh, int subdomains, int cluster_size,
       throw std::invalid_argument("METIS could not split " + what + " into " + std::to_string(k) +
                                   " subdomains without one hinged at a node (a mechanism): use "
                                   "fewer subdomains");
+    compact_region(region, k, out);
   };
   // Coefficient jumps: each cell's neighbours through facets without a jump (none at a jump).
   const bool jumps = cell_coefficient && jump_ratio > 1;

@@ -80,6 +80,8 @@ struct ProblemSpec {
   /// A METIS split with a coefficient field: facets across which the coefficient changes by more
   /// than this factor are jumps, and no subdomain straddles one (partition.hpp); 0: off.
   double partition_jump_ratio = kDefaultJumpRatio;
+  /// The shape of a METIS split's parts: compact, or METIS's as they are (partition.hpp).
+  PartitionShape partition_shape = PartitionShape::compact;
 };
 
 /// The cube-obstacle benchmark (DESIGN.md; the paper's Table 4, ESPRESO's former obstacle

@@ -59,6 +59,28 @@ inline constexpr std::array<EnumName<ClusterSplit>, 2> kClusterSplitNames{
 ClusterSplit parse_cluster_split(const std::string& name);  // std::invalid_argument
 std::string to_string(ClusterSplit split);
 
+/// The shape of the parts of a METIS split (decomposition.shape):
+/// - compact: METIS's split, then moved toward compact parts of equal cell counts (a centroidal
+///   power diagram of the cells' centroids, Lloyd's iteration: the balanced k-means of geometric
+///   partitioners), kept where the parts stay whole and the cut facets fall to kCompactGain of
+///   METIS's or fewer. METIS's parts on a structured mesh include tongues and thin parts, whose
+///   soft modes set ‖PFP‖ and the products of a contact solve; on the 80^3 cube-obstacle in 512
+///   parts the compact split takes 41 products against METIS's 94 and the box split's 35
+///   (docs/performance.md, "Compact parts"). Where the cells' sizes vary strongly (graded
+///   meshes) the cut does not fall and METIS's split stays. The default.
+/// - metis: METIS's split as it is.
+enum class PartitionShape { compact, metis };
+inline constexpr std::array<EnumName<PartitionShape>, 2> kPartitionShapeNames{
+    {{PartitionShape::compact, "compact"}, {PartitionShape::metis, "metis"}}};
+PartitionShape parse_partition_shape(const std::string& name);  // std::invalid_argument
+std::string to_string(PartitionShape shape);
+/// compact_split's parameters (partition.cpp): the largest count over the mean, the weight step,
+/// the rounds of Lloyd's iteration, the sweeps per round, the share of moved cells below which
+/// it has settled, and the cut facets (to METIS's) at or below which the compact split is kept.
+inline constexpr double kCompactImbalance = 1.03, kCompactStep = 0.5, kCompactSettled = 1e-3,
+                        kCompactGain = 0.98;
+inline constexpr int kCompactRounds = 30, kCompactBalanceSweeps = 10;
+
 /// METIS's random seed unless one is given (decomposition.seed). METIS's splits of a mesh differ
 /// from seed to seed, and so do the iterations of a FETI solve on them: on the cube-obstacle
 /// 40^3 in 64 parts at A = 20 the products range over 59-103 for seeds 1-8
@@ -89,6 +111,10 @@ struct MeshPartition {
   /// and were split as a whole (their subdomains may straddle a jump).
   int jump_regions = 0;
   int jump_splits_declined = 0;
+  /// PartitionShape::compact: the splits (of a body, cluster or region) made compact, and those
+  /// that kept METIS's parts (unbalanced, in pieces, or no fewer cut facets).
+  int compact_splits = 0;
+  int compact_declined = 0;
   /// Wall seconds of the split (set by the model that made it; the report's timings.partition).
   double seconds = 0;
   /// The mesh's groups by subdomain, for extract_subdomain (built once by partition_mesh, so that
@@ -130,12 +156,14 @@ double stretched_cell_share(const Mesh& mesh);
 /// a whole (counted in jump_splits_declined), and so is one where a region's subdomains would
 /// average more than kJumpImbalance times the mean subdomain (many small regions: an inclusion
 /// of a few cells each would leave the rest of the mesh too few subdomains).
+/// shape: compact parts or METIS's as they are (PartitionShape); each split (body, cluster,
+/// region between jumps) is made compact on its own.
 MeshPartition partition_mesh(const Mesh& mesh, int subdomains, int cluster_size,
                              PartitionObjective objective = PartitionObjective::automatic,
                              ClusterSplit split = ClusterSplit::mesh,
                              int seed = kDefaultPartitionSeed,
                              const std::vector<double>* cell_coefficient = nullptr,
-                             double jump_ratio = 0);
+                             double jump_ratio = 0, PartitionShape shape = PartitionShape::compact);
 /// The default jump_ratio of a METIS split (decomposition.jump_ratio).
 inline constexpr double kDefaultJumpRatio = 10, kJumpImbalance = 2;
 

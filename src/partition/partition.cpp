@@ -11,6 +11,8 @@
 #include <stdexcept>
 #include <string>
 
+#include "htfeti/fem/element.hpp"
+
 namespace htfeti {
 
 namespace {
@@ -351,17 +353,20 @@ CellNeighbours facet_neighbours(int ne, const std::vector<std::pair<FacetKey, in
   return g;
 }
 
-// The cells' centroids (3 per cell: the mean of its nodes).
+// The cells' centroids (3 per cell: the mean of its nodes, fem's cell_centroid).
 std::vector<double> cell_centroids(const Mesh& mesh) {
   const int ne = mesh.num_cells(), nc = cell_nodes(mesh.type);
-  std::vector<double> x(3 * static_cast<size_t>(ne), 0.0);
-  for (int e = 0; e < ne; ++e)
+  std::vector<double> c(3 * static_cast<size_t>(ne));
+  double x[3 * 8];
+  for (int e = 0; e < ne; ++e) {
     for (int a = 0; a < nc; ++a)
       for (int d = 0; d < 3; ++d)
-        x[3 * static_cast<size_t>(e) + d] +=
-            mesh.coords[3 * static_cast<size_t>(mesh.cells[static_cast<size_t>(e) * nc + a]) + d] /
-            nc;
-  return x;
+        x[3 * a + d] =
+            mesh.coords[3 * static_cast<size_t>(mesh.cells[static_cast<size_t>(e) * nc + a]) + d];
+    const std::array<double, 3> ce = cell_centroid(mesh.type, x);
+    std::copy(ce.begin(), ce.end(), c.begin() + 3 * static_cast<size_t>(e));
+  }
+  return c;
 }
 
 // Compact parts (partition.hpp, PartitionShape::compact): a split of the cells `region` into k

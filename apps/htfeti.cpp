@@ -308,40 +308,27 @@ std::shared_ptr<const Model> file_model(const ProblemArgs& p, const TableArgs& a
   if (p.o_subdomains->count()) spec.subdomains = parse_int_list(p.subdomains, "--subdomains");
   if (p.o_m->count()) spec.cluster_size = p.cluster_size;
   if (p.o_glue->count()) spec.glue = parse_glue(p.glue);
-  if (p.o_objective->count()) {
+  // The flags that steer METIS's split: refused where the file splits nothing by METIS.
+  const bool metis = spec.subdomains.size() == 1 && spec.mesh_parts.empty();
+  const auto metis_only = [&](const CLI::Option* o, const char* flag) {
+    if (o->count() && !metis)
+      throw std::invalid_argument(std::string(flag) +
+                                  " is for meshes split by METIS (decomposition.subdomains = N)");
+    return o->count() > 0;
+  };
+  if (metis_only(p.o_objective, "--partition-objective"))
     spec.partition_objective = parse_partition_objective(p.objective);
-    if (spec.subdomains.size() != 1 || !spec.mesh_parts.empty())
-      throw std::invalid_argument(
-          "--partition-objective is for meshes split by METIS (decomposition.subdomains = N)");
-  }
-  if (p.o_seed->count()) {
-    spec.partition_seed = p.seed;
-    if (spec.subdomains.size() != 1 || !spec.mesh_parts.empty())
-      throw std::invalid_argument(
-          "--partition-seed is for meshes split by METIS (decomposition.subdomains = N)");
-  }
-  if (p.o_jump_ratio->count()) {
-    if (!std::isfinite(p.jump_ratio) || !(p.jump_ratio == 0 || p.jump_ratio > 1))
-      throw std::invalid_argument(
-          "--partition-jump-ratio must be 0 (off) or a number greater "
-          "than 1");
+  if (metis_only(p.o_seed, "--partition-seed")) spec.partition_seed = p.seed;
+  if (p.o_jump_ratio->count() &&
+      (!std::isfinite(p.jump_ratio) || !(p.jump_ratio == 0 || p.jump_ratio > 1)))
+    throw std::invalid_argument(
+        "--partition-jump-ratio must be 0 (off) or a number greater than 1");
+  if (metis_only(p.o_jump_ratio, "--partition-jump-ratio"))
     spec.partition_jump_ratio = p.jump_ratio;
-    if (spec.subdomains.size() != 1 || !spec.mesh_parts.empty())
-      throw std::invalid_argument(
-          "--partition-jump-ratio is for meshes split by METIS (decomposition.subdomains = N)");
-  }
-  if (p.o_shape->count()) {
+  if (metis_only(p.o_shape, "--partition-shape"))
     spec.partition_shape = parse_partition_shape(p.shape);
-    if (spec.subdomains.size() != 1 || !spec.mesh_parts.empty())
-      throw std::invalid_argument(
-          "--partition-shape is for meshes split by METIS (decomposition.subdomains = N)");
-  }
-  if (p.o_cluster_split->count()) {
+  if (metis_only(p.o_cluster_split, "--cluster-split"))
     spec.cluster_split = parse_cluster_split(p.cluster_split);
-    if (spec.subdomains.size() != 1 || !spec.mesh_parts.empty())
-      throw std::invalid_argument(
-          "--cluster-split is for meshes split by METIS (decomposition.subdomains = N)");
-  }
   if (!spec.builtin.empty() && p.o_elements->count()) {
     const auto e = parse_int_list(p.elements, "--elements");
     if (e.size() != 1) throw std::invalid_argument("--elements takes one number for a built-in");
@@ -382,16 +369,14 @@ std::shared_ptr<const Model> builtin_model(const ProblemArgs& p, const TableArgs
   }
   if (p.o_amplitude->count())
     throw std::invalid_argument("--obstacle-amplitude is for --problem cube-obstacle");
-  if (p.o_objective->count())
-    throw std::invalid_argument("--partition-objective is for problem files split by METIS");
-  if (p.o_cluster_split->count())
-    throw std::invalid_argument("--cluster-split is for problem files split by METIS");
-  if (p.o_seed->count())
-    throw std::invalid_argument("--partition-seed is for problem files split by METIS");
-  if (p.o_jump_ratio->count())
-    throw std::invalid_argument("--partition-jump-ratio is for problem files split by METIS");
-  if (p.o_shape->count())
-    throw std::invalid_argument("--partition-shape is for problem files split by METIS");
+  for (const auto& [o, flag] :
+       {std::pair<const CLI::Option*, const char*>{p.o_objective, "--partition-objective"},
+        {p.o_cluster_split, "--cluster-split"},
+        {p.o_seed, "--partition-seed"},
+        {p.o_jump_ratio, "--partition-jump-ratio"},
+        {p.o_shape, "--partition-shape"}})
+    if (o->count())
+      throw std::invalid_argument(std::string(flag) + " is for problem files split by METIS");
   DecompositionOptions& d = run.solve.decomposition;
   d.problem = parse_problem(p.problem);
   d.element = parse_element(p.element);

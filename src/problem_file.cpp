@@ -468,46 +468,41 @@ void read_decomposition(const toml::table& root, ProblemSpec& spec) {
     } catch (const std::invalid_argument& e) {
       bad("decomposition.glue", e.what());
     }
-    if (!spec.mesh_parts.empty() && dec->contains("objective"))
-      bad("decomposition.objective",
-          "is for meshes split by METIS; a mesh partitioned in advance (mesh.parts) keeps its "
-          "parts");
+    // The keys that steer METIS's split are refused where nothing is split by METIS: a mesh
+    // partitioned in advance (mesh.parts) or a box split into boxes (subdomains = [nx, ny, nz]).
+    const bool metis = spec.mesh_parts.empty() && spec.subdomains.size() == 1;
+    const auto metis_only = [&](const char* key, const char* parts, const char* boxes) {
+      if (!metis && dec->contains(key))
+        bad(std::string("decomposition.") + key,
+            std::string("is for meshes split by METIS (decomposition.subdomains = N); a mesh "
+                        "partitioned in advance ") +
+                parts + ", a box split into boxes " + boxes);
+    };
+    metis_only("objective", "keeps its parts", "is not split by METIS");
     try {
       spec.partition_objective =
           parse_partition_objective(get_string(*dec, "decomposition", "objective", "auto"));
     } catch (const std::invalid_argument& e) {
       bad("decomposition.objective", e.what());
     }
-    if (dec->contains("cluster_split") && (!spec.mesh_parts.empty() || spec.subdomains.size() != 1))
-      bad("decomposition.cluster_split",
-          "is for meshes split by METIS (decomposition.subdomains = N); a mesh partitioned in "
-          "advance groups its parts, a box split into boxes has box clusters");
+    metis_only("cluster_split", "groups its parts", "has box clusters");
     try {
       spec.cluster_split =
           parse_cluster_split(get_string(*dec, "decomposition", "cluster_split", "mesh"));
     } catch (const std::invalid_argument& e) {
       bad("decomposition.cluster_split", e.what());
     }
-    if (dec->contains("seed") && (!spec.mesh_parts.empty() || spec.subdomains.size() != 1))
-      bad("decomposition.seed",
-          "is for meshes split by METIS (decomposition.subdomains = N); a mesh partitioned in "
-          "advance keeps its parts, a box split into boxes draws nothing");
+    metis_only("seed", "keeps its parts", "draws nothing");
     const long long seed = get_int(*dec, "decomposition", "seed", kDefaultPartitionSeed);
     if (seed < 0 || seed > 999999999LL)
       bad("decomposition.seed", "must be an integer from 0 to 999999999");
     spec.partition_seed = static_cast<int>(seed);
-    if (dec->contains("jump_ratio") && (!spec.mesh_parts.empty() || spec.subdomains.size() != 1))
-      bad("decomposition.jump_ratio",
-          "is for meshes split by METIS (decomposition.subdomains = N); a mesh partitioned in "
-          "advance keeps its parts, a box split into boxes cuts along its planes");
+    metis_only("jump_ratio", "keeps its parts", "cuts along its planes");
     const double ratio = get_double(*dec, "decomposition", "jump_ratio", spec.partition_jump_ratio);
     if (!(ratio == 0 || ratio > 1))
       bad("decomposition.jump_ratio", "must be 0 (off) or a number greater than 1");
     spec.partition_jump_ratio = ratio;
-    if (dec->contains("shape") && (!spec.mesh_parts.empty() || spec.subdomains.size() != 1))
-      bad("decomposition.shape",
-          "is for meshes split by METIS (decomposition.subdomains = N); a mesh partitioned in "
-          "advance keeps its parts, a box split into boxes has box parts");
+    metis_only("shape", "keeps its parts", "has box parts");
     try {
       spec.partition_shape =
           parse_partition_shape(get_string(*dec, "decomposition", "shape", "compact"));

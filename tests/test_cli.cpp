@@ -522,6 +522,18 @@ TEST_F(Cli, PartitionObjective) {
   EXPECT_EQ(run(bin + " solve obj.toml --no-vtu --report q.json"), 2);
   EXPECT_NE(stderr_text().find("decomposition.objective"), std::string::npos) << stderr_text();
   EXPECT_EQ(run(bin + " solve --problem membranes --partition-objective cut --no-vtu"), 2);
+  // A box split into boxes calls no METIS: the key is refused there, as the flag is.
+  const std::string boxes =
+      "[mesh]\ngenerator = \"box\"\nsize = [1.0, 1.0]\nelements = [8, 8]\n"
+      "element = \"quad4\"\n[physics]\ntype = \"laplace\"\nsource = 1.0\n"
+      "[[dirichlet]]\ngroup = \"x0\"\nvalue = 0.0\n[decomposition]\nsubdomains = [2, 2]\n";
+  std::ofstream("boxes.toml") << boxes << "objective = \"cut\"\n";
+  EXPECT_EQ(run(bin + " solve boxes.toml --no-vtu --report q.json"), 2);
+  EXPECT_NE(stderr_text().find("decomposition.objective"), std::string::npos) << stderr_text();
+  std::ofstream("boxes.toml") << boxes;
+  EXPECT_EQ(run(bin + " solve boxes.toml --partition-objective cut --no-vtu --report q.json"), 2);
+  EXPECT_NE(stderr_text().find("--partition-objective"), std::string::npos) << stderr_text();
+  EXPECT_FALSE(fs::exists("q.json"));
 }
 
 // METIS's seed: a problem-file key and a flag, named in the report. Two seeds split the

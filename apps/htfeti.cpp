@@ -615,6 +615,16 @@ int run(int argc, char** argv, const Comm& comm) {
 
   SolveOutput out = htfeti::solve(model, opt.solve, comm);
   out.report["timings"]["model"] = t_model;
+  // Options given a value for a run they do not act in: a warning, and the report says so.
+  nlohmann::json unused = nlohmann::json::array();
+  for (const UnusedOption& u : unused_options(opt, out.report)) {
+    unused.push_back({{"key", u.key}, {"reason", u.reason}});
+    if (comm.rank() == 0)
+      std::fprintf(stderr, "htfeti: warning: %s%s%s%s has no effect here: %s\n", u.key.c_str(),
+                   u.flag.empty() ? "" : " (", u.flag.c_str(), u.flag.empty() ? "" : ")",
+                   u.reason.c_str());
+  }
+  out.report["unused_options"] = unused;
   if (comm.rank() == 0) print_summary(out.report);
   try {
     write_outputs(out, opt.output, opt, comm);

@@ -2,6 +2,7 @@
 // RunOptions; the builders below keep a row to its name, help and range.
 #include "htfeti/options.hpp"
 
+#include <algorithm>
 #include <charconv>
 #include <cmath>
 #include <sstream>
@@ -188,10 +189,12 @@ void add_qp_options(std::vector<OptionSpec>& t) {
       "most this, relative",
       [](RunOptions& r) -> double& { return r.solve.coulomb_rtol; },
       [](double x) -> const char* { return x > 0 && x < 1 ? nullptr : "must lie in (0, 1)"; }));
+  t.back().scope = OptionScope::coulomb;
   t.push_back(integer(
       "coulomb_max_iterations", "--coulomb-max-it",
       "Coulomb friction: at most this many Tresca solves in the fixed point",
       [](RunOptions& r) -> int& { return r.solve.coulomb_max_iterations; }, 1, 10000));
+  t.back().scope = OptionScope::coulomb;
   t.push_back(choice(
       "solver", "mprgp_expansion", "--mprgp-expansion",
       "MPRGP's expansion step: gradient (fixed length 2 / ||H|| along the free gradient) | "
@@ -205,18 +208,21 @@ void add_qp_options(std::vector<OptionSpec>& t) {
       "has none of these: a variant asked for there is not used, and a warning says so",
       qp::kExpansionNames,
       +[](RunOptions& r) -> qp::Expansion& { return r.solve.smalbe.expansion; }));
+  t.back().scope = OptionScope::contact;
   t.push_back(choice(
       "solver", "norm_estimate", "--norm-estimate",
       "SMALBE-M's estimate of ||PFP||: power (power method) | lanczos (largest Ritz value of the "
       "Lanczos process); at most 50 products, relative change 1e-3",
       qp::kNormEstimateNames,
       +[](RunOptions& r) -> qp::NormEstimate& { return r.solve.norm_estimate; }));
+  t.back().scope = OptionScope::contact;
   t.push_back(integer(
       "coarse_steps_per_product", "--coarse-steps-per-product",
       "coarse steps per SMALBE-M Hessian product: 2 (P, F, P) | 1 (F, then one "
       "reduction with E = F G~^T formed in setup; memory and setup time, for "
       "many ranks)",
       [](RunOptions& r) -> int& { return r.solve.coarse_steps_per_product; }, 1, 2));
+  t.back().scope = OptionScope::contact;
   auto positive = [](double x) -> const char* {
     return x > 0 && x <= 1e6 ? nullptr : "must lie in (0, 1e6]";
   };
@@ -231,21 +237,25 @@ void add_qp_options(std::vector<OptionSpec>& t) {
   t.push_back(number(
       "rho_factor", "--rho-factor", "SMALBE-M penalty rho = factor * ||PFP||",
       [](RunOptions& r) -> double& { return r.solve.smalbe.rho_factor; }, positive));
+  t.back().scope = OptionScope::contact;
   t.push_back(number(
       "M0_factor", "--M0-factor", "SMALBE-M initial M = factor * ||PFP||",
       [](RunOptions& r) -> double& { return r.solve.smalbe.M0_factor; },
       [](double x) -> const char* {
         return x > 0 && x <= 1e12 ? nullptr : "must lie in (0, 1e12]";
       }));
+  t.back().scope = OptionScope::contact;
   t.push_back(number(
       "eta_factor", "--eta-factor", "SMALBE-M eta = factor * ||b||",
       [](RunOptions& r) -> double& { return r.solve.smalbe.eta_factor; }, positive));
+  t.back().scope = OptionScope::contact;
   t.push_back(number(
       "beta", "--beta", "SMALBE-M: M is divided by beta on a failed test (> 1)",
       [](RunOptions& r) -> double& { return r.solve.smalbe.beta; },
       [](double x) -> const char* {
         return x > 1 && x <= 1e6 ? nullptr : "must lie in (1, 1e6]";
       }));
+  t.back().scope = OptionScope::contact;
   t.push_back(number(
       "rho_update_late", "--rho-update-late",
       "SMALBE-M: once only the equality test is left, rho is multiplied by this after each "
@@ -254,6 +264,7 @@ void add_qp_options(std::vector<OptionSpec>& t) {
       [](double x) -> const char* {
         return x >= 1 && x <= 1e3 ? nullptr : "must lie in [1, 1e3]";
       }));
+  t.back().scope = OptionScope::contact;
   t.push_back(boolean(
       "solver", "face_solve", "--face-solve", "--no-face-solve",
       "SMALBE-M: after an inner solve, on the active set where it ended (once per active set), "
@@ -261,9 +272,11 @@ void add_qp_options(std::vector<OptionSpec>& t) {
       "exactly (the coarse matrix of the free rows) and take the face's equality multiplier; "
       "where it stops short, SMALBE-M restarts from there (docs/method.md, \"The face solve\")",
       [](RunOptions& r) -> bool& { return r.solve.smalbe.face_solve; }));
+  t.back().scope = OptionScope::contact;
   t.push_back(number(
       "gamma", "--gamma", "MPRGP proportioning parameter Gamma",
       [](RunOptions& r) -> double& { return r.solve.smalbe.gamma; }, positive));
+  t.back().scope = OptionScope::contact;
   t.push_back(boolean("solver", "progress", "--progress", "",
                       "print one line per (outer) iteration (standard error, rank 0)",
                       [](RunOptions& r) -> bool& { return r.solve.progress; }));
@@ -287,6 +300,7 @@ void add_feti_options(std::vector<OptionSpec>& t) {
       "and bytes per F; values rounded to single precision, sums in double)",
       kPrecisionNames,
       +[](RunOptions& r) -> Precision& { return r.solve.feti.explicit_precision; }));
+  t.back().scope = OptionScope::explicit_operator;
   t.push_back(choice(
       "solver", "factor_precision", "--factor-precision",
       "what the implicit operator's factor sweeps read: double (the subdomain factors) | single "
@@ -319,6 +333,7 @@ void add_feti_options(std::vector<OptionSpec>& t) {
       "B_D of the preconditioner: multiplicity | stiffness (weights by the diagonal of K, for "
       "coefficient jumps between subdomains) | auto (stiffness with a coefficient field)",
       kScalingNames, +[](RunOptions& r) -> Scaling& { return r.solve.feti.scaling; }));
+  t.back().scope = OptionScope::preconditioned;
   t.push_back(choice(
       "solver", "pcg_projector", "--pcg-projector",
       "the projector in PCG's preconditioner (no contact): orthogonal (P M^-1 P) | weighted "
@@ -326,6 +341,7 @@ void add_feti_options(std::vector<OptionSpec>& t) {
       "between subdomains; needs stiffness scaling) | auto (weighted with stiffness scaling "
       "where no subdomain's coefficient varies by more than 10 times, else orthogonal)",
       kPcgProjectorNames, +[](RunOptions& r) -> PcgProjector& { return r.solve.pcg_projector; }));
+  t.back().scope = OptionScope::pcg;
   t.push_back({"solver", "dirichlet_storage", "--dirichlet-storage", "", OptionType::choice, "",
                "Dirichlet preconditioner: dense (S_i stored, 8 n_b^2 bytes per subdomain) | "
                "implicit (applied with a factor of K_ii) | auto (3D: implicit; 2D: dense when "
@@ -340,6 +356,7 @@ void add_feti_options(std::vector<OptionSpec>& t) {
                      name_of(kDirichletStorageNames,
                              static_cast<DirichletStorage>(r.solve.feti.dirichlet_storage)));
                }});
+  t.back().scope = OptionScope::dirichlet;
   t.push_back(integer(
       "dirichlet_layers", "--dirichlet-layers",
       "Dirichlet preconditioner: 0 the Schur complement on the whole interior of each "
@@ -347,6 +364,7 @@ void add_feti_options(std::vector<OptionSpec>& t) {
       "clamped (an approximate Dirichlet preconditioner: a smaller setup and application, "
       "iterations between lumped and Dirichlet)",
       [](RunOptions& r) -> int& { return r.solve.feti.dirichlet_layers; }, 0, 1000000));
+  t.back().scope = OptionScope::dirichlet;
   t.push_back(gigabytes(
       "dirichlet_budget_gb", "--dirichlet-budget",
       "GB per rank: with dirichlet_storage = auto in 2D the Dirichlet preconditioner stores its "
@@ -538,6 +556,54 @@ void set_option(RunOptions& run, const OptionSpec& spec, const OptionValue& valu
   } catch (const std::invalid_argument& e) {
     throw std::invalid_argument(where + ": " + e.what());
   }
+  if (std::find(run.given.begin(), run.given.end(), &spec) == run.given.end())
+    run.given.push_back(&spec);
+}
+
+std::vector<UnusedOption> unused_options(const RunOptions& run, const nlohmann::json& report) {
+  // What the run turned out to be, from the report's resolved settings.
+  const auto text = [&](const nlohmann::json& j, const char* key) {
+    return j.contains(key) && j[key].is_string() ? j[key].get<std::string>() : std::string();
+  };
+  const nlohmann::json none = nlohmann::json::object();
+  const nlohmann::json& solver = report.contains("solver") ? report["solver"] : none;
+  const std::string algorithm = text(solver, "algorithm");
+  const bool contact = algorithm.rfind("smalbe", 0) == 0;
+  const bool coulomb = solver.contains("coulomb");
+  const std::string preconditioner = text(report, "preconditioner");
+  const std::string op = text(report, "dual_operator");
+  const RunOptions defaults;
+  std::vector<UnusedOption> out;
+  for (const OptionSpec* o : run.given) {
+    if (o->get(run) == o->get(defaults)) continue;  // the default: nothing was asked
+    std::string why;
+    switch (o->scope) {
+      case OptionScope::every_run:
+        break;
+      case OptionScope::contact:
+        if (!contact) why = "the problem has no contact rows: PCG solves it, not SMALBE-M";
+        break;
+      case OptionScope::coulomb:
+        if (!coulomb) why = "the problem has no Coulomb friction";
+        break;
+      case OptionScope::pcg:
+        if (contact) why = "the problem has contact rows: SMALBE-M solves it, not PCG";
+        break;
+      case OptionScope::preconditioned:
+        if (preconditioner == "none") why = "no preconditioner is built (preconditioner none)";
+        break;
+      case OptionScope::dirichlet:
+        if (preconditioner != "dirichlet")
+          why = "the preconditioner is " + preconditioner + ", not dirichlet";
+        break;
+      case OptionScope::explicit_operator:
+        if (op != "explicit") why = "the dual operator is " + op + ", not explicit";
+        break;
+    }
+    if (!why.empty())
+      out.push_back({std::string(o->section) + "." + o->key, o->flag, std::move(why)});
+  }
+  return out;
 }
 
 void check_option_combinations(const RunOptions& run) {

@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 #include <sys/stat.h>
 
+#include <algorithm>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
@@ -480,6 +481,63 @@ TEST_F(Cli, BadContactPairsExitWithCode2) {
   bad("master = \"block_top\"",
       "master = \"block_top\"\n[[contact]]\ngroup = \"punch_bottom\"\nmaster = \"block_top\"",
       "given twice");
+}
+
+// An option given a value for a run it does not act in (a SMALBE-M parameter for a problem
+// without contact, the Dirichlet preconditioner's layers beside the lumped one, PCG's projector
+// for a contact problem) is named in a warning and in the report's unused_options, from the
+// command line or the problem file, and the run is the same bit for bit. An option given its
+// default value, or one the run uses, is not named.
+TEST_F(Cli, OptionsWithoutEffectAreNamed) {
+  const std::string ex = std::string(HTFETI_SOURCE_DIR) + "/examples/block3d.toml";
+  const auto report = []() {
+    std::ifstream f("r.json");
+    return nlohmann::json::parse(f);
+  };
+  const auto unused = [&]() {
+    std::vector<std::string> keys;
+    const nlohmann::json r = report();
+    for (const auto& u : r["unused_options"]) {
+      keys.push_back(u["key"].get<std::string>());
+      EXPECT_FALSE(u["reason"].get<std::string>().empty());
+    }
+    std::sort(keys.begin(), keys.end());
+    return keys;
+  };
+  ASSERT_EQ(run(bin + " solve " + ex + " --preconditioner lumped --no-vtu --report r.json"), 0)
+      << stderr_text();
+  EXPECT_TRUE(unused().empty());
+  EXPECT_EQ(stderr_text().find("warning"), std::string::npos) << stderr_text();
+  const double energy = report()["objective"].get<double>();
+  ASSERT_EQ(run(bin + " solve " + ex +
+                " --preconditioner lumped --rho-factor 2 --dirichlet-layers 1 --no-vtu "
+                "--report r.json"),
+            0)
+      << stderr_text();
+  EXPECT_EQ(unused(), (std::vector<std::string>{"solver.dirichlet_layers", "solver.rho_factor"}));
+  EXPECT_NE(stderr_text().find("solver.rho_factor (--rho-factor) has no effect here: the problem "
+                               "has no contact rows"),
+            std::string::npos)
+      << stderr_text();
+  EXPECT_NE(stderr_text().find("the preconditioner is lumped, not dirichlet"), std::string::npos)
+      << stderr_text();
+  EXPECT_EQ(report()["objective"].get<double>(), energy);
+  // At its default value: nothing asked, nothing named.
+  ASSERT_EQ(run(bin + " solve " + ex + " --rho-factor 1.1 --no-vtu --report r.json"), 0);
+  EXPECT_TRUE(unused().empty());
+  // From the problem file.
+  std::ifstream in(ex);
+  std::string text((std::istreambuf_iterator<char>(in)), {});
+  text.replace(text.find("[solver]"), 8, "[solver]\neta_factor = 0.5");
+  std::ofstream("eta.toml") << text;
+  ASSERT_EQ(run(bin + " solve eta.toml --no-vtu --report r.json"), 0) << stderr_text();
+  EXPECT_EQ(unused(), (std::vector<std::string>{"solver.eta_factor"}));
+  // Contact: SMALBE-M's parameter acts, PCG's projector does not.
+  ASSERT_EQ(run(bin + " solve --problem cube-obstacle --rho-factor 2 --pcg-projector orthogonal "
+                      "--no-vtu --report r.json"),
+            0)
+      << stderr_text();
+  EXPECT_EQ(unused(), (std::vector<std::string>{"solver.pcg_projector"}));
 }
 
 // METIS's objective: a problem-file key and a flag; a bad word is refused with exit 2, and the

@@ -32,10 +32,15 @@ struct OutputOptions {
   VtuIo vtu_io = VtuIo::automatic;
 };
 
+struct OptionSpec;
+
 /// Everything `htfeti solve` takes besides the problem itself.
 struct RunOptions {
   SolveOptions solve;
   OutputOptions output;
+  /// The options set by the problem file or the command line (set_option), in the order first
+  /// given: rows of option_table().
+  std::vector<const OptionSpec*> given;
 };
 
 /// How an option's value is written: a switch (true/false; on the command line a flag), an
@@ -45,6 +50,19 @@ enum class OptionType { boolean, integer, number, choice, path };
 
 /// A value as read from a problem file or the command line, before it is checked.
 using OptionValue = std::variant<bool, long long, double, std::string>;
+
+/// The runs an option takes effect in. An option given a value other than its default for a
+/// run outside its scope is named by unused_options() (a warning and the report's
+/// `unused_options`): the value was read and checked, and changed nothing.
+enum class OptionScope {
+  every_run,
+  contact,            ///< SMALBE-M: problems with contact (inequality) rows
+  coulomb,            ///< Coulomb friction's fixed point
+  pcg,                ///< PCG: problems without contact rows
+  preconditioned,     ///< a preconditioner is built
+  dirichlet,          ///< the Dirichlet preconditioner
+  explicit_operator,  ///< the explicit dual operator
+};
 
 struct OptionSpec {
   const char* section;  ///< "solver" or "output": the problem-file table
@@ -61,6 +79,7 @@ struct OptionSpec {
   std::function<void(RunOptions&, const OptionValue&)> set;
   /// The value in effect, for the report and the dry run (null: "none", e.g. no memory limit).
   std::function<nlohmann::json(const RunOptions&)> get;
+  OptionScope scope = OptionScope::every_run;
 };
 
 /// Every option of a solve, in the order the help lists them.
@@ -76,6 +95,15 @@ OptionValue parse_option_text(const OptionSpec& spec, const std::string& text);
 /// set() with the message prefixed by `where` ("--rtol", "problem file: solver.rtol").
 void set_option(RunOptions& run, const OptionSpec& spec, const OptionValue& value,
                 const std::string& where);
+
+/// An option given for a run it does not act in: its key ("solver.rho_factor"), its flag, why.
+struct UnusedOption {
+  std::string key, flag, reason;
+};
+
+/// The options of run.given, set to other than their defaults, that the solve described by
+/// `report` (its solver.algorithm, solver.coulomb, preconditioner and dual_operator) did not use.
+std::vector<UnusedOption> unused_options(const RunOptions& run, const nlohmann::json& report);
 
 /// Checks what one option cannot: combinations (keep_factors with release_factors).
 void check_option_combinations(const RunOptions& run);

@@ -481,6 +481,7 @@ void add_output_options(std::vector<OptionSpec>& t) {
       [](RunOptions& r) -> bool& { return r.output.write_xdmf; }));
   t.push_back(boolean("output", "vtu_ascii", "--vtu-ascii", "", "write the VTU as ASCII",
                       [](RunOptions& r) -> bool& { return r.output.vtu_ascii; }));
+  t.back().scope = OptionScope::vtu_output;
   t.push_back(choice(
       "output", "vtu_io", "--vtu-io",
       "how the binary VTU reaches the disk: buffered (through the page cache), direct (whole 4 "
@@ -488,6 +489,7 @@ void add_output_options(std::vector<OptionSpec>& t) {
       "buffered where the file system refuses it) or auto (direct for a piece of 256 MiB and "
       "more)",
       kVtuIoNames, +[](RunOptions& r) -> VtuIo& { return r.output.vtu_io; }));
+  t.back().scope = OptionScope::vtu_output;
   t.push_back(integer(
       "report_contact_rows", "--report-contact-rows",
       "the report's per-row contact arrays (`contact`: coordinates, displacements, gaps, forces) "
@@ -595,6 +597,9 @@ std::vector<UnusedOption> unused_options(const RunOptions& run, const nlohmann::
       case OptionScope::dirichlet:
         if (preconditioner != "dirichlet")
           why = "the preconditioner is " + preconditioner + ", not dirichlet";
+        break;
+      case OptionScope::vtu_output:
+        if (!run.output.write_vtu) why = "no VTU is written (--no-vtu, output.vtu = false)";
         break;
       case OptionScope::explicit_operator:
         if (op != "explicit") why = "the dual operator is " + op + ", not explicit";

@@ -525,6 +525,9 @@ TEST_F(Cli, OptionsWithoutEffectAreNamed) {
   // At its default value: nothing asked, nothing named.
   ASSERT_EQ(run(bin + " solve " + ex + " --rho-factor 1.1 --no-vtu --report r.json"), 0);
   EXPECT_TRUE(unused().empty());
+  // The VTU's options without a VTU.
+  ASSERT_EQ(run(bin + " solve " + ex + " --vtu-ascii --no-vtu --report r.json"), 0);
+  EXPECT_EQ(unused(), (std::vector<std::string>{"output.vtu_ascii"}));
   // From the problem file.
   std::ifstream in(ex);
   std::string text((std::istreambuf_iterator<char>(in)), {});

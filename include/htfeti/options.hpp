@@ -62,6 +62,7 @@ enum class OptionScope {
   preconditioned,     ///< a preconditioner is built
   dirichlet,          ///< the Dirichlet preconditioner
   explicit_operator,  ///< the explicit dual operator
+  vtu_output,         ///< the VTU output is written
 };
 
 struct OptionSpec {

@@ -535,6 +535,21 @@ TEST_F(Cli, OptionsWithoutEffectAreNamed) {
   std::ofstream("eta.toml") << text;
   ASSERT_EQ(run(bin + " solve eta.toml --no-vtu --report r.json"), 0) << stderr_text();
   EXPECT_EQ(unused(), (std::vector<std::string>{"solver.eta_factor"}));
+  // The glue of clusters without clusters (TFETI), from the file and the flag: named once; with
+  // clusters of several subdomains it acts.
+  {
+    std::ifstream g(ex);
+    std::string t((std::istreambuf_iterator<char>(g)), {});
+    const auto at = t.find("[decomposition]");
+    ASSERT_NE(at, std::string::npos);
+    t.replace(at, 15, "[decomposition]\nglue = \"corners\"");
+    std::ofstream("glue.toml") << t;
+  }
+  ASSERT_EQ(run(bin + " solve glue.toml -m 1 --glue corners --no-vtu --report r.json"), 0)
+      << stderr_text();
+  EXPECT_EQ(unused(), (std::vector<std::string>{"decomposition.glue"}));
+  ASSERT_EQ(run(bin + " solve glue.toml --no-vtu --report r.json"), 0) << stderr_text();
+  EXPECT_TRUE(unused().empty());
   // Contact: SMALBE-M's parameter acts, PCG's projector does not.
   ASSERT_EQ(run(bin + " solve --problem cube-obstacle --rho-factor 2 --pcg-projector orthogonal "
                       "--no-vtu --report r.json"),

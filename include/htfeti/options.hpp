@@ -41,6 +41,10 @@ struct RunOptions {
   /// The options set by the problem file or the command line (set_option), in the order first
   /// given: rows of option_table().
   std::vector<const OptionSpec*> given;
+  /// The [decomposition] keys that act only with clusters of several subdomains ("glue",
+  /// "cluster_split"), given other than their defaults by the problem file or their flags, for
+  /// unused_options().
+  std::vector<std::string> given_decomposition;
 };
 
 /// How an option's value is written: a switch (true/false; on the command line a flag), an
@@ -103,7 +107,9 @@ struct UnusedOption {
 };
 
 /// The options of run.given, set to other than their defaults, that the solve described by
-/// `report` (its solver.algorithm, solver.coulomb, preconditioner and dual_operator) did not use.
+/// `report` (its solver.algorithm, solver.coulomb, preconditioner and dual_operator) did not use;
+/// and the keys of run.given_decomposition when every cluster is one subdomain (the report's
+/// clusters equal to its subdomains: TFETI).
 std::vector<UnusedOption> unused_options(const RunOptions& run, const nlohmann::json& report);
 
 /// Checks what one option cannot: combinations (keep_factors with release_factors).

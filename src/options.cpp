@@ -610,14 +610,14 @@ std::vector<UnusedOption> unused_options(const RunOptions& run, const nlohmann::
   }
   const bool clusters = report.contains("clusters") && report.contains("subdomains") &&
                         report["clusters"] != report["subdomains"];
-  for (std::size_t i = 0; i < run.given_decomposition.size(); ++i) {
-    const std::string& key = run.given_decomposition[i];
-    const auto first = run.given_decomposition.begin() + static_cast<std::ptrdiff_t>(i);
-    if (!clusters && std::find(run.given_decomposition.begin(), first, key) == first)
+  std::vector<std::string> keys = run.given_decomposition;  // from the file and the flag: once
+  std::sort(keys.begin(), keys.end());
+  keys.erase(std::unique(keys.begin(), keys.end()), keys.end());
+  for (const std::string& key : keys)
+    if (!clusters)
       out.push_back({"decomposition." + key, key == "glue" ? "--glue" : "--cluster-split",
                      "every cluster is one subdomain (TFETI): there is nothing to glue inside "
                      "clusters, nor clusters to form"});
-  }
   return out;
 }
 

@@ -463,11 +463,15 @@ void read_decomposition(const toml::table& root, ProblemSpec& spec) {
     const long long m = get_int(*dec, "decomposition", "cluster_size", 1);
     if (m <= 0 || m > 1000000) bad("decomposition.cluster_size", "must be a positive integer");
     spec.cluster_size = static_cast<int>(m);
-    try {
-      spec.glue = parse_glue(get_string(*dec, "decomposition", "glue", "averages"));
-    } catch (const std::invalid_argument& e) {
-      bad("decomposition.glue", e.what());
-    }
+    // A key whose value is a word of a list (parse: the list's parser, which names the words).
+    const auto word = [&](const char* key, const char* fallback, auto parse) {
+      try {
+        return parse(get_string(*dec, "decomposition", key, fallback));
+      } catch (const std::invalid_argument& e) {
+        bad(std::string("decomposition.") + key, e.what());
+      }
+    };
+    spec.glue = word("glue", "averages", parse_glue);
     // The keys that steer METIS's split are refused where nothing is split by METIS: a mesh
     // partitioned in advance (mesh.parts) or a box split into boxes (subdomains = [nx, ny, nz]).
     const bool metis = spec.mesh_parts.empty() && spec.subdomains.size() == 1;
@@ -479,19 +483,9 @@ void read_decomposition(const toml::table& root, ProblemSpec& spec) {
                 parts + ", a box split into boxes " + boxes);
     };
     metis_only("objective", "keeps its parts", "is not split by METIS");
-    try {
-      spec.partition_objective =
-          parse_partition_objective(get_string(*dec, "decomposition", "objective", "auto"));
-    } catch (const std::invalid_argument& e) {
-      bad("decomposition.objective", e.what());
-    }
+    spec.partition_objective = word("objective", "auto", parse_partition_objective);
     metis_only("cluster_split", "groups its parts", "has box clusters");
-    try {
-      spec.cluster_split =
-          parse_cluster_split(get_string(*dec, "decomposition", "cluster_split", "mesh"));
-    } catch (const std::invalid_argument& e) {
-      bad("decomposition.cluster_split", e.what());
-    }
+    spec.cluster_split = word("cluster_split", "mesh", parse_cluster_split);
     metis_only("seed", "keeps its parts", "draws nothing");
     const long long seed = get_int(*dec, "decomposition", "seed", kDefaultPartitionSeed);
     if (seed < 0 || seed > 999999999LL)
@@ -503,12 +497,7 @@ void read_decomposition(const toml::table& root, ProblemSpec& spec) {
       bad("decomposition.jump_ratio", "must be 0 (off) or a number greater than 1");
     spec.partition_jump_ratio = ratio;
     metis_only("shape", "keeps its parts", "has box parts");
-    try {
-      spec.partition_shape =
-          parse_partition_shape(get_string(*dec, "decomposition", "shape", "compact"));
-    } catch (const std::invalid_argument& e) {
-      bad("decomposition.shape", e.what());
-    }
+    spec.partition_shape = word("shape", "compact", parse_partition_shape);
   }
 }
 

@@ -95,6 +95,16 @@ void print_summary(const nlohmann::json& r) {
             ? " (the round-off floor: rtol is finer than double precision can measure)"
             : "");
   }
+  {  // the spectrum CG saw (qp/cg_spectrum.hpp): what sets the count on a hard mesh
+    const auto& s = r["solver"];
+    const char* key = pcg ? "spectrum_estimate" : "face_spectrum_estimate";
+    if (s.contains(key) && !s[key].is_null())
+      std::printf(
+          "  %s: eigenvalues in [%.3g, %.3g], ratio %.3g (Lanczos estimate from %d CG steps)\n",
+          pcg ? "PCG's operator" : "the face solves' operator", s[key]["min"].get<double>(),
+          s[key]["max"].get<double>(), s[key]["ratio"].get<double>(),
+          s[key]["cg_steps"].get<int>());
+  }
   const auto& k = r["kkt"];
   std::printf(
       "  energy %.12e; ||B_E u - c_E|| %.2e, max violation %.2e, min multiplier %.2e, "

@@ -81,6 +81,13 @@ nlohmann::json refine_accuracy(const AccuracyCheck& check, const Vec& lambda, do
   return steps;
 }
 
+// The report's form of a CG run's estimate of its operator's extreme eigenvalues
+// (qp/cg_spectrum.hpp): null when no CG step was taken.
+nlohmann::json spectrum_json(const qp::SpectrumEstimate& s) {
+  if (s.empty()) return nullptr;
+  return {{"min", s.min}, {"max", s.max}, {"ratio", s.ratio()}, {"cg_steps", s.steps}};
+}
+
 constexpr const char* kSingleCheckNote =
     "check: converged with the factors' single-precision copies; on with the factors (double)";
 
@@ -132,6 +139,7 @@ QpSolve solve_without_contact(DualProblem& dual, DualOperators& ops, Vec& lambda
   });
   lambda = dual.lambda_tilde();
   auto r = qp::projected_cg(qp, lambda, red, po, progress, ops.preconditioned ? &Z : nullptr);
+  qp::SpectrumEstimate spectrum = r.spectrum;  // merged over the runs below
   QpSolve out;
   out.outer = r.iterations;
   out.converged = r.reason == qp::StopReason::converged;
@@ -145,6 +153,7 @@ QpSolve solve_without_contact(DualProblem& dual, DualOperators& ops, Vec& lambda
       note(kSingleCheckNote);
       const long before = ops.F.count();
       r = qp::projected_cg(qp, lambda, red, po, progress, ops.preconditioned ? &Z : nullptr);
+      spectrum.merge(r.spectrum);
       out.outer += r.iterations;
       out.converged = r.reason == qp::StopReason::converged;
       single_check = {{"check_products", ops.F.count() - before},
@@ -156,6 +165,7 @@ QpSolve solve_without_contact(DualProblem& dual, DualOperators& ops, Vec& lambda
       check, lambda, po.rtol, out.converged,
       [&]() {
         r = qp::projected_cg(qp, lambda, red, po, progress, ops.preconditioned ? &Z : nullptr);
+        spectrum.merge(r.spectrum);
         out.outer += r.iterations;
         out.converged = r.reason == qp::StopReason::converged;
       },
@@ -171,6 +181,7 @@ QpSolve solve_without_contact(DualProblem& dual, DualOperators& ops, Vec& lambda
   if (weighted)
     out.solver["weighted_projections"] = weighted_projections,
     out.solver["weighted_projection_seconds"] = weighted_seconds;
+  out.solver["spectrum_estimate"] = spectrum_json(spectrum);
   if (!single_check.is_null()) out.solver["single_sweeps"] = single_check;
   if (steps.size() > 1) out.solver["accuracy_refinements"] = steps;
   return out;
@@ -284,6 +295,7 @@ QpSolve solve_with_contact(DualProblem& dual, DualOperators& ops, Vec& lambda,
   int face_solves = r.face_solves, face_iterations = r.face_iterations,
       face_converged = r.face_converged, face_tries = r.face_tries;
   double face_seconds = r.face_seconds, face_set_seconds = r.face_set_seconds;
+  qp::SpectrumEstimate face_spectrum = r.face_spectrum;
   // SMALBE-M once more from x and nu (warm), its counts added to the first solve's.
   const auto solve_again = [&]() {
     r = qp::smalbe(qp, normA, x, red, so, hooks, progress, &nu);
@@ -302,6 +314,7 @@ QpSolve solve_with_contact(DualProblem& dual, DualOperators& ops, Vec& lambda,
     face_tries += r.face_tries;
     face_seconds += r.face_seconds;
     face_set_seconds += r.face_set_seconds;
+    face_spectrum.merge(r.face_spectrum);
     proportioning_steps += r.proportioning_steps;
     out.converged = r.reason == qp::StopReason::converged;
     out.reason = to_string(r.reason);
@@ -393,6 +406,7 @@ QpSolve solve_with_contact(DualProblem& dual, DualOperators& ops, Vec& lambda,
                 {"face_tries", face_tries},
                 {"face_seconds", face_seconds},
                 {"face_set_seconds", face_set_seconds}};
+  out.solver["face_spectrum_estimate"] = spectrum_json(face_spectrum);
   if (!single_check.is_null()) out.solver["single_sweeps"] = single_check;
   if (steps.size() > 1) out.solver["accuracy_refinements"] = steps;
   out.solver["outer_log"] = std::move(outer_log);

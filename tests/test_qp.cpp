@@ -3,10 +3,13 @@
 // multipliers, complementarity, small projected gradient). Failure paths are results, not throws.
 #include <gtest/gtest.h>
 
+#include <Eigen/Eigenvalues>
+#include <cmath>
 #include <limits>
 #include <random>
 
 #include "htfeti/linalg/nnls.hpp"
+#include "htfeti/qp/cg_spectrum.hpp"
 #include "htfeti/qp/mpgp.hpp"
 #include "htfeti/qp/mprgp.hpp"
 #include "htfeti/qp/pcg.hpp"
@@ -1353,4 +1356,86 @@ TEST(Nnls, FitsInsideTheConeAndCertifiesOutside) {
   EXPECT_NEAR(out.r[1], 0.0, 1e-14);
   EXPECT_LE((M.transpose() * out.r).maxCoeff(), 1e-14);
   EXPECT_NEAR(b.dot(out.r), out.r.squaredNorm(), 1e-14);
+}
+
+// The Lanczos matrix of CG's coefficients (qp/cg_spectrum.hpp) by hand: alpha = (1, 1) and
+// beta = 1 give T = [1 1; 1 2], eigenvalues (3 -+ sqrt 5) / 2; one step gives 1 / alpha; a
+// coefficient that is not positive gives no estimate.
+TEST(CgSpectrum, TheTridiagonalMatrixByHand) {
+  CgLanczos l;
+  l.start(10);
+  EXPECT_TRUE(l.estimate().empty());
+  l.step(0.5);
+  EXPECT_DOUBLE_EQ(l.estimate().min, 2.0);
+  EXPECT_DOUBLE_EQ(l.estimate().max, 2.0);
+  l.start(10);
+  l.step(1.0);
+  l.direction(1.0);
+  l.step(1.0);
+  const SpectrumEstimate e = l.estimate();
+  EXPECT_EQ(e.steps, 2);
+  EXPECT_NEAR(e.min, (3 - std::sqrt(5.0)) / 2, 1e-14);
+  EXPECT_NEAR(e.max, (3 + std::sqrt(5.0)) / 2, 1e-14);
+  l.start(10);
+  l.step(1.0);
+  l.direction(1.0);
+  l.step(-1.0);
+  EXPECT_TRUE(l.estimate().empty());
+  SpectrumEstimate merged = e;
+  merged.merge(SpectrumEstimate{});
+  EXPECT_EQ(merged.steps, 2);
+  merged.merge(SpectrumEstimate{0.1, 9.0, 3});
+  EXPECT_EQ(merged.min, 0.1);
+  EXPECT_EQ(merged.max, 9.0);
+  EXPECT_EQ(merged.steps, 5);
+}
+
+// PCG's estimate against known spectra: A = diag(1, ..., 40) without a preconditioner, and
+// A = S Q diag(1, ..., 40) Q' S (Q a random orthogonal matrix, S a diagonal scaling over three
+// decades) with Z = S^{-2}, so that Z A = S^{-1} Q diag Q' S has the eigenvalues 1, ..., 40.
+// After 4 steps the Ritz values lie strictly inside [1, 40]; at convergence (b excites every
+// eigenvector, and distinct eigenvalues take all 40 steps) they are 1 and 40.
+TEST(CgSpectrum, PcgEstimatesTheExtremeEigenvalues) {
+  const int n = 40;
+  std::mt19937 gen(7);
+  std::normal_distribution<double> N01;
+  Eigen::MatrixXd R(n, n);
+  for (int i = 0; i < n; ++i)
+    for (int j = 0; j < n; ++j) R(i, j) = N01(gen);
+  const Eigen::MatrixXd Q = Eigen::HouseholderQR<Eigen::MatrixXd>(R).householderQ();
+  Eigen::VectorXd scale(n), diag(n);
+  for (int i = 0; i < n; ++i) scale[i] = std::pow(10.0, 3.0 * i / n), diag[i] = i + 1;
+  for (int preconditioned = 0; preconditioned < 2; ++preconditioned) {
+    const Eigen::MatrixXd A = preconditioned
+                                  ? Eigen::MatrixXd(scale.asDiagonal() * Q * diag.asDiagonal() *
+                                                    Q.transpose() * scale.asDiagonal())
+                                  : Eigen::MatrixXd(diag.asDiagonal());
+    DenseOperator Aop(A),
+        Z(Eigen::MatrixXd(scale.array().square().inverse().matrix().asDiagonal()));
+    Qp q;
+    q.A = A;
+    q.b = (preconditioned ? Eigen::VectorXd(scale.asDiagonal() * Q * Eigen::VectorXd::Ones(n))
+                          : Eigen::VectorXd::Ones(n));
+    q.G.resize(0, n);
+    const QuadraticProgram qp = qp_of(Aop, q, false);
+    for (int steps : {4, 200}) {
+      PcgOptions po;
+      po.rtol = 1e-12;
+      po.max_iterations = steps;
+      Vec x = Vec::Zero(n);
+      const PcgResult r =
+          projected_cg(qp, x, SerialReducer(), po, {}, preconditioned ? &Z : nullptr);
+      const SpectrumEstimate& e = r.spectrum;
+      ASSERT_FALSE(e.empty());
+      if (steps == 4) {
+        EXPECT_EQ(e.steps, 4);
+        EXPECT_GT(e.min, 1.01) << preconditioned;
+        EXPECT_LT(e.max, 40 / 1.01) << preconditioned;
+        continue;
+      }
+      EXPECT_EQ(r.reason, StopReason::converged);
+      EXPECT_NEAR(e.min, 1.0, 1e-8) << preconditioned << ", " << e.steps << " steps";
+      EXPECT_NEAR(e.max, 40.0, 1e-8 * 40) << preconditioned << ", " << e.steps << " steps";
+    }
+  }
 }

@@ -74,6 +74,7 @@ FaceResult face_cg(Operator& H, const Vec& b, const Vec& l, const Vec& u, Vec& x
   precondition();
   p = z;
   double rz = red.dot(r, z);
+  w.lanczos.start(max_iterations);
   for (int it = 0;; ++it) {
     res.iterations = it;
     if (!proportional()) {
@@ -105,15 +106,18 @@ FaceResult face_cg(Operator& H, const Vec& b, const Vec& l, const Vec& u, Vec& x
       res.outcome = FaceOutcome::bound;
       break;
     }
+    w.lanczos.step(a);
     x -= a * p;
     g -= a * Hp;
     project(g, r, nu);
     precondition();
     const double rz_new = red.dot(r, z);
+    w.lanczos.direction(rz_new / rz);
     p = z + (rz_new / rz) * p;
     rz = rz_new;
   }
   nu = -nu;  // the face's equality multiplier G' mu: D (g + nu) = P_F D g
+  res.spectrum = w.lanczos.estimate();
   return res;
 }
 

@@ -21,8 +21,11 @@ PcgResult projected_cg(const QuadraticProgram& qp, Vec& x, const Reducer& red,
   double best_residual = std::numeric_limits<double>::infinity();
   int best_iteration = 0;
   // Ends a run that cannot improve: the iterate with the smallest residual, and that residual.
+  CgLanczos lanczos;
+  lanczos.start(opt.max_iterations);
   const auto take_best = [&](StopReason why) {
     res.reason = why;
+    res.spectrum = lanczos.estimate();
     if (best_residual < res.projected_residual) x = best, res.projected_residual = best_residual;
     return res;
   };
@@ -47,6 +50,7 @@ PcgResult projected_cg(const QuadraticProgram& qp, Vec& x, const Reducer& red,
     if (progress) progress(it, res.projected_residual / (tol / opt.rtol), 0.0);
     if (res.projected_residual <= tol) {
       res.reason = StopReason::converged;
+      res.spectrum = lanczos.estimate();
       return res;
     }
     if (res.projected_residual < best_residual) {
@@ -61,15 +65,18 @@ PcgResult projected_cg(const QuadraticProgram& qp, Vec& x, const Reducer& red,
     if (it >= opt.max_iterations) return take_best(StopReason::max_iterations);
     if (!(wz > 0)) {  // a preconditioner that is not positive definite on Ker G
       res.reason = StopReason::breakdown;
+      res.spectrum = lanczos.estimate();
       return res;
     }
     A.apply(p, q);  // the bottleneck: one dual operator application
     const double pq = red.dot(p, q);
     if (!(pq > 0)) {
       res.reason = StopReason::breakdown;
+      res.spectrum = lanczos.estimate();
       return res;
     }
     const double alpha = wz / pq;
+    lanczos.step(alpha);
     x += alpha * p;
     r -= alpha * q;
     P.apply(r, w);
@@ -77,9 +84,11 @@ PcgResult projected_cg(const QuadraticProgram& qp, Vec& x, const Reducer& red,
     if (Z) {
       Z->apply(w, z);
       const double wz_new = red.dot(w, z);
+      lanczos.direction(wz_new / wz);
       p = z + (wz_new / wz) * p;  // new conjugate direction, still in Ker G
       wz = wz_new;
     } else {
+      lanczos.direction(ww / wz);
       p = w + (ww / wz) * p;
       wz = ww;
     }

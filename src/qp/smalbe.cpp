@@ -154,6 +154,7 @@ SmalbeResult smalbe(const QuadraticProgram& qp, double normA, Vec& x, const Redu
     if (!fr.taken()) return false;
     ++res.face_solves;
     res.face_iterations += fr.iterations;
+    res.face_spectrum.merge(fr.spectrum);
     if (fr.outcome == FaceOutcome::converged) {
       Q.apply(x, face_work.t);
       const double q = red.norm(face_work.t);

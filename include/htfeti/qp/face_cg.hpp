@@ -19,12 +19,14 @@
 //   4. the equality's multiplier of the face, nu = G' mu = -G'(G D G')^{-1} G D g: then
 //      D (g + nu) = w, and g + nu on the active set is what decides whether x is optimal.
 // Every direction lies in Ker G, where H_rho = A + rho Q equals A, so rho plays no part; one
-// iteration costs one product with H, two face projections and one application of Z.
+// iteration costs one product with H, two face projections and one application of Z. The step
+// lengths and direction ratios give the estimate of FaceResult::spectrum (cg_spectrum.hpp).
 // Nothing is allocated once the workspace has its sizes.
 #pragma once
 
 #include <functional>
 
+#include "htfeti/qp/cg_spectrum.hpp"
 #include "htfeti/qp/operator.hpp"
 
 namespace htfeti::qp {
@@ -61,6 +63,9 @@ struct FaceResult {
   double free_gradient = 0;  ///< ||P_F D g|| at exit
   double held_gradient = 0;  ///< the held rows' share of g^P (g + nu) at exit
   double set_seconds = 0;    ///< wall time of FaceHooks::set (the face's coarse matrix)
+  /// The extreme eigenvalues of the preconditioned Hessian on the face from the CG steps taken
+  /// (cg_spectrum.hpp; empty when none was).
+  SpectrumEstimate spectrum;
   bool taken() const {
     return outcome != FaceOutcome::singular && outcome != FaceOutcome::declined &&
            outcome != FaceOutcome::infeasible;
@@ -69,6 +74,7 @@ struct FaceResult {
 
 struct FaceWorkspace {
   Vec free, c, t, w, z, p, Hp, phi, beta, x_save;
+  CgLanczos lanczos;  ///< the CG coefficients (FaceResult::spectrum)
 };
 
 /// H: the Hessian (SMALBE-M's H_rho); b: the linear term (without the equality's multiplier);

@@ -19,9 +19,11 @@
 //
 // Cost of one iteration: one application of A, one of P, three dot products, three axpys, one
 // copy of x while the residual decreases (and one of Z, one more dot product, when
-// preconditioned).
+// preconditioned). The step lengths and direction ratios are kept for the estimate of the
+// preconditioned operator's extreme eigenvalues (PcgResult::spectrum, cg_spectrum.hpp).
 #pragma once
 
+#include "htfeti/qp/cg_spectrum.hpp"
 #include "htfeti/qp/qp.hpp"
 
 namespace htfeti::qp {
@@ -43,6 +45,9 @@ struct PcgResult {
   int iterations = 0;
   double projected_residual = 0;  ///< ||P(b - A x)|| at exit
   double projected_rhs = 0;       ///< ||P b||
+  /// The extreme eigenvalues of Z A on Ker G (A without Z) from the run's coefficients
+  /// (cg_spectrum.hpp): empty when no step was taken.
+  SpectrumEstimate spectrum;
 };
 
 /// qp: the Hessian A, the linear term b and the equality projector P (required); no constraint

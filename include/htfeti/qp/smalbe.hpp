@@ -136,6 +136,9 @@ struct SmalbeResult {
   int face_tries = 0;                ///< face solves begun (also those declined or not taken)
   double face_seconds = 0;           ///< wall time in face solves, their products included
   double face_set_seconds = 0;       ///< of it, setting the faces (coarse matrices)
+  /// The face solves' estimates of the preconditioned Hessian's extreme eigenvalues on their
+  /// faces, merged (FaceResult::spectrum).
+  SpectrumEstimate face_spectrum;
   /// Per outer iteration, the first kMaxOuterRecords (a face solve's products fall in the
   /// record after it, or only in hessian_applications when it ends the solve).
   std::vector<SmalbeOuterRecord> outer_log;

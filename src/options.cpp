@@ -395,6 +395,7 @@ void add_memory_options(std::vector<OptionSpec>& t) {
                  const double b = r.solve.feti.explicit_budget_bytes;
                  return b >= 0 ? nlohmann::json(b / kGiB) : nlohmann::json(nullptr);
                }});
+  t.back().scope = OptionScope::automatic_operator;
   t.push_back({"solver",
                "memory_limit_gb",
                "--memory-limit",
@@ -574,6 +575,7 @@ std::vector<UnusedOption> unused_options(const RunOptions& run, const nlohmann::
   const bool coulomb = solver.contains("coulomb");
   const std::string preconditioner = text(report, "preconditioner");
   const std::string op = text(report, "dual_operator");
+  const std::string op_reason = text(report, "dual_operator_reason");
   const RunOptions defaults;
   std::vector<UnusedOption> out;
   for (const OptionSpec* o : run.given) {
@@ -603,6 +605,10 @@ std::vector<UnusedOption> unused_options(const RunOptions& run, const nlohmann::
         break;
       case OptionScope::explicit_operator:
         if (op != "explicit") why = "the dual operator is " + op + ", not explicit";
+        break;
+      case OptionScope::automatic_operator:
+        if (op_reason == "requested")
+          why = "the dual operator " + op + " is requested, not chosen by --dual-operator auto";
         break;
     }
     if (!why.empty())

@@ -525,6 +525,17 @@ TEST_F(Cli, OptionsWithoutEffectAreNamed) {
   // At its default value: nothing asked, nothing named.
   ASSERT_EQ(run(bin + " solve " + ex + " --rho-factor 1.1 --no-vtu --report r.json"), 0);
   EXPECT_TRUE(unused().empty());
+  // The explicit operator's budget acts only where --dual-operator auto decides.
+  ASSERT_EQ(run(bin + " solve " + ex +
+                " --dual-operator implicit --explicit-budget 1 --no-vtu "
+                "--report r.json"),
+            0)
+      << stderr_text();
+  EXPECT_EQ(unused(), (std::vector<std::string>{"solver.explicit_budget_gb"}));
+  EXPECT_NE(stderr_text().find("the dual operator implicit is requested"), std::string::npos)
+      << stderr_text();
+  ASSERT_EQ(run(bin + " solve " + ex + " --explicit-budget 1 --no-vtu --report r.json"), 0);
+  EXPECT_TRUE(unused().empty());
   // The VTU's options without a VTU.
   ASSERT_EQ(run(bin + " solve " + ex + " --vtu-ascii --no-vtu --report r.json"), 0);
   EXPECT_EQ(unused(), (std::vector<std::string>{"output.vtu_ascii"}));

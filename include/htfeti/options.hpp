@@ -60,13 +60,14 @@ using OptionValue = std::variant<bool, long long, double, std::string>;
 /// `unused_options`): the value was read and checked, and changed nothing.
 enum class OptionScope {
   every_run,
-  contact,            ///< SMALBE-M: problems with contact (inequality) rows
-  coulomb,            ///< Coulomb friction's fixed point
-  pcg,                ///< PCG: problems without contact rows
-  preconditioned,     ///< a preconditioner is built
-  dirichlet,          ///< the Dirichlet preconditioner
-  explicit_operator,  ///< the explicit dual operator
-  vtu_output,         ///< the VTU output is written
+  contact,             ///< SMALBE-M: problems with contact (inequality) rows
+  coulomb,             ///< Coulomb friction's fixed point
+  pcg,                 ///< PCG: problems without contact rows
+  preconditioned,      ///< a preconditioner is built
+  dirichlet,           ///< the Dirichlet preconditioner
+  explicit_operator,   ///< the explicit dual operator
+  automatic_operator,  ///< --dual-operator auto decides (its explicit_budget_gb)
+  vtu_output,          ///< the VTU output is written
 };
 
 struct OptionSpec {

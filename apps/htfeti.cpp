@@ -317,10 +317,7 @@ std::shared_ptr<const Model> file_model(const ProblemArgs& p, const TableArgs& a
   apply_table_args(args, run);
   if (p.o_subdomains->count()) spec.subdomains = parse_int_list(p.subdomains, "--subdomains");
   if (p.o_m->count()) spec.cluster_size = p.cluster_size;
-  if (p.o_glue->count()) {
-    spec.glue = parse_glue(p.glue);
-    if (spec.glue != Glue::averages) run.given_decomposition.push_back("glue");
-  }
+  if (p.o_glue->count()) spec.glue = parse_glue(p.glue);
   // The flags that steer METIS's split: refused where the file splits nothing by METIS.
   const bool metis = spec.subdomains.size() == 1 && spec.mesh_parts.empty();
   const auto metis_only = [&](const CLI::Option* o, const char* flag) {
@@ -340,11 +337,12 @@ std::shared_ptr<const Model> file_model(const ProblemArgs& p, const TableArgs& a
     spec.partition_jump_ratio = p.jump_ratio;
   if (metis_only(p.o_shape, "--partition-shape"))
     spec.partition_shape = parse_partition_shape(p.shape);
-  if (metis_only(p.o_cluster_split, "--cluster-split")) {
+  if (metis_only(p.o_cluster_split, "--cluster-split"))
     spec.cluster_split = parse_cluster_split(p.cluster_split);
-    if (spec.cluster_split != ClusterSplit::mesh)
-      run.given_decomposition.push_back("cluster_split");
-  }
+  // The cluster-only keys as the file and the flags left them: named by unused_options() if
+  // the run has no clusters.
+  if (spec.glue != Glue::averages) run.given_decomposition.push_back("glue");
+  if (spec.cluster_split != ClusterSplit::mesh) run.given_decomposition.push_back("cluster_split");
   if (!spec.builtin.empty() && p.o_elements->count()) {
     const auto e = parse_int_list(p.elements, "--elements");
     if (e.size() != 1) throw std::invalid_argument("--elements takes one number for a built-in");

@@ -616,10 +616,7 @@ std::vector<UnusedOption> unused_options(const RunOptions& run, const nlohmann::
   }
   const bool clusters = report.contains("clusters") && report.contains("subdomains") &&
                         report["clusters"] != report["subdomains"];
-  std::vector<std::string> keys = run.given_decomposition;  // from the file and the flag: once
-  std::sort(keys.begin(), keys.end());
-  keys.erase(std::unique(keys.begin(), keys.end()), keys.end());
-  for (const std::string& key : keys)
+  for (const std::string& key : run.given_decomposition)
     if (!clusters)
       out.push_back({"decomposition." + key, key == "glue" ? "--glue" : "--cluster-split",
                      "every cluster is one subdomain (TFETI): there is nothing to glue inside "

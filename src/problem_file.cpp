@@ -553,9 +553,6 @@ ProblemSpec read_problem_file(const std::string& path, RunOptions& run) {
     read_conditions(root, spec);
   }
   read_decomposition(root, spec);
-  // Given other than their defaults: named by unused_options() if the run has no clusters.
-  if (spec.glue != Glue::averages) run.given_decomposition.push_back("glue");
-  if (spec.cluster_split != ClusterSplit::mesh) run.given_decomposition.push_back("cluster_split");
   read_option_tables(root, run);
   return spec;
 }

@@ -559,6 +559,10 @@ TEST_F(Cli, OptionsWithoutEffectAreNamed) {
   ASSERT_EQ(run(bin + " solve glue.toml -m 1 --glue corners --no-vtu --report r.json"), 0)
       << stderr_text();
   EXPECT_EQ(unused(), (std::vector<std::string>{"decomposition.glue"}));
+  // The flag setting the file's value back to the default: nothing asked, nothing named.
+  ASSERT_EQ(run(bin + " solve glue.toml -m 1 --glue averages --no-vtu --report r.json"), 0)
+      << stderr_text();
+  EXPECT_TRUE(unused().empty());
   ASSERT_EQ(run(bin + " solve glue.toml --no-vtu --report r.json"), 0) << stderr_text();
   EXPECT_TRUE(unused().empty());
   // Contact: SMALBE-M's parameter acts, PCG's projector does not.

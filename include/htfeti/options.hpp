@@ -42,8 +42,8 @@ struct RunOptions {
   /// given: rows of option_table().
   std::vector<const OptionSpec*> given;
   /// The [decomposition] keys that act only with clusters of several subdomains ("glue",
-  /// "cluster_split"), given other than their defaults by the problem file or their flags, for
-  /// unused_options().
+  /// "cluster_split") whose values, after the problem file and the flags, are not the
+  /// defaults (each once), for unused_options().
   std::vector<std::string> given_decomposition;
 };
 

@@ -273,6 +273,16 @@ void add_qp_options(std::vector<OptionSpec>& t) {
       "where it stops short, SMALBE-M restarts from there (docs/method.md, \"The face solve\")",
       [](RunOptions& r) -> bool& { return r.solve.smalbe.face_solve; }));
   t.back().scope = OptionScope::contact;
+  t.push_back(integer(
+      "face_changes", "--face-changes",
+      "SMALBE-M's face solve: how many times one face solve may change its face and go on "
+      "(a CG step that would leave the bounds: the step onto the first bound, that row held; a "
+      "held row to be freed: the held rows with a chopped gradient freed; each a new coarse "
+      "matrix of the free rows and a CG restart) before it ends and SMALBE-M goes on; it also "
+      "ends at the fourth bound in a row reached by the first CG step on its face (0: every "
+      "face solve ends at the first bound or release)",
+      [](RunOptions& r) -> int& { return r.solve.smalbe.face_changes; }, 0, 1000000));
+  t.back().scope = OptionScope::contact;
   t.push_back(number(
       "gamma", "--gamma", "MPRGP proportioning parameter Gamma",
       [](RunOptions& r) -> double& { return r.solve.smalbe.gamma; }, positive));

@@ -293,7 +293,7 @@ QpSolve solve_with_contact(DualProblem& dual, DualOperators& ops, Vec& lambda,
       cost_increases = r.expansion_cost_increases, proportioning_steps = r.proportioning_steps,
       projected_cg_expansions = r.projected_cg_expansions;
   int face_solves = r.face_solves, face_iterations = r.face_iterations,
-      face_converged = r.face_converged, face_tries = r.face_tries;
+      face_changes = r.face_changes, face_converged = r.face_converged, face_tries = r.face_tries;
   double face_seconds = r.face_seconds, face_set_seconds = r.face_set_seconds;
   qp::SpectrumEstimate face_spectrum = r.face_spectrum;
   // SMALBE-M once more from x and nu (warm), its counts added to the first solve's.
@@ -310,6 +310,7 @@ QpSolve solve_with_contact(DualProblem& dual, DualOperators& ops, Vec& lambda,
     projected_cg_expansions += r.projected_cg_expansions;
     face_solves += r.face_solves;
     face_iterations += r.face_iterations;
+    face_changes += r.face_changes;
     face_converged += r.face_converged;
     face_tries += r.face_tries;
     face_seconds += r.face_seconds;
@@ -402,6 +403,7 @@ QpSolve solve_with_contact(DualProblem& dual, DualOperators& ops, Vec& lambda,
                 {"proportioning_steps", proportioning_steps},
                 {"face_solves", face_solves},
                 {"face_iterations", face_iterations},
+                {"face_changes", face_changes},
                 {"face_converged", face_converged},
                 {"face_tries", face_tries},
                 {"face_seconds", face_seconds},

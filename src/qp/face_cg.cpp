@@ -10,7 +10,7 @@ namespace htfeti::qp {
 
 FaceResult face_cg(Operator& H, const Vec& b, const Vec& l, const Vec& u, Vec& x, Vec& g, Vec& nu,
                    const FaceHooks& face, Operator* Z, const Reducer& red, double tol, double gamma,
-                   int max_iterations, FaceWorkspace& w) {
+                   int max_iterations, FaceWorkspace& w, int max_changes) {
   const Eigen::Index n = b.size();
   const bool upper = u.size() == n;
   const double inf = std::numeric_limits<double>::infinity();
@@ -75,9 +75,50 @@ FaceResult face_cg(Operator& H, const Vec& b, const Vec& l, const Vec& u, Vec& x
   p = z;
   double rz = red.dot(r, z);
   w.lanczos.start(max_iterations);
-  for (int it = 0;; ++it) {
-    res.iterations = it;
+  int changes = 0;
+  int steps = 0;  // products with H
+  int last_steps = 0;
+  int short_hits = 0;
+  // A new face (d changed): set, the gradient's projection, CG restarted. False when G D G' is
+  // singular: the solve ends (the last face's factor is gone, nu is that of the last face).
+  const auto restart = [&]() {
+    res.spectrum.merge(w.lanczos.estimate());
+    const double ts = seconds_now();
+    const bool ok = face.set(d);
+    res.set_seconds += seconds_now() - ts;
+    if (!ok) return false;
+    ++changes;
+    ++res.changes;
+    last_steps = steps;
+    project(g, r, nu);
+    precondition();
+    p = z;
+    rz = red.dot(r, z);
+    w.lanczos.start(max_iterations);
+    return true;
+  };
+  // x -= a p on the free rows; the rows whose bound the step reaches first (a = a_f, the
+  // largest feasible step) are put onto it and held.
+  const auto step_to_bound = [&](double a) {
+    for (Eigen::Index i = 0; i < n; ++i) {
+      if (d[i] == 0.0) continue;
+      const bool lo = p[i] > 0 && l[i] > -inf && (x[i] - l[i]) / p[i] <= a;
+      const bool hi = upper && p[i] < 0 && u[i] < inf && (x[i] - u[i]) / p[i] <= a;
+      x[i] -= a * p[i];
+      if (lo) x[i] = l[i], d[i] = 0.0;
+      if (hi) x[i] = u[i], d[i] = 0.0;
+      x[i] = std::max(x[i], l[i]);
+      if (upper) x[i] = std::min(x[i], u[i]);
+    }
+  };
+  for (;;) {
     if (!proportional()) {
+      // Free the held rows with a chopped gradient (those MPRGP's proportioning step moves).
+      if (changes < max_changes) {
+        for (Eigen::Index i = 0; i < n; ++i)
+          if (w.beta[i] != 0.0) d[i] = 1.0;
+        if (restart()) continue;
+      }
       res.outcome = FaceOutcome::release;
       break;
     }
@@ -85,24 +126,42 @@ FaceResult face_cg(Operator& H, const Vec& b, const Vec& l, const Vec& u, Vec& x
       res.outcome = FaceOutcome::converged;
       break;
     }
-    if (it >= max_iterations) {
+    if (steps >= max_iterations) {
       res.outcome = FaceOutcome::max_iterations;
       break;
     }
-    H.apply(p, Hp);
-    const double pHp = red.dot(p, Hp);
-    if (!(pHp > 0)) {
-      res.outcome = FaceOutcome::breakdown;
-      break;
-    }
-    const double a = rz / pHp;
     double a_f = inf;  // the largest step along -p that stays inside the bounds
     for (Eigen::Index i = 0; i < n; ++i) {
       if (d[i] == 0.0) continue;
       if (p[i] > 0 && l[i] > -inf) a_f = std::min(a_f, (x[i] - l[i]) / p[i]);
       if (upper && p[i] < 0 && u[i] < inf) a_f = std::min(a_f, (x[i] - u[i]) / p[i]);
     }
-    if (a > red.min(a_f)) {
+    a_f = red.min(a_f);
+    if (!(a_f > 0)) {  // a row freed on its bound that -p would move out of the bounds
+      if (changes < max_changes) {
+        step_to_bound(0.0);
+        if (restart()) continue;
+      }
+      res.outcome = FaceOutcome::bound;
+      break;
+    }
+    H.apply(p, Hp);
+    ++steps;
+    const double pHp = red.dot(p, Hp);
+    if (!(pHp > 0)) {
+      res.outcome = FaceOutcome::breakdown;
+      break;
+    }
+    const double a = rz / pHp;
+    if (a > a_f) {
+      // The feasible half step: the cost falls (a_f < a, the minimizer along p), G x = 0 holds.
+      short_hits = steps - last_steps > 1 ? 0 : short_hits + 1;
+      if (changes < max_changes && short_hits <= kMaxShortBounds) {
+        step_to_bound(a_f);
+        g -= a_f * Hp;
+        if (restart()) continue;
+        // (x moved: the outcome bound keeps it; nu is the last face's)
+      }
       res.outcome = FaceOutcome::bound;
       break;
     }
@@ -116,8 +175,9 @@ FaceResult face_cg(Operator& H, const Vec& b, const Vec& l, const Vec& u, Vec& x
     p = z + (rz_new / rz) * p;
     rz = rz_new;
   }
+  res.iterations = steps;
   nu = -nu;  // the face's equality multiplier G' mu: D (g + nu) = P_F D g
-  res.spectrum = w.lanczos.estimate();
+  res.spectrum.merge(w.lanczos.estimate());
   return res;
 }
 

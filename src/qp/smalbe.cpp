@@ -146,14 +146,15 @@ SmalbeResult smalbe(const QuadraticProgram& qp, double normA, Vec& x, const Redu
     face_tried = true;
     face_work.x_save = x;
     fg = g - nu;  // H x - b
-    const FaceResult fr =
-        face_cg(H, b, l, u, x, fg, fnu, hooks.face, hooks.preconditioner ? &Z : nullptr, red,
-                kFaceTolerance * grad_tol, opt.gamma,
-                opt.max_inner - res.inner_iterations - res.face_iterations, face_work);
+    const FaceResult fr = face_cg(
+        H, b, l, u, x, fg, fnu, hooks.face, hooks.preconditioner ? &Z : nullptr, red,
+        kFaceTolerance * grad_tol, opt.gamma,
+        opt.max_inner - res.inner_iterations - res.face_iterations, face_work, opt.face_changes);
     res.face_set_seconds += fr.set_seconds;
     if (!fr.taken()) return false;
     ++res.face_solves;
     res.face_iterations += fr.iterations;
+    res.face_changes += fr.changes;
     res.face_spectrum.merge(fr.spectrum);
     if (fr.outcome == FaceOutcome::converged) {
       Q.apply(x, face_work.t);

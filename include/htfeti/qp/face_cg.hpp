@@ -10,16 +10,24 @@
 //   1. x <- x - D G'(G D G')^{-1} G x: G x = 0, only free entries move; if one leaves its
 //      bounds, the face solve ends without a product;
 //   2. g = H x - b; w = P_F D g (the face's residual); z = P_F D Z w; p = z;
-//   3. CG in the face: a = w'z / p'Hp; if x - a p leaves the bounds, stop before the step
-//      (the active set has to grow: SMALBE-M goes on); else x -= a p, g -= a Hp, w, z anew,
-//      p = z + (w'z / w_old'z_old) p; until ||w|| <= tol;
+//   3. CG in the face: a = w'z / p'Hp; if x - a p leaves the bounds, the active set has to
+//      grow: the feasible half step x -= a_f p onto the first bound (the cost falls, G x = 0
+//      holds), that row held, a new face (its G D G' factored) and CG restarted from step 2's
+//      w and z; else x -= a p, g -= a Hp, w, z anew, p = z + (w'z / w_old'z_old) p; until
+//      ||w|| <= tol;
 //      Before each step, MPRGP's proportionality test with the face's multiplier: when the
-//      held rows' share of g^P(g + nu) exceeds Gamma ||w||, some held row is to be freed and
-//      the face solve ends (SMALBE-M's MPRGP frees it by a proportioning step);
+//      held rows' share of g^P(g + nu) exceeds Gamma ||w||, the held rows with a chopped
+//      gradient are freed (those MPRGP's proportioning step would move), a new face, CG
+//      restarted; a row so freed that -p would move out of its bounds (a_f = 0) is held again;
+//      After max_changes such changes of the face, or at the kMaxShortBounds + 1-th bound in a
+//      row reached by the first CG step on its face (the active set is far from settled: MPRGP's
+//      expansion steps, which fill it many rows at a time, do better), the face solve ends at
+//      the next bound or release instead, and SMALBE-M goes on from there;
 //   4. the equality's multiplier of the face, nu = G' mu = -G'(G D G')^{-1} G D g: then
 //      D (g + nu) = w, and g + nu on the active set is what decides whether x is optimal.
 // Every direction lies in Ker G, where H_rho = A + rho Q equals A, so rho plays no part; one
-// iteration costs one product with H, two face projections and one application of Z. The step
+// iteration costs one product with H, two face projections and one application of Z; a change
+// of the face costs one factorization of the coarse matrix of the free rows, no product. The step
 // lengths and direction ratios give the estimate of FaceResult::spectrum (cg_spectrum.hpp).
 // Nothing is allocated once the workspace has its sizes.
 #pragma once
@@ -60,6 +68,7 @@ enum class FaceOutcome {
 struct FaceResult {
   FaceOutcome outcome = FaceOutcome::singular;
   int iterations = 0;        ///< CG steps (products with H: iterations + 1 when taken)
+  int changes = 0;           ///< faces set anew on the way (rows held at a bound or freed)
   double free_gradient = 0;  ///< ||P_F D g|| at exit
   double held_gradient = 0;  ///< the held rows' share of g^P (g + nu) at exit
   double set_seconds = 0;    ///< wall time of FaceHooks::set (the face's coarse matrix)
@@ -72,6 +81,13 @@ struct FaceResult {
   }
 };
 
+/// Bounds in a row reached by the first CG step on a face after which a face solve stops changing
+/// its face (step 3). Over bench/contact_products.py's 26 cases with 10 changes (the others in
+/// a temporary build): 0: 1,825 products, 1: 1,809, 3: 1,792, no limit: 1,787, but then the
+/// 40^3 cube-obstacle at A = 20 took 8-9 products more than without changes of the face (one
+/// row held per product), with 3: 2.
+inline constexpr int kMaxShortBounds = 3;
+
 struct FaceWorkspace {
   Vec free, c, t, w, z, p, Hp, phi, beta, x_save;
   CgLanczos lanczos;  ///< the CG coefficients (FaceResult::spectrum)
@@ -83,9 +99,10 @@ struct FaceWorkspace {
 /// face's equality multiplier G' mu out (when taken()); Z: the preconditioner or nullptr; tol: on
 /// ||P_F D g||; gamma: MPRGP's proportioning parameter (the solve leaves the face, outcome release,
 /// when the held rows' share of the projected gradient exceeds gamma ||P_F D g||: a held row is to
-/// be freed).
+/// be freed); max_changes: changes of the face on the way (step 3; 0: the solve ends at the
+/// first bound or release, outcome bound or release).
 FaceResult face_cg(Operator& H, const Vec& b, const Vec& lower, const Vec& upper, Vec& x, Vec& g,
                    Vec& nu, const FaceHooks& face, Operator* Z, const Reducer& red, double tol,
-                   double gamma, int max_iterations, FaceWorkspace& work);
+                   double gamma, int max_iterations, FaceWorkspace& work, int max_changes = 0);
 
 }  // namespace htfeti::qp

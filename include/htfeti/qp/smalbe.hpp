@@ -73,6 +73,10 @@ inline constexpr int kWarmIdleCount = 3;
 /// ||P_F D g|| relative to the global test's (the held rows' share of g^P needs the rest).
 inline constexpr int kMaxFaceSolves = 3;
 inline constexpr double kFaceTolerance = 0.5;
+/// Face changes one face solve may make (SmalbeOptions::face_changes, face_cg.hpp). Over the 26
+/// cases of bench/contact_products.py: none 1,910 products, 5: 1,810, 10: 1,792, 25: 1,792
+/// (bench/results/contact_products_face_changes*.json; docs/method.md "The face solve").
+inline constexpr int kFaceChanges = 10;
 struct SmalbeOptions {
   double rtol = 1e-4;            ///< relative precision eps (paper: 1e-4)
   double rho_factor = 1.1;       ///< rho = rho_factor * ||A|| (theory: rho close to ||F~||)
@@ -98,6 +102,9 @@ struct SmalbeOptions {
   /// held exactly, and the face's equality multiplier. It ends the solve when its point passes the
   /// global test; else the outer loop restarts from its point and multiplier.
   bool face_solve = true;
+  /// Face changes one face solve may make and go on (face_cg.hpp; 0: it ends at the first
+  /// bound or release).
+  int face_changes = kFaceChanges;
 };
 
 /// One outer iteration of SMALBE-M (SmalbeResult::outer_log): what its inner solve did and
@@ -132,6 +139,7 @@ struct SmalbeResult {
   int rho_updates = 0;               ///< late penalty updates made (step 4)
   int face_solves = 0;               ///< face solves taken (face_cg.hpp)
   int face_iterations = 0;           ///< their CG steps
+  int face_changes = 0;              ///< their changes of the face on the way (face_cg.hpp)
   int face_converged = 0;            ///< of them, those that ended the solve
   int face_tries = 0;                ///< face solves begun (also those declined or not taken)
   double face_seconds = 0;           ///< wall time in face solves, their products included

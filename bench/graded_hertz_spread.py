@@ -17,10 +17,12 @@ settings except what the row names:
 Counts do not depend on the machine's speed.
 
 Usage: bench/graded_hertz_spread.py [--seeds 1 2 3 4 5] [--threads 2]
-                                    [--out graded_hertz_spread.json]
+                                    [--extra "--face-changes 10"] [--out graded_hertz_spread.json]
+--extra: more htfeti options for every run but the reference.
 Writes bench/results/OUT."""
 import argparse
 import os
+import shlex
 import tempfile
 
 from common import machine, save, solve
@@ -29,8 +31,10 @@ from hertz_cases import COMMON, CONTACT, MESHES, contact_problems
 p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
 p.add_argument("--seeds", type=int, nargs="+", default=[1, 2, 3, 4, 5])
 p.add_argument("--threads", type=int, default=2)
+p.add_argument("--extra", default="", help="more htfeti options for every run but the reference")
 p.add_argument("--out", default="graded_hertz_spread.json")
 a = p.parse_args()
+extra = shlex.split(a.extra)
 
 LINEAR = '[[load]]\ngroup = "top"\ntraction = [0.0, 0.0, -1.0]\n'
 FAR_GAP = 'gap = "x^2 + y^2 > 0.25 ? 100 : 0.99 - sqrt(max(1e-12, 1 - x^2 - y^2))"'
@@ -57,7 +61,8 @@ with tempfile.TemporaryDirectory() as tmp:
     print(f"reference energy (rtol 1e-10): {reference:.12e}", flush=True)
     for seed in a.seeds:
         for pre in ("lumped", "dirichlet"):
-            r = solve([toml, "--partition-seed", seed, "--preconditioner", pre], threads=a.threads)
+            r = solve([toml, "--partition-seed", seed, "--preconditioner", pre, *extra],
+                      threads=a.threads)
             row = {"case": "contact", "mesh": label, "seed": seed, "preconditioner": pre,
                    **contact_row(r, reference)}
             rows.append(row)
@@ -75,7 +80,7 @@ with tempfile.TemporaryDirectory() as tmp:
         with open(lin, "w") as f:
             f.write(t[:t.index("[[contact]]")] + LINEAR)
         for pre in ("lumped", "dirichlet"):
-            r = solve([lin, "--preconditioner", pre], threads=a.threads)
+            r = solve([lin, "--preconditioner", pre, *extra], threads=a.threads)
             rows.append({"case": case, "mesh": mesh_label, "seed": 1, "preconditioner": pre,
                          "pcg_iterations": r["matvecs"]})
             print(f"linear {mesh_label:36s} {pre:9s} {r['matvecs']:4d} PCG products", flush=True)
@@ -83,12 +88,12 @@ with tempfile.TemporaryDirectory() as tmp:
     with open(far, "w") as f:
         f.write("\n".join(FAR_GAP if line.startswith("gap = ") else line
                           for line in text.splitlines()) + "\n")
-    r = solve([far], threads=a.threads)
+    r = solve([far, *extra], threads=a.threads)
     row = {"case": "contact, gap 100 beyond r = 0.5", "mesh": label, "seed": 1,
            "preconditioner": r["preconditioner"], **contact_row(r, reference)}
     rows.append(row)
     print(f"far gap: {row['products']} products, ||b|| {row['rhs_norm']:.4g}, gluing "
           f"{row['first_gluing_over_rtol']:.4g} rtol, {row['refinements']} refinements, energy "
           f"error {row['energy_error']:.1e}", flush=True)
-save(a.out, {"threads": a.threads, "reference_energy": reference, "rows": rows,
+save(a.out, {"threads": a.threads, "extra": a.extra, "reference_energy": reference, "rows": rows,
              "machine": machine()})

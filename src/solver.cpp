@@ -288,14 +288,9 @@ QpSolve solve_with_contact(DualProblem& dual, DualOperators& ops, Vec& lambda,
   out.matvecs = r.hessian_applications;
   out.converged = r.reason == qp::StopReason::converged;
   out.reason = to_string(r.reason);
-  // The MPRGP steps of every solve (the report's counts add up to the inner iterations).
-  int cg_steps = r.cg_steps, expansion_steps = r.expansion_steps,
-      cost_increases = r.expansion_cost_increases, proportioning_steps = r.proportioning_steps,
-      projected_cg_expansions = r.projected_cg_expansions;
-  int face_solves = r.face_solves, face_iterations = r.face_iterations,
-      face_changes = r.face_changes, face_converged = r.face_converged, face_tries = r.face_tries;
-  double face_seconds = r.face_seconds, face_set_seconds = r.face_set_seconds;
-  qp::SpectrumEstimate face_spectrum = r.face_spectrum;
+  // The MPRGP steps and face solves of every solve (the report's step counts add up to the
+  // inner iterations).
+  qp::SmalbeResult total = r;
   // SMALBE-M once more from x and nu (warm), its counts added to the first solve's.
   const auto solve_again = [&]() {
     r = qp::smalbe(qp, normA, x, red, so, hooks, progress, &nu);
@@ -304,19 +299,7 @@ QpSolve solve_with_contact(DualProblem& dual, DualOperators& ops, Vec& lambda,
     out.outer += r.outer_iterations;
     out.inner += r.inner_iterations;
     out.matvecs += r.hessian_applications;
-    cg_steps += r.cg_steps;
-    expansion_steps += r.expansion_steps;
-    cost_increases += r.expansion_cost_increases;
-    projected_cg_expansions += r.projected_cg_expansions;
-    face_solves += r.face_solves;
-    face_iterations += r.face_iterations;
-    face_changes += r.face_changes;
-    face_converged += r.face_converged;
-    face_tries += r.face_tries;
-    face_seconds += r.face_seconds;
-    face_set_seconds += r.face_set_seconds;
-    face_spectrum.merge(r.face_spectrum);
-    proportioning_steps += r.proportioning_steps;
+    total.add_counts(r);
     out.converged = r.reason == qp::StopReason::converged;
     out.reason = to_string(r.reason);
   };
@@ -395,20 +378,20 @@ QpSolve solve_with_contact(DualProblem& dual, DualOperators& ops, Vec& lambda,
                 {"rho_updates", r.rho_updates},
                 {"M_final", r.M},
                 {"alpha", r.alpha},
-                {"cg_steps", cg_steps},
-                {"expansion_steps", expansion_steps},
-                {"expansion_cost_increases", cost_increases},
-                {"projected_cg_expansions", projected_cg_expansions},
+                {"cg_steps", total.cg_steps},
+                {"expansion_steps", total.expansion_steps},
+                {"expansion_cost_increases", total.expansion_cost_increases},
+                {"projected_cg_expansions", total.projected_cg_expansions},
                 {"mprgp_expansion", qp::to_string(so.expansion)},
-                {"proportioning_steps", proportioning_steps},
-                {"face_solves", face_solves},
-                {"face_iterations", face_iterations},
-                {"face_changes", face_changes},
-                {"face_converged", face_converged},
-                {"face_tries", face_tries},
-                {"face_seconds", face_seconds},
-                {"face_set_seconds", face_set_seconds}};
-  out.solver["face_spectrum_estimate"] = spectrum_json(face_spectrum);
+                {"proportioning_steps", total.proportioning_steps},
+                {"face_solves", total.face_solves},
+                {"face_iterations", total.face_iterations},
+                {"face_changes", total.face_changes},
+                {"face_converged", total.face_converged},
+                {"face_tries", total.face_tries},
+                {"face_seconds", total.face_seconds},
+                {"face_set_seconds", total.face_set_seconds}};
+  out.solver["face_spectrum_estimate"] = spectrum_json(total.face_spectrum);
   if (!single_check.is_null()) out.solver["single_sweeps"] = single_check;
   if (steps.size() > 1) out.solver["accuracy_refinements"] = steps;
   out.solver["outer_log"] = std::move(outer_log);

@@ -75,7 +75,6 @@ FaceResult face_cg(Operator& H, const Vec& b, const Vec& l, const Vec& u, Vec& x
   p = z;
   double rz = red.dot(r, z);
   w.lanczos.start(max_iterations);
-  int changes = 0;
   int steps = 0;  // products with H
   int last_steps = 0;
   int short_hits = 0;
@@ -87,7 +86,6 @@ FaceResult face_cg(Operator& H, const Vec& b, const Vec& l, const Vec& u, Vec& x
     const bool ok = face.set(d);
     res.set_seconds += seconds_now() - ts;
     if (!ok) return false;
-    ++changes;
     ++res.changes;
     last_steps = steps;
     project(g, r, nu);
@@ -114,7 +112,7 @@ FaceResult face_cg(Operator& H, const Vec& b, const Vec& l, const Vec& u, Vec& x
   for (;;) {
     if (!proportional()) {
       // Free the held rows with a chopped gradient (those MPRGP's proportioning step moves).
-      if (changes < max_changes) {
+      if (res.changes < max_changes) {
         for (Eigen::Index i = 0; i < n; ++i)
           if (w.beta[i] != 0.0) d[i] = 1.0;
         if (restart()) continue;
@@ -138,7 +136,7 @@ FaceResult face_cg(Operator& H, const Vec& b, const Vec& l, const Vec& u, Vec& x
     }
     a_f = red.min(a_f);
     if (!(a_f > 0)) {  // a row freed on its bound that -p would move out of the bounds
-      if (changes < max_changes) {
+      if (res.changes < max_changes) {
         step_to_bound(0.0);
         if (restart()) continue;
       }
@@ -156,7 +154,7 @@ FaceResult face_cg(Operator& H, const Vec& b, const Vec& l, const Vec& u, Vec& x
     if (a > a_f) {
       // The feasible half step: the cost falls (a_f < a, the minimizer along p), G x = 0 holds.
       short_hits = steps - last_steps > 1 ? 0 : short_hits + 1;
-      if (changes < max_changes && short_hits <= kMaxShortBounds) {
+      if (res.changes < max_changes && short_hits <= kMaxShortBounds) {
         step_to_bound(a_f);
         g -= a_f * Hp;
         if (restart()) continue;

@@ -152,6 +152,20 @@ struct SmalbeResult {
   /// Per outer iteration, the first kMaxOuterRecords (a face solve's products fall in the
   /// record after it, or only in hessian_applications when it ends the solve).
   std::vector<SmalbeOuterRecord> outer_log;
+  /// Adds another solve's step and face counts (MPRGP's steps, the face solves' counts, times
+  /// and spectrum) to these: the totals over a run's solves (a continuation, Coulomb's next
+  /// solves). Iterations, products, the final state and the log stay this solve's.
+  void add_counts(const SmalbeResult& o) {
+    cg_steps += o.cg_steps, expansion_steps += o.expansion_steps;
+    proportioning_steps += o.proportioning_steps;
+    expansion_cost_increases += o.expansion_cost_increases;
+    projected_cg_expansions += o.projected_cg_expansions;
+    face_solves += o.face_solves, face_iterations += o.face_iterations;
+    face_changes += o.face_changes, face_converged += o.face_converged;
+    face_tries += o.face_tries;
+    face_seconds += o.face_seconds, face_set_seconds += o.face_set_seconds;
+    face_spectrum.merge(o.face_spectrum);
+  }
 };
 
 /// y = Z_rho x (the preconditioner in face, which depends on rho).

@@ -55,31 +55,81 @@ void perturb_load(SubdomainInput& in, double delta) {
     }
 }
 
-// The accuracy refinement (solve_parts.hpp) after a converged solve: the gluing residual of
-// lambda is checked, and while it is too large (the first time above kRefineRatio, then until
-// kRefineTarget) `again` solves on from where the last solve stopped, with rtol made smaller in
-// proportion (the gluing residual falls about as the dual residual does: half of what brings it
-// to kRefineTarget, between 1/1000 and 1/4 of the last rtol); `again` updates lambda and
-// converged. Returns the steps for the report's solver.accuracy_refinements (one per check).
-nlohmann::json refine_accuracy(const AccuracyCheck& check, const Vec& lambda, double& rtol,
-                               const bool& converged, const std::function<void()>& again,
-                               const StageNote& note) {
-  nlohmann::json steps = nlohmann::json::array();
-  for (int done = 0; converged; ++done) {
-    const double ratio = check(lambda);  // in units of the asked rtol
-    steps.push_back({{"rtol", rtol}, {"gluing_residual_over_rtol", ratio}});
-    const double limit = done == 0 ? kRefineRatio : kRefineTarget;
-    if (!(ratio > limit) || done >= kMaxRefinements) break;
-    rtol *= std::clamp(0.5 * kRefineTarget / ratio, 1e-3, 0.25);
+// The accuracy refinement (solve_parts.hpp). The gluing residual of lambda is checked, and while
+// it is too large (the first time above kRefineRatio, then until kRefineTarget) the solve goes on
+// with rtol made smaller in proportion (the gluing residual falls about as the dual residual
+// does: half of what brings it to kRefineTarget, between 1/1000 and 1/4 of the last rtol).
+// The first check may come inside the solve (qp::Tighten: in_solve), at the first point that
+// passes its test, where PCG and SMALBE-M's face solve go on without starting over; the
+// others come after a converged solve (after), whose `again` solves on from where the last
+// solve stopped, updating lambda and converged. steps() is the report's
+// solver.accuracy_refinements (one entry per check).
+class AccuracyRefinement {
+ public:
+  AccuracyRefinement(const AccuracyCheck& check, const StageNote& note)
+      : check_(check), note_(note) {}
+
+  // qp::Tighten for the first check: lambda passes its solve's test with rtol. The next rtol,
+  // or rtol where the gluing residual is at most kRefineRatio rtol. Once per run: later calls
+  // return rtol at once (no check).
+  double in_solve(const Vec& lambda, double rtol) {
+    if (!steps_.empty()) return rtol;
+    const double t = seconds_now();
+    const double ratio = check_(lambda);
+    steps_.push_back({{"rtol", rtol},
+                      {"gluing_residual_over_rtol", ratio},
+                      {"within_the_solve", true},
+                      {"seconds", seconds_now() - t}});
+    if (!(ratio > kRefineRatio)) return rtol;
+    const double next = rtol * factor(ratio);
+    ++done_;
+    note(ratio, kRefineRatio, next, "the solve goes on");
+    return next;
+  }
+
+  // After a converged solve whose rtol is `rtol` (the one it met; in_solve's where it went on).
+  void after(const Vec& lambda, double& rtol, const bool& converged,
+             const std::function<void()>& again) {
+    while (converged) {
+      const double t = seconds_now();
+      const double ratio = check_(lambda);  // in units of the asked rtol
+      steps_.push_back(
+          {{"rtol", rtol}, {"gluing_residual_over_rtol", ratio}, {"seconds", seconds_now() - t}});
+      const double limit = done_ == 0 ? kRefineRatio : kRefineTarget;
+      if (!(ratio > limit) || done_ >= kMaxRefinements) break;
+      rtol *= factor(ratio);
+      ++done_;
+      note(ratio, limit, rtol, "on");
+      again();
+    }
+  }
+
+  const nlohmann::json& steps() const { return steps_; }
+  bool refined() const { return done_ > 0; }
+  // The report's solver.accuracy_checks: the checks made and their seconds (a check of the
+  // lambda and factors of the last one is not made again and takes no time).
+  nlohmann::json summary() const {
+    double seconds = 0;
+    for (const auto& s : steps_) seconds += s["seconds"].get<double>();
+    return {{"checks", steps_.size()},
+            {"seconds", seconds},
+            {"within_the_solve", !steps_.empty() && steps_[0].contains("within_the_solve")}};
+  }
+
+ private:
+  static double factor(double ratio) { return std::clamp(0.5 * kRefineTarget / ratio, 1e-3, 0.25); }
+  void note(double ratio, double limit, double next, const char* how) const {
     char line[200];
     std::snprintf(line, sizeof line,
-                  "accuracy refinement %d: gluing residual %.3g rtol (above %g); on to rtol %.3g",
-                  done + 1, ratio, limit, rtol);
-    note(line);
-    again();
+                  "accuracy refinement %d: gluing residual %.3g rtol (above %g); %s to rtol %.3g",
+                  done_, ratio, limit, how, next);
+    note_(line);
   }
-  return steps;
-}
+  const AccuracyCheck& check_;
+  const StageNote& note_;
+  nlohmann::json steps_ = nlohmann::json::array();
+  int done_ = 0;  // refinements begun
+};
 
 // The report's form of a CG run's estimate of its operator's extreme eigenvalues
 // (qp/cg_spectrum.hpp): null when no CG step was taken.
@@ -88,6 +138,9 @@ nlohmann::json spectrum_json(const qp::SpectrumEstimate& s) {
   return {{"min", s.min}, {"max", s.max}, {"ratio", s.ratio()}, {"cg_steps", s.steps}};
 }
 
+constexpr const char* kGoOnFailedNote =
+    "accuracy refinement: the solve did not meet the smaller rtol where it went on; on from the "
+    "point where it did";
 constexpr const char* kSingleCheckNote =
     "check: converged with the factors' single-precision copies; on with the factors (double)";
 
@@ -137,8 +190,15 @@ QpSolve solve_without_contact(DualProblem& dual, DualOperators& ops, Vec& lambda
     ops.M.apply(x, pz);
     ops.P.apply(pz, y);
   });
+  // The first accuracy check comes where PCG first meets its test, which goes on from there
+  // when the check asks for a smaller rtol (AccuracyRefinement::in_solve).
+  AccuracyRefinement refinement(check, note);
+  po.tighten = [&](const Vec& x, double rtol) { return refinement.in_solve(x, rtol); };
   lambda = dual.lambda_tilde();
   auto r = qp::projected_cg(qp, lambda, red, po, progress, ops.preconditioned ? &Z : nullptr);
+  po.tighten = nullptr;
+  po.rtol = r.rtol;  // the rtol it met
+  if (r.go_on_failed) note(kGoOnFailedNote);
   qp::SpectrumEstimate spectrum = r.spectrum;  // merged over the runs below
   QpSolve out;
   out.outer = r.iterations;
@@ -160,16 +220,14 @@ QpSolve solve_without_contact(DualProblem& dual, DualOperators& ops, Vec& lambda
                       {"check_iterations", r.iterations}};
     }
   }
-  // The accuracy refinement: PCG again from lambda (in lambda~ + Ker G~) with a smaller rtol.
-  const nlohmann::json steps = refine_accuracy(
-      check, lambda, po.rtol, out.converged,
-      [&]() {
-        r = qp::projected_cg(qp, lambda, red, po, progress, ops.preconditioned ? &Z : nullptr);
-        spectrum.merge(r.spectrum);
-        out.outer += r.iterations;
-        out.converged = r.reason == qp::StopReason::converged;
-      },
-      note);
+  // The accuracy refinement after the solve: PCG again from lambda (in lambda~ + Ker G~) with a
+  // smaller rtol.
+  refinement.after(lambda, po.rtol, out.converged, [&]() {
+    r = qp::projected_cg(qp, lambda, red, po, progress, ops.preconditioned ? &Z : nullptr);
+    spectrum.merge(r.spectrum);
+    out.outer += r.iterations;
+    out.converged = r.reason == qp::StopReason::converged;
+  });
   out.matvecs = ops.F.count();
   out.reason = to_string(r.reason);
   out.solver = {{"algorithm", "pcg"},
@@ -183,7 +241,8 @@ QpSolve solve_without_contact(DualProblem& dual, DualOperators& ops, Vec& lambda
     out.solver["weighted_projection_seconds"] = weighted_seconds;
   out.solver["spectrum_estimate"] = spectrum_json(spectrum);
   if (!single_check.is_null()) out.solver["single_sweeps"] = single_check;
-  if (steps.size() > 1) out.solver["accuracy_refinements"] = steps;
+  out.solver["accuracy_checks"] = refinement.summary();
+  if (refinement.refined()) out.solver["accuracy_refinements"] = refinement.steps();
   return out;
 }
 
@@ -255,9 +314,22 @@ QpSolve solve_with_contact(DualProblem& dual, DualOperators& ops, Vec& lambda,
   hooks.face.set = [&](const Vec& free) { return dual.set_face(free); };
   hooks.face.correction = [&](const Vec& v, Vec& y) { dual.face_correction(v, y); };
   hooks.face.cheap = [&]() { return dual.face_cheap(); };
+  // The first accuracy check comes where a face solve first ends the solve, which goes on from
+  // there when the check asks for a smaller rtol (AccuracyRefinement::in_solve). Not with
+  // Coulomb friction, whose refinement comes after the fixed point.
+  AccuracyRefinement refinement(check, note);
+  Vec lam_check(dual.has_coulomb() ? 0 : n);
+  if (!dual.has_coulomb())
+    hooks.tighten = [&](const Vec& x, double rtol) {
+      lam_check = qp.shift + x;
+      return refinement.in_solve(lam_check, rtol);
+    };
   Vec x = Vec::Zero(n);
   Vec nu;  // the equality's multiplier: each Coulomb solve starts from the last one's
   auto r = qp::smalbe(qp, normA, x, red, so, hooks, progress, &nu);
+  hooks.tighten = nullptr;
+  so.rtol = r.rtol;  // the rtol it met
+  if (r.go_ons_failed > 0) note(kGoOnFailedNote);
   lambda = qp.shift + x;
   // The report's solver.outer_log: every outer iteration of every SMALBE-M call of the run
   // (the first, the Coulomb fixed point's, the single-precision check, the refinements), with
@@ -360,8 +432,7 @@ QpSolve solve_with_contact(DualProblem& dual, DualOperators& ops, Vec& lambda,
                       {"check_outer_iterations", out.outer - outer_before}};
     }
   }
-  const nlohmann::json steps =
-      refine_accuracy(check, lambda, so.rtol, out.converged, refine_again, note);
+  refinement.after(lambda, so.rtol, out.converged, refine_again);
   const bool discs = dynamic_cast<const qp::SeparableSet*>(qp.constraints.get()) != nullptr;
   out.solver = {{"algorithm", discs ? "smalbe-m+mpgp" : "smalbe-m+mprgp"},
                 {"projected_gradient", r.projected_gradient},
@@ -393,7 +464,8 @@ QpSolve solve_with_contact(DualProblem& dual, DualOperators& ops, Vec& lambda,
                 {"face_set_seconds", total.face_set_seconds}};
   out.solver["face_spectrum_estimate"] = spectrum_json(total.face_spectrum);
   if (!single_check.is_null()) out.solver["single_sweeps"] = single_check;
-  if (steps.size() > 1) out.solver["accuracy_refinements"] = steps;
+  out.solver["accuracy_checks"] = refinement.summary();
+  if (refinement.refined()) out.solver["accuracy_refinements"] = refinement.steps();
   out.solver["outer_log"] = std::move(outer_log);
   // The fixed point's history: per step the relative change of the slip bounds.
   if (dual.has_coulomb())
@@ -643,7 +715,15 @@ SolveOutput solve(std::shared_ptr<const Model> model_ptr, const SolveOptions& op
   std::vector<Vec> checked_u;
   double t_rec = 0, t_kkt = 0;
   DualProblem::Kkt checked_kkt;
+  // A check of the lambda of the last check with the same factors (the first check inside the
+  // solve, then the one after it when the solve did not go on) is not made again.
+  Vec checked_lambda;
+  bool checked_single = false;
+  double checked_ratio = 0;
   const AccuracyCheck check = [&](const Vec& lam) {
+    const bool again = checked_lambda.size() == lam.size() &&
+                       checked_single == dual.single_sweeps() && checked_lambda == lam;
+    if (comm.min(again ? 1.0 : 0.0) > 0) return checked_ratio;
     double t = seconds_now();
     require_finite(comm, lam.allFinite(), "the multipliers lambda at the end of the solve");
     checked_u = dual.reconstruct(lam);
@@ -651,9 +731,12 @@ SolveOutput solve(std::shared_ptr<const Model> model_ptr, const SolveOptions& op
     t = seconds_now();
     checked_kkt = dual.kkt(checked_u, lam);
     t_kkt = seconds_now() - t;
-    return checked_kkt.equality_scale > 0
-               ? checked_kkt.equality_residual / checked_kkt.equality_scale / options.rtol
-               : 0.0;
+    checked_lambda = lam;
+    checked_single = dual.single_sweeps();
+    checked_ratio = checked_kkt.equality_scale > 0
+                        ? checked_kkt.equality_residual / checked_kkt.equality_scale / options.rtol
+                        : 0.0;
+    return checked_ratio;
   };
   const StageNote note = [&](const std::string& line) {
     if (verbose) std::fprintf(stderr, "  %s\n", line.c_str());

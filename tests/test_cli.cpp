@@ -1819,14 +1819,17 @@ cluster_size = )" << cluster_size
 // its own weight, the clusters formed from the parts (cluster_split = "subdomains": ill-
 // conditioned, see the next test), where the dual stopping test at rtol 1e-4 left the gluing
 // residual
-// ||B_E u - c_E|| at 15 rtol of ||u|| + ||c_E||: the solve goes on from there with a smaller
-// rtol until it is at most 0.1 rtol (where TFETI's solves end by themselves). Checked against
-// TFETI on the same parts: the same energy to 2e-5 (measured 7e-6; the unrefined H-TFETI-DP
-// solve was 5e-4 off). On METIS's parts as METIS made them (decomposition.shape = "metis"), the
-// split this was measured on: on compact parts the refined solve's gluing residual ends at 0.06
-// rtol with the energy 4.9e-5 from TFETI's (TFETI's own 2e-8 from the rtol-1e-10 energy).
-// --progress on a contact solve (examples/sphere-on-block.toml: the first solve, the check with
-// the factors after the single-precision sweeps, one accuracy refinement): one `it` line per
+// ||B_E u - c_E|| at 14 rtol of ||u|| + ||c_E||: PCG goes on from there (without starting over)
+// with a smaller rtol, and the gluing residual ends at most 0.1 rtol (where TFETI's solves end
+// by themselves). Checked against TFETI on the same parts: the same energy to 5e-6 (measured
+// 1.0e-6 going on; 1.0e-5 when the refinement started PCG over, 192 products against 175; the
+// unrefined H-TFETI-DP solve was 5e-4 off). On METIS's parts as METIS made them
+// (decomposition.shape = "metis"), the split this was measured on: on compact parts the refined
+// solve's gluing residual ends at 0.06 rtol with the energy 4.9e-5 from TFETI's (TFETI's own 2e-8
+// from the rtol-1e-10 energy).
+// --progress on a contact solve (examples/sphere-on-block.toml: the first solve, whose face solve
+// goes on to a smaller rtol for the accuracy refinement, then the check with the factors after
+// the single-precision sweeps): one `it` line per
 // outer iteration, `it 0` where a continuation's start point passes the test, `face` where a
 // face solve ends a solve, a line before each continuation; the F applications so far never
 // decrease, and the last line's ||g^P|| / ||b|| is the report's.
@@ -1846,7 +1849,11 @@ TEST_F(Cli, ProgressLinesOfAContactSolve) {
   while (std::getline(in, line)) {
     if (line.find("check: converged with the factors'") != std::string::npos) check = true;
     if (line.find("accuracy refinement 1: gluing residual") != std::string::npos) {
-      EXPECT_TRUE(check) << text;  // the check comes first
+      // Within the first solve, where its face solve met rtol and went on (before the check
+      // with the factors), or after the check.
+      const bool within = line.find("; the solve goes on to rtol") != std::string::npos;
+      EXPECT_EQ(within, !check) << text;
+      EXPECT_EQ(within, sv["accuracy_refinements"][0].value("within_the_solve", false)) << text;
       refinement = true;
     }
     const bool it = line.rfind("  it ", 0) == 0, face = line.rfind("  face ", 0) == 0;
@@ -1902,6 +1909,9 @@ TEST_F(Cli, AccuracyRefinementBringsTheGluingResidualToRtol) {
                 steps[0]["gluing_residual_over_rtol"].get<double>());
   EXPECT_NE(hp.find(line), std::string::npos) << hp;
   EXPECT_EQ(hp.find("accuracy refinement 1:"), hp.rfind("accuracy refinement 1:")) << hp;
+  // PCG went on from where it met rtol (the first check is within the solve).
+  EXPECT_TRUE(steps[0].value("within_the_solve", false)) << steps.dump();
+  EXPECT_NE(hp.find("; the solve goes on to rtol"), std::string::npos) << hp;
   EXPECT_EQ(hp.find("check: converged with the factors' single-precision"), std::string::npos);
   ASSERT_TRUE(t["solver"].contains("single_sweeps")) << t["solver"].dump();
   EXPECT_NE(tp.find("check: converged with the factors' single-precision copies"),
@@ -1909,7 +1919,7 @@ TEST_F(Cli, AccuracyRefinementBringsTheGluingResidualToRtol) {
       << tp;
   EXPECT_EQ(tp.find("accuracy refinement"), std::string::npos) << tp;
   const double eh = h["objective"].get<double>(), et = t["objective"].get<double>();
-  EXPECT_LT(std::abs(eh - et), 2e-5 * std::abs(et)) << eh << " " << et;
+  EXPECT_LT(std::abs(eh - et), 5e-6 * std::abs(et)) << eh << " " << et;
 }
 
 // Clusters of METIS parts have about the size asked for: METIS 5.1's k-way split of the 64

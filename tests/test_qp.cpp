@@ -148,6 +148,20 @@ void expect_kkt(const Qp& q, const Vec& x, double tol) {
   }
 }
 
+// A symmetric positive definite n x n matrix with eigenvalues spread from 1 to `spread`
+// (logarithmically) in a random orthonormal basis: CG needs many steps on it.
+Eigen::MatrixXd spread_spd(int n, double spread, unsigned seed) {
+  std::mt19937 gen(seed);
+  std::normal_distribution<double> N01;
+  Eigen::MatrixXd M(n, n);
+  for (int i = 0; i < n; ++i)
+    for (int j = 0; j < n; ++j) M(i, j) = N01(gen);
+  const Eigen::MatrixXd Q = Eigen::HouseholderQR<Eigen::MatrixXd>(M).householderQ();
+  Vec ev(n);
+  for (int i = 0; i < n; ++i) ev[i] = std::pow(spread, static_cast<double>(i) / (n - 1));
+  return Q * ev.asDiagonal() * Q.transpose();
+}
+
 }  // namespace
 
 class MprgpConformance : public ::testing::TestWithParam<unsigned> {};
@@ -561,6 +575,66 @@ TEST(FaceCg, ChangesItsFaceOnTheWayToTheSolution) {
   EXPECT_GT(solved, 12);
 }
 
+// The face solve goes on (FaceGoOn): on the solution's face of a QP with a spread spectrum,
+// asked at tol 1e-4 to go on to 1e-11, face_cg continues its CG: the result is that of a run
+// asked for 1e-11 from the start, to the bit. Asked for an unattainable tol, it ends where it
+// went on: the point of a run without going on, to the bit, converged, go_on_failed.
+TEST(FaceCg, GoesOnToASmallerTolOnItsFace) {
+  const int n = 60, bounded = 6, me = 2;
+  Qp q = random_qp(n, bounded, me, 3, false);
+  q.A = spread_spd(n, 1e3, 3);
+  const Vec xs = exact_solution(q, bounded);
+  DenseOperator A(q.A);
+  SerialReducer red;
+  Vec start = xs;
+  int held = 0;
+  for (int i = 0; i < n; ++i)
+    if (xs[i] > q.l[i] + 1e-9)
+      start[i] += 1e-3 * std::min(1.0, xs[i] - q.l[i]) * std::sin(3.0 * i);
+    else
+      ++held;
+  const auto run = [&](double tol, const FaceGoOn& go_on, Vec& x) {
+    DenseFace face{q.G, {}, 0};
+    x = start;
+    Vec g = q.A * x - q.b, nu;
+    FaceWorkspace work;
+    return face_cg(A, q.b, q.l, Vec(), x, g, nu, face.hooks(), nullptr, red, tol, 1.0, 1000, work,
+                   0, go_on);
+  };
+  Vec direct, loose, on, vain;
+  const FaceResult rd = run(1e-11, {}, direct);
+  ASSERT_EQ(rd.outcome, FaceOutcome::converged);
+  EXPECT_GT(rd.iterations, 20);
+  const FaceResult rl = run(1e-4, {}, loose);
+  ASSERT_EQ(rl.outcome, FaceOutcome::converged);
+  EXPECT_LT(rl.iterations, rd.iterations);
+  int calls = 0;
+  const FaceResult ro = run(
+      1e-4,
+      [&](const Vec& x, double gp) {
+        if (++calls > 1) return 0.0;  // asked again where 1e-11 is met: stop there
+        EXPECT_EQ(x, loose);          // asked first where the loose run ended
+        EXPECT_GE(gp, rl.free_gradient);
+        return 1e-11;
+      },
+      on);
+  EXPECT_EQ(calls, 2);
+  EXPECT_EQ(ro.outcome, FaceOutcome::converged);
+  EXPECT_EQ(ro.go_ons, 1);
+  EXPECT_FALSE(ro.go_on_failed);
+  EXPECT_EQ(on, direct);
+  EXPECT_EQ(ro.iterations, rd.iterations);
+  EXPECT_LT((on - xs).norm(), 1e-8);
+  const FaceResult rv = run(
+      1e-4, [](const Vec&, double) { return 1e-300; }, vain);
+  EXPECT_EQ(rv.outcome, FaceOutcome::converged);
+  EXPECT_TRUE(rv.go_on_failed);
+  EXPECT_EQ(vain, loose);
+  EXPECT_EQ(rv.free_gradient, rl.free_gradient);
+  EXPECT_GT(rv.iterations, rl.iterations);
+  EXPECT_GT(held, 0);
+}
+
 // SMALBE-M with the face solve reaches the enumerated solutions (bounds and boxes, with and
 // without a preconditioner), and across the suite some runs end by a face solve.
 TEST(Smalbe, FaceSolveReachesTheEnumeratedSolutions) {
@@ -693,6 +767,42 @@ TEST(Smalbe, WarmStartTriesTheFaceFirst) {
   }
   EXPECT_GT(at_start, 12);  // strict complementarity holds for most seeds
   EXPECT_GT(kept, 0);
+}
+
+// SmalbeHooks::tighten: asked where a face solve's point passes the test at rtol 1e-4, it asks
+// for 1e-11; where the face solve ends the solve, the solve meets 1e-11 (SmalbeResult::rtol and
+// its tolerance: the face solve went on, or its point met 1e-11 already) and reaches the
+// enumerated solution, as a solve asked for 1e-11 does. The callback is asked with a feasible x,
+// at most twice per face solve (where 1e-4 is met and where 1e-11 is).
+TEST(Smalbe, FaceSolveGoesOnToTheRtolAsked) {
+  int tightened = 0;
+  for (unsigned seed = 1; seed <= 12; ++seed) {
+    FaceCase c(seed);
+    c.opt.rtol = 1e-4;
+    int calls = 0;
+    c.hooks.tighten = [&](const Vec& x, double rtol) {
+      ++calls;
+      EXPECT_TRUE((x.array() >= c.q.l.array()).all()) << seed;
+      return rtol > 1e-11 ? 1e-11 : rtol;
+    };
+    Vec x = Vec::Zero(FaceCase::n);
+    const auto r = smalbe(c.qp, c.normA, x, c.red, c.opt, c.hooks);
+    ASSERT_EQ(r.reason, StopReason::converged) << seed;
+    EXPECT_LE(calls, 2 * r.face_solves) << seed;
+    EXPECT_LE(r.go_ons, 1) << seed;
+    EXPECT_EQ(r.go_ons_failed, 0) << seed;
+    EXPECT_LE(r.projected_gradient, r.tolerance) << seed;
+    if (r.face_converged == 1 && calls > 0) {
+      ++tightened;
+      EXPECT_EQ(r.rtol, 1e-11) << seed;
+      EXPECT_LE(r.tolerance, std::max(1e-11 * c.red.norm(c.q.b), 1e-12)) << seed;
+      EXPECT_LT((x - c.xs).norm(), 1e-8) << seed;
+      expect_kkt(c.q, x, 1e-8);
+    } else {
+      EXPECT_EQ(r.rtol, 1e-4) << seed;
+    }
+  }
+  EXPECT_GT(tightened, 6);
 }
 
 // A continuation (the accuracy refinement): a loose solve, then SMALBE-M again from its x, its
@@ -1169,6 +1279,61 @@ TEST(Pcg, EqualityConstrainedMatchesKkt) {
   EXPECT_LT((q.G * xz - e).norm(), 1e-12);
   EXPECT_LT((xz - x).norm(), 1e-9 * x.norm());
   EXPECT_EQ(Z.count(), rz.iterations + 1);
+}
+
+// PcgOptions::tighten: asked once where PCG meets rtol 1e-3, it has PCG go on to 1e-9. Going on
+// continues the recurrences, so the run is the one asked for 1e-9 from the start, to the bit,
+// with no more products; the callback sees the point that met 1e-3. Asked for what round-off
+// cannot give (1e-300), PCG ends, converged for the rtol it met, at its best iterate.
+TEST(Pcg, GoesOnToASmallerRtolWithoutStartingOver) {
+  const int n = 120, me = 4;
+  Qp q = random_qp(n, 0, me, 7, false);
+  const Eigen::MatrixXd Pm = Eigen::MatrixXd::Identity(n, n) - q.G.transpose() * q.G;
+  q.A = spread_spd(n, 1e4, 7);
+  DenseOperator A(q.A), P(Pm);
+  SerialReducer red;
+  QuadraticProgram pq;
+  pq.hessian = borrow(A);
+  pq.linear = q.b;
+  pq.equality_projector = borrow(P);
+  const Vec x0 = q.G.transpose() * Vec::LinSpaced(me, 0.5, 1.5);
+  const double pb = (Pm * q.b).norm();
+  const auto residual = [&](const Vec& x) { return (Pm * (q.b - q.A * x)).norm() / pb; };
+  PcgOptions opt;
+  opt.rtol = 1e-9;
+  Vec direct = x0;
+  const auto rd = projected_cg(pq, direct, red, opt);
+  ASSERT_EQ(rd.reason, StopReason::converged);
+  const long direct_products = A.count();
+  opt.rtol = 1e-3;
+  int calls = 0;
+  opt.tighten = [&](const Vec& x, double rtol) {
+    ++calls;
+    EXPECT_EQ(rtol, calls == 1 ? 1e-3 : 1e-9);
+    if (calls == 1) EXPECT_LE(residual(x), 1e-3 * (1 + 1e-8));
+    return calls == 1 ? 1e-9 : rtol;
+  };
+  Vec x = x0;
+  const auto r = projected_cg(pq, x, red, opt);
+  ASSERT_EQ(r.reason, StopReason::converged);
+  EXPECT_EQ(calls, 2);
+  EXPECT_EQ(r.go_ons, 1);
+  EXPECT_FALSE(r.go_on_failed);
+  EXPECT_EQ(r.rtol, 1e-9);
+  EXPECT_EQ(x, direct);
+  EXPECT_EQ(r.iterations, rd.iterations);
+  EXPECT_EQ(A.count() - direct_products, direct_products);
+  EXPECT_LE(residual(x), 1e-9 * (1 + 1e-6));
+  EXPECT_GT(rd.iterations, 30);  // CG took many steps: the continuation is not trivial
+  // Unattainable: back to the rtol met, converged, at least as good as where it went on.
+  opt.tighten = [](const Vec&, double rtol) { return rtol > 1e-300 ? 1e-300 : rtol; };
+  Vec y = x0;
+  const auto rf = projected_cg(pq, y, red, opt);
+  EXPECT_EQ(rf.reason, StopReason::converged);
+  EXPECT_TRUE(rf.go_on_failed);
+  EXPECT_EQ(rf.rtol, 1e-3);
+  EXPECT_LE(residual(y), 1e-3);
+  EXPECT_LE(rf.projected_residual, 1e-3 * pb);
 }
 
 TEST(Failures, NonConvergenceIsAResult) {

@@ -10,7 +10,7 @@ namespace htfeti::qp {
 
 FaceResult face_cg(Operator& H, const Vec& b, const Vec& l, const Vec& u, Vec& x, Vec& g, Vec& nu,
                    const FaceHooks& face, Operator* Z, const Reducer& red, double tol, double gamma,
-                   int max_iterations, FaceWorkspace& w, int max_changes) {
+                   int max_iterations, FaceWorkspace& w, int max_changes, const FaceGoOn& go_on) {
   const Eigen::Index n = b.size();
   const bool upper = u.size() == n;
   const double inf = std::numeric_limits<double>::infinity();
@@ -78,6 +78,17 @@ FaceResult face_cg(Operator& H, const Vec& b, const Vec& l, const Vec& u, Vec& x
   int steps = 0;  // products with H
   int last_steps = 0;
   int short_hits = 0;
+  int go_on_until = -1;  // going on to a smaller tol (FaceGoOn): the step limit; -1: not
+  double go_free = 0, go_held = 0;
+  // Going on ends at a bound, a release or the step limit: back to the point where it went on.
+  const auto went_on_in_vain = [&]() {
+    if (go_on_until < 0) return false;
+    x = w.go_x, g = w.go_g, nu = w.go_nu;
+    res.free_gradient = go_free, res.held_gradient = go_held;
+    res.go_on_failed = true;
+    res.outcome = FaceOutcome::converged;
+    return true;
+  };
   // A new face (d changed): set, the gradient's projection, CG restarted. False when G D G' is
   // singular: the solve ends (the last face's factor is gone, nu is that of the last face).
   const auto restart = [&]() {
@@ -111,6 +122,7 @@ FaceResult face_cg(Operator& H, const Vec& b, const Vec& l, const Vec& u, Vec& x
   };
   for (;;) {
     if (!proportional()) {
+      if (went_on_in_vain()) break;
       // Free the held rows with a chopped gradient (those MPRGP's proportioning step moves).
       if (res.changes < max_changes) {
         for (Eigen::Index i = 0; i < n; ++i)
@@ -121,10 +133,23 @@ FaceResult face_cg(Operator& H, const Vec& b, const Vec& l, const Vec& u, Vec& x
       break;
     }
     if (res.free_gradient <= tol) {
-      res.outcome = FaceOutcome::converged;
-      break;
+      const double next = go_on ? go_on(x, std::hypot(res.free_gradient, res.held_gradient)) : 0.0;
+      if (!(next > 0 && next < tol) || res.free_gradient <= next) {
+        res.outcome = FaceOutcome::converged;
+        break;
+      }
+      w.go_x = x, w.go_g = g, w.go_nu = nu;
+      go_free = res.free_gradient, go_held = res.held_gradient;
+      // The steps CG's bound asks for with the spectrum seen on every face of this solve.
+      SpectrumEstimate seen = res.spectrum;
+      seen.merge(w.lanczos.estimate());
+      go_on_until = steps + kGoOnExtraSteps + cg_steps_for(seen, next / tol);
+      tol = next;
+      ++res.go_ons;
     }
+    if (go_on_until >= 0 && steps >= go_on_until && went_on_in_vain()) break;
     if (steps >= max_iterations) {
+      if (went_on_in_vain()) break;
       res.outcome = FaceOutcome::max_iterations;
       break;
     }
@@ -136,6 +161,7 @@ FaceResult face_cg(Operator& H, const Vec& b, const Vec& l, const Vec& u, Vec& x
     }
     a_f = red.min(a_f);
     if (!(a_f > 0)) {  // a row freed on its bound that -p would move out of the bounds
+      if (went_on_in_vain()) break;
       if (res.changes < max_changes) {
         step_to_bound(0.0);
         if (restart()) continue;
@@ -147,11 +173,13 @@ FaceResult face_cg(Operator& H, const Vec& b, const Vec& l, const Vec& u, Vec& x
     ++steps;
     const double pHp = red.dot(p, Hp);
     if (!(pHp > 0)) {
+      if (went_on_in_vain()) break;
       res.outcome = FaceOutcome::breakdown;
       break;
     }
     const double a = rz / pHp;
     if (a > a_f) {
+      if (went_on_in_vain()) break;
       // The feasible half step: the cost falls (a_f < a, the minimizer along p), G x = 0 holds.
       short_hits = steps - last_steps > 1 ? 0 : short_hits + 1;
       if (res.changes < max_changes && short_hits <= kMaxShortBounds) {

@@ -20,18 +20,31 @@ PcgResult projected_cg(const QuadraticProgram& qp, Vec& x, const Reducer& red,
   Vec best(n);  // the iterate with the smallest projected residual so far
   double best_residual = std::numeric_limits<double>::infinity();
   int best_iteration = 0;
-  // Ends a run that cannot improve: the iterate with the smallest residual, and that residual.
   CgLanczos lanczos;
   lanczos.start(opt.max_iterations);
+  P.apply(b, w);
+  res.projected_rhs = red.norm(w);
+  const double scale = res.projected_rhs > 0 ? res.projected_rhs : 1.0;
+  res.rtol = opt.rtol;
+  double tol = opt.rtol * scale;
+  // Going on to a smaller rtol (PcgOptions::tighten): the rtol met where it went on, and the
+  // iteration by which the new test has to be met (-1: not going on).
+  double go_on_rtol = 0;
+  int go_on_until = -1;
+  // Ends a run that cannot improve: the iterate with the smallest residual, and that residual.
+  // After going on, that iterate met the last rtol (the point where it went on, or a better
+  // one): the run converged for it.
   const auto take_best = [&](StopReason why) {
     res.reason = why;
     res.spectrum = lanczos.estimate();
     if (best_residual < res.projected_residual) x = best, res.projected_residual = best_residual;
+    if (go_on_until >= 0) {
+      res.reason = StopReason::converged;
+      res.rtol = go_on_rtol;
+      res.go_on_failed = true;
+    }
     return res;
   };
-  P.apply(b, w);
-  res.projected_rhs = red.norm(w);
-  const double tol = opt.rtol * (res.projected_rhs > 0 ? res.projected_rhs : 1.0);
   A.apply(x, q);
   r = b - q;      // residual
   P.apply(r, w);  // projected residual (the gradient in Ker G)
@@ -47,12 +60,22 @@ PcgResult projected_cg(const QuadraticProgram& qp, Vec& x, const Reducer& red,
   for (int it = 0;; ++it) {
     res.iterations = it;
     res.projected_residual = std::sqrt(ww);
-    if (progress) progress(it, res.projected_residual / (tol / opt.rtol), 0.0);
+    if (progress) progress(it, res.projected_residual / scale, 0.0);
     if (res.projected_residual <= tol) {
-      res.reason = StopReason::converged;
-      res.spectrum = lanczos.estimate();
-      return res;
+      const double next = opt.tighten ? opt.tighten(x, res.rtol) : res.rtol;
+      if (next < res.rtol && res.projected_residual <= next * scale) res.rtol = next;  // met
+      if (!(next < res.rtol)) {
+        res.reason = StopReason::converged;
+        res.spectrum = lanczos.estimate();
+        return res;
+      }
+      go_on_rtol = res.rtol;
+      go_on_until = it + kGoOnExtraSteps + cg_steps_for(lanczos.estimate(), next / res.rtol);
+      res.rtol = next;
+      tol = next * scale;
+      ++res.go_ons;
     }
+    if (go_on_until >= 0 && it >= go_on_until) return take_best(StopReason::max_iterations);
     if (res.projected_residual < best_residual) {
       best_residual = res.projected_residual;
       best = x;
@@ -64,6 +87,7 @@ PcgResult projected_cg(const QuadraticProgram& qp, Vec& x, const Reducer& red,
     }
     if (it >= opt.max_iterations) return take_best(StopReason::max_iterations);
     if (!(wz > 0)) {  // a preconditioner that is not positive definite on Ker G
+      if (go_on_until >= 0) return take_best(StopReason::breakdown);
       res.reason = StopReason::breakdown;
       res.spectrum = lanczos.estimate();
       return res;
@@ -71,6 +95,7 @@ PcgResult projected_cg(const QuadraticProgram& qp, Vec& x, const Reducer& red,
     A.apply(p, q);  // the bottleneck: one dual operator application
     const double pq = red.dot(p, q);
     if (!(pq > 0)) {
+      if (go_on_until >= 0) return take_best(StopReason::breakdown);
       res.reason = StopReason::breakdown;
       res.spectrum = lanczos.estimate();
       return res;

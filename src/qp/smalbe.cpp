@@ -56,14 +56,15 @@ SmalbeResult smalbe(const QuadraticProgram& qp, double normA, Vec& x, const Redu
   const bool shifted = qp.shift.size() == n;
   Vec lam(shifted ? n : 0);         // lambda = shift + x (x itself without a shift)
   double grad_tol = 0, eq_tol = 0;  // eq_tol = grad_tol / ||A||: ||G x||'s bound, units of x
+  res.rtol = opt.rtol;              // smaller where a face solve went on (SmalbeHooks::tighten)
   const auto set_tolerances = [&]() {
     if (shifted) lam = qp.shift + x;
     res.multiplier_norm = red.norm(shifted ? lam : x);
     const double floor = floor_rel * (res.rhs_norm + normA * res.multiplier_norm);
-    grad_tol = std::max(opt.rtol * bnorm, floor);
+    grad_tol = std::max(res.rtol * bnorm, floor);
     eq_tol = grad_tol / normA;
     res.tolerance = grad_tol;
-    res.roundoff_floor = floor > opt.rtol * bnorm;
+    res.roundoff_floor = floor > res.rtol * bnorm;
   };
   set_tolerances();
   // MPRGP's expansion step length for ||H_rho|| = max(||A||, rho).
@@ -141,16 +142,36 @@ SmalbeResult smalbe(const QuadraticProgram& qp, double normA, Vec& x, const Redu
   // and rho kept (face_kept). Only a breakdown or a face not taken leaves x as it was. One try
   // per active set: a face that did not finish is not tried again until the set changes.
   // Needs g = H x - (b - nu) at x.
+  // At a converged face point that passes the global test (G x = 0 holds there to round-off),
+  // the caller may ask for a smaller rtol (SmalbeHooks::tighten): the face solve goes on to it,
+  // or, where it cannot, ends at that point with the rtol it met (rtol_met).
+  double rtol_met = res.rtol;
+  const FaceGoOn go_on = [&](const Vec& xf, double gp) {
+    if (!hooks.tighten || !(gp <= grad_tol)) return 0.0;
+    const double next = hooks.tighten(xf, res.rtol);
+    if (!(next < res.rtol)) return 0.0;
+    rtol_met = res.rtol;
+    res.rtol = next;
+    set_tolerances();
+    return kFaceTolerance * grad_tol;
+  };
   const auto face_attempt = [&]() {
     ++res.face_tries;
     face_tried = true;
     face_work.x_save = x;
     fg = g - nu;  // H x - b
-    const FaceResult fr = face_cg(
-        H, b, l, u, x, fg, fnu, hooks.face, hooks.preconditioner ? &Z : nullptr, red,
-        kFaceTolerance * grad_tol, opt.gamma,
-        opt.max_inner - res.inner_iterations - res.face_iterations, face_work, opt.face_changes);
+    const FaceResult fr =
+        face_cg(H, b, l, u, x, fg, fnu, hooks.face, hooks.preconditioner ? &Z : nullptr, red,
+                kFaceTolerance * grad_tol, opt.gamma,
+                opt.max_inner - res.inner_iterations - res.face_iterations, face_work,
+                opt.face_changes, go_on);
     res.face_set_seconds += fr.set_seconds;
+    res.go_ons += fr.go_ons;
+    if (fr.go_on_failed) {
+      ++res.go_ons_failed;
+      res.rtol = rtol_met;
+      set_tolerances();
+    }
     if (!fr.taken()) return false;
     ++res.face_solves;
     res.face_iterations += fr.iterations;

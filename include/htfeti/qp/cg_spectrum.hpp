@@ -20,6 +20,7 @@
 #pragma once
 
 #include <algorithm>
+#include <cmath>
 #include <limits>
 #include <vector>
 
@@ -42,6 +43,21 @@ struct SpectrumEstimate {
     steps += other.steps;
   }
 };
+
+/// CG steps after which the energy norm of the error has fallen by at least `factor` (< 1) on an
+/// operator whose spectrum lies in [s.min, s.max]: the smallest j with
+/// 2 ((sqrt(k) - 1) / (sqrt(k) + 1))^j <= factor, k = s.ratio() (Saad, "Iterative Methods for
+/// Sparse Linear Systems", 2nd ed., Theorem 6.29). The bound ignores CG's superlinear phase, so
+/// it is an upper estimate when the spectrum is right; `s` from a run's Ritz values
+/// underestimates k (a lower estimate of the condition number), so it is a guide, not a bound.
+/// 0 when s is empty.
+inline int cg_steps_for(const SpectrumEstimate& s, double factor) {
+  if (s.empty() || !(factor > 0) || factor >= 1) return 0;
+  const double sk = std::sqrt(std::max(s.ratio(), 1.0));
+  const double rate = (sk - 1) / (sk + 1);
+  if (!(rate > 0)) return 1;
+  return static_cast<int>(std::ceil(std::log(factor / 2) / std::log(rate)));
+}
 
 /// The coefficients of one CG run and the estimate from them.
 class CgLanczos {

@@ -23,6 +23,11 @@
 //      row reached by the first CG step on its face (the active set is far from settled: MPRGP's
 //      expansion steps, which fill it many rows at a time, do better), the face solve ends at
 //      the next bound or release instead, and SMALBE-M goes on from there;
+//      At ||w|| <= tol the caller may have the solve go on to a smaller tol (FaceGoOn: the
+//      accuracy refinement inside the solve): CG continues on the same face, without a restart,
+//      for at most kGoOnExtraSteps more than cg_steps_for(the face's spectrum estimate, the
+//      reduction) steps; where it does not meet the new tol within them, or would have to change
+//      its face (a bound or a release), the solve ends at the point where it went on;
 //   4. the equality's multiplier of the face, nu = G' mu = -G'(G D G')^{-1} G D g: then
 //      D (g + nu) = w, and g + nu on the active set is what decides whether x is optimal.
 // Every direction lies in Ker G, where H_rho = A + rho Q equals A, so rho plays no part; one
@@ -53,6 +58,11 @@ struct FaceHooks {
   explicit operator bool() const { return set && correction; }
 };
 
+/// Asked at a converged face point whether to go on (step 3): x there and ||g^P|| with the face's
+/// multiplier (its free and held rows); returns the tolerance on ||P_F D g|| to go on to, or 0 to
+/// stop. Collective: the same answer on every rank.
+using FaceGoOn = std::function<double(const Vec& x, double projected_gradient)>;
+
 /// How a face solve ended.
 enum class FaceOutcome {
   converged,       ///< ||P_F D g|| <= tol
@@ -67,11 +77,13 @@ enum class FaceOutcome {
 
 struct FaceResult {
   FaceOutcome outcome = FaceOutcome::singular;
-  int iterations = 0;        ///< CG steps (products with H: iterations + 1 when taken)
-  int changes = 0;           ///< faces set anew on the way (rows held at a bound or freed)
-  double free_gradient = 0;  ///< ||P_F D g|| at exit
-  double held_gradient = 0;  ///< the held rows' share of g^P (g + nu) at exit
-  double set_seconds = 0;    ///< wall time of FaceHooks::set (the face's coarse matrix)
+  int iterations = 0;         ///< CG steps (products with H: iterations + 1 when taken)
+  int changes = 0;            ///< faces set anew on the way (rows held at a bound or freed)
+  int go_ons = 0;             ///< times it went on to a smaller tol (FaceGoOn)
+  bool go_on_failed = false;  ///< the last did not meet it: the point where it went on is x
+  double free_gradient = 0;   ///< ||P_F D g|| at exit
+  double held_gradient = 0;   ///< the held rows' share of g^P (g + nu) at exit
+  double set_seconds = 0;     ///< wall time of FaceHooks::set (the face's coarse matrix)
   /// The extreme eigenvalues of the preconditioned Hessian on the face from the CG steps taken
   /// (cg_spectrum.hpp; empty when none was).
   SpectrumEstimate spectrum;
@@ -90,7 +102,8 @@ inline constexpr int kMaxShortBounds = 3;
 
 struct FaceWorkspace {
   Vec free, c, t, w, z, p, Hp, phi, beta, x_save;
-  CgLanczos lanczos;  ///< the CG coefficients (FaceResult::spectrum)
+  Vec go_x, go_g, go_nu;  ///< the point where the solve went on (FaceGoOn), its g and nu
+  CgLanczos lanczos;      ///< the CG coefficients (FaceResult::spectrum)
 };
 
 /// H: the Hessian (SMALBE-M's H_rho); b: the linear term (without the equality's multiplier);
@@ -100,9 +113,11 @@ struct FaceWorkspace {
 /// ||P_F D g||; gamma: MPRGP's proportioning parameter (the solve leaves the face, outcome release,
 /// when the held rows' share of the projected gradient exceeds gamma ||P_F D g||: a held row is to
 /// be freed); max_changes: changes of the face on the way (step 3; 0: the solve ends at the
-/// first bound or release, outcome bound or release).
+/// first bound or release, outcome bound or release); go_on: asked at a converged point whether
+/// to go on to a smaller tol (none: the solve ends there).
 FaceResult face_cg(Operator& H, const Vec& b, const Vec& lower, const Vec& upper, Vec& x, Vec& g,
                    Vec& nu, const FaceHooks& face, Operator* Z, const Reducer& red, double tol,
-                   double gamma, int max_iterations, FaceWorkspace& work, int max_changes = 0);
+                   double gamma, int max_iterations, FaceWorkspace& work, int max_changes = 0,
+                   const FaceGoOn& go_on = {});
 
 }  // namespace htfeti::qp

@@ -107,4 +107,15 @@ inline std::string to_string(StopReason r) {
 using Progress = std::function<void(int, double, double)>;
 inline constexpr int kFaceProgress = -1;
 
+/// The accuracy refinement inside a solve: at a point x that passes the stopping test with
+/// relative precision rtol, a solver that can go on without starting over (PCG, SMALBE-M's face
+/// solve: the CG recurrences continue) asks its caller whether to; the answer is the rtol to go
+/// on to, or rtol itself (or more) to stop there. Collective: the same answer on every rank.
+using Tighten = std::function<double(const Vec& x, double rtol)>;
+/// CG steps a solver gives going on to a smaller rtol (Tighten): cg_steps_for (cg_spectrum.hpp)
+/// of the run's spectrum estimate and the reduction asked, plus this many. When the new
+/// tolerance is not met within them (or the solve would have to leave its face, or round-off
+/// holds it), the solver returns the point where it went on, which met the last rtol.
+inline constexpr int kGoOnExtraSteps = 20;
+
 }  // namespace htfeti::qp

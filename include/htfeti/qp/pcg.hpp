@@ -17,6 +17,10 @@
 // from iteration 100 to 1000 on that problem: StopReason::stagnated), or at the iteration limit;
 // in every case it has not converged.
 //
+// Where the caller asks for it (PcgOptions::tighten), PCG goes on from a point that passes its
+// test to a smaller rtol, as a new run from that point would, without starting the recurrences
+// (and CG's Krylov space) over.
+//
 // Cost of one iteration: one application of A, one of P, three dot products, three axpys, one
 // copy of x while the residual decreases (and one of Z, one more dot product, when
 // preconditioned). The step lengths and direction ratios are kept for the estimate of the
@@ -38,6 +42,11 @@ inline constexpr int kStagnation = 200;
 struct PcgOptions {
   double rtol = 1e-4;  ///< relative precision on the projected residual
   int max_iterations = 1000;
+  /// Asked at every point that passes the test whether to go on to a smaller rtol (operator.hpp;
+  /// none: PCG stops there). Going on continues the recurrences; within kGoOnExtraSteps more
+  /// than cg_steps_for(the run's spectrum estimate, the reduction) CG steps, or PCG returns the
+  /// point where it went on, converged for the rtol met there (PcgResult::go_on_failed).
+  Tighten tighten;
 };
 
 struct PcgResult {
@@ -45,6 +54,9 @@ struct PcgResult {
   int iterations = 0;
   double projected_residual = 0;  ///< ||P(b - A x)|| at exit
   double projected_rhs = 0;       ///< ||P b||
+  double rtol = 0;                ///< the rtol of the last test met (or asked, unconverged)
+  int go_ons = 0;                 ///< times PCG went on to a smaller rtol (PcgOptions::tighten)
+  bool go_on_failed = false;      ///< the last went on in vain: its start point was returned
   /// The extreme eigenvalues of Z A on Ker G (A without Z) from the run's coefficients
   /// (cg_spectrum.hpp): empty when no step was taken.
   SpectrumEstimate spectrum;

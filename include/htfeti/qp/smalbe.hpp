@@ -136,6 +136,11 @@ struct SmalbeResult {
   double rhs_norm = 0;               ///< ||b||
   double multiplier_norm = 0;        ///< ||lambda|| = ||shift + x|| at exit
   double tolerance = 0;              ///< tol = max(rtol ||b||, round-off floor) at exit
+  /// The rtol of the test at exit: options.rtol, or smaller where a face solve went on to it
+  /// (SmalbeHooks::tighten).
+  double rtol = 0;
+  int go_ons = 0;         ///< face solves that went on to a smaller rtol (SmalbeHooks::tighten)
+  int go_ons_failed = 0;  ///< of them, those that ended where they went on (face_cg.hpp)
   bool roundoff_floor = false;       ///< the round-off floor, not rtol ||b||, set tol
   double rho = 0, M = 0, alpha = 0;  ///< at exit
   int rho_updates = 0;               ///< late penalty updates made (step 4)
@@ -163,6 +168,7 @@ struct SmalbeResult {
     face_solves += o.face_solves, face_iterations += o.face_iterations;
     face_changes += o.face_changes, face_converged += o.face_converged;
     face_tries += o.face_tries;
+    go_ons += o.go_ons, go_ons_failed += o.go_ons_failed;
     face_seconds += o.face_seconds, face_set_seconds += o.face_set_seconds;
     face_spectrum.merge(o.face_spectrum);
   }
@@ -180,6 +186,13 @@ struct SmalbeHooks {
   PenalizedApply preconditioner;
   /// The face of the bounds for the face solve (SmalbeOptions::face_solve).
   FaceHooks face;
+  /// The accuracy refinement inside the solve (operator.hpp): asked with x at a converged face
+  /// point that passes the global test; a smaller rtol than the one given has the face solve go
+  /// on to it (face_cg.hpp, step 3) with the test's tolerances made from it. Where the face solve
+  /// cannot meet it (it would have to change its face, or the steps run out) the solve ends
+  /// where it went on, with the rtol met there (SmalbeResult::rtol). An MPRGP exit that passes
+  /// the test ends the solve without asking.
+  Tighten tighten;
 };
 
 /// qp: bounds (LowerBounds or BoxBounds) and an equality projector are required

@@ -191,9 +191,12 @@ QpSolve solve_without_contact(DualProblem& dual, DualOperators& ops, Vec& lambda
     ops.P.apply(pz, y);
   });
   // The first accuracy check comes where PCG first meets its test, which goes on from there
-  // when the check asks for a smaller rtol (AccuracyRefinement::in_solve).
+  // when the check asks for a smaller rtol (AccuracyRefinement::in_solve); not with the
+  // factors' single-precision copies, where that check's reconstruction would be one more than
+  // the solution's (about one product) and linear solves rarely need a refinement.
   AccuracyRefinement refinement(check, note);
-  po.tighten = [&](const Vec& x, double rtol) { return refinement.in_solve(x, rtol); };
+  if (!dual.single_sweeps())
+    po.tighten = [&](const Vec& x, double rtol) { return refinement.in_solve(x, rtol); };
   lambda = dual.lambda_tilde();
   auto r = qp::projected_cg(qp, lambda, red, po, progress, ops.preconditioned ? &Z : nullptr);
   po.tighten = nullptr;

@@ -530,7 +530,7 @@ TEST(FaceCg, LeavesAWrongFaceAndRefusesASingularOne) {
 // not rise above that at the start (after step 1) by more than round-off. (A start on a wrong
 // face is declined before any step: LeavesAWrongFaceAndRefusesASingularOne.)
 TEST(FaceCg, ChangesItsFaceOnTheWayToTheSolution) {
-  int solved = 0, changed = 0, held_at_solution = 0;
+  int solved = 0, changed = 0, held_at_solution = 0, went_on = 0;
   for (unsigned seed = 1; seed <= 24; ++seed) {
     const int n = 10, bounded = 6, me = 2;
     const Qp q = random_qp(n, bounded, me, seed, false);
@@ -538,6 +538,7 @@ TEST(FaceCg, ChangesItsFaceOnTheWayToTheSolution) {
     Vec x = q.l.cwiseMax(Vec::Constant(n, -1.0));
     for (int i = 0; i < bounded; ++i) x[i] = q.l[i] + 1.0;
     for (int i = bounded; i < n; ++i) x[i] = xs[i];
+    const Vec x0 = x;
     for (int i = 0; i < bounded; ++i) held_at_solution += !(xs[i] > q.l[i] + 1e-9);
     // Step 1's point (G x = 0 by the free entries), whose cost the solve must not exceed.
     Vec d(n);
@@ -569,7 +570,26 @@ TEST(FaceCg, ChangesItsFaceOnTheWayToTheSolution) {
       for (int i = 0; i < n; ++i)
         if (!(x[i] > q.l[i])) EXPECT_GT(gl[i], -1e-8) << seed << " " << i;
     }
+    // Loose (1e-2), going on to 1e-12 where that is met (FaceGoOn), changing the face on the way
+    // as it needs: it converges where the tight run does, to the same solution, or, where it
+    // cannot go on, ends converged for 1e-2 at the point where it went on.
+    Vec xg = x0, gg = q.A * x0 - q.b, nug;
+    DenseFace face_g{q.G, {}, 0};
+    int asked = 0;
+    const FaceResult rg =
+        face_cg(A, q.b, q.l, Vec(), xg, gg, nug, face_g.hooks(), nullptr, red, 1e-2, 1.0, 200, work,
+                50, [&](const Vec&, double) { return ++asked == 1 ? 1e-12 : 0.0; });
+    if (rg.outcome == FaceOutcome::converged && asked > 0) {
+      EXPECT_LE(rg.free_gradient, rg.go_on_failed ? 1e-2 : 1e-12) << seed;
+      if (!rg.go_on_failed) {
+        ++went_on;
+        EXPECT_LT((xg - xs).norm(), 1e-8) << seed;
+      }
+    }
+    EXPECT_TRUE((xg.array() >= q.l.array()).all()) << seed;
+    EXPECT_LT((q.G * xg).norm(), 1e-10) << seed;
   }
+  EXPECT_GT(went_on, 6);
   EXPECT_GT(held_at_solution, 12);
   EXPECT_GT(changed, 12);
   EXPECT_GT(solved, 12);

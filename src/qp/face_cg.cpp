@@ -1,5 +1,6 @@
 #include "htfeti/qp/face_cg.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 
@@ -80,6 +81,7 @@ FaceResult face_cg(Operator& H, const Vec& b, const Vec& l, const Vec& u, Vec& x
   int short_hits = 0;
   int go_on_until = -1;  // going on to a smaller tol (FaceGoOn): the step limit; -1: not
   double go_free = 0, go_held = 0;
+  bool renew_budget = false;  // a change of the face while going on: CG starts over
   // Going on ends at a bound, a release or the step limit: back to the point where it went on.
   const auto went_on_in_vain = [&]() {
     if (go_on_until < 0) return false;
@@ -99,6 +101,7 @@ FaceResult face_cg(Operator& H, const Vec& b, const Vec& l, const Vec& u, Vec& x
     if (!ok) return false;
     ++res.changes;
     last_steps = steps;
+    renew_budget = go_on_until >= 0;
     project(g, r, nu);
     precondition();
     p = z;
@@ -122,13 +125,13 @@ FaceResult face_cg(Operator& H, const Vec& b, const Vec& l, const Vec& u, Vec& x
   };
   for (;;) {
     if (!proportional()) {
-      if (went_on_in_vain()) break;
       // Free the held rows with a chopped gradient (those MPRGP's proportioning step moves).
       if (res.changes < max_changes) {
         for (Eigen::Index i = 0; i < n; ++i)
           if (w.beta[i] != 0.0) d[i] = 1.0;
         if (restart()) continue;
       }
+      if (went_on_in_vain()) break;
       res.outcome = FaceOutcome::release;
       break;
     }
@@ -147,6 +150,12 @@ FaceResult face_cg(Operator& H, const Vec& b, const Vec& l, const Vec& u, Vec& x
       tol = next;
       ++res.go_ons;
     }
+    if (renew_budget) {  // CG started over on a new face: the bound's steps from here
+      SpectrumEstimate seen = res.spectrum;
+      go_on_until = std::max(go_on_until,
+                             steps + kGoOnExtraSteps + cg_steps_for(seen, tol / res.free_gradient));
+      renew_budget = false;
+    }
     if (go_on_until >= 0 && steps >= go_on_until && went_on_in_vain()) break;
     if (steps >= max_iterations) {
       if (went_on_in_vain()) break;
@@ -161,11 +170,11 @@ FaceResult face_cg(Operator& H, const Vec& b, const Vec& l, const Vec& u, Vec& x
     }
     a_f = red.min(a_f);
     if (!(a_f > 0)) {  // a row freed on its bound that -p would move out of the bounds
-      if (went_on_in_vain()) break;
       if (res.changes < max_changes) {
         step_to_bound(0.0);
         if (restart()) continue;
       }
+      if (went_on_in_vain()) break;
       res.outcome = FaceOutcome::bound;
       break;
     }
@@ -179,7 +188,6 @@ FaceResult face_cg(Operator& H, const Vec& b, const Vec& l, const Vec& u, Vec& x
     }
     const double a = rz / pHp;
     if (a > a_f) {
-      if (went_on_in_vain()) break;
       // The feasible half step: the cost falls (a_f < a, the minimizer along p), G x = 0 holds.
       short_hits = steps - last_steps > 1 ? 0 : short_hits + 1;
       if (res.changes < max_changes && short_hits <= kMaxShortBounds) {
@@ -188,6 +196,7 @@ FaceResult face_cg(Operator& H, const Vec& b, const Vec& l, const Vec& u, Vec& x
         if (restart()) continue;
         // (x moved: the outcome bound keeps it; nu is the last face's)
       }
+      if (went_on_in_vain()) break;
       res.outcome = FaceOutcome::bound;
       break;
     }

@@ -24,10 +24,11 @@
 //      expansion steps, which fill it many rows at a time, do better), the face solve ends at
 //      the next bound or release instead, and SMALBE-M goes on from there;
 //      At ||w|| <= tol the caller may have the solve go on to a smaller tol (FaceGoOn: the
-//      accuracy refinement inside the solve): CG continues on the same face, without a restart,
-//      for at most kGoOnExtraSteps more than cg_steps_for(the face's spectrum estimate, the
-//      reduction) steps; where it does not meet the new tol within them, or would have to change
-//      its face (a bound or a release), the solve ends at the point where it went on;
+//      accuracy refinement inside the solve): CG continues where it is, without a restart, for
+//      at most kGoOnExtraSteps more than cg_steps_for(the spectrum seen on this solve's faces,
+//      the reduction) steps (renewed from where CG restarts after a change of the face, which
+//      goes on as above); where it does not meet the new tol within them, or ends at a bound
+//      or a release, the solve ends at the point where it went on;
 //   4. the equality's multiplier of the face, nu = G' mu = -G'(G D G')^{-1} G D g: then
 //      D (g + nu) = w, and g + nu on the active set is what decides whether x is optimal.
 // Every direction lies in Ker G, where H_rho = A + rho Q equals A, so rho plays no part; one

@@ -114,7 +114,7 @@ inline constexpr int kFaceProgress = -1;
 using Tighten = std::function<double(const Vec& x, double rtol)>;
 /// CG steps a solver gives going on to a smaller rtol (Tighten): cg_steps_for (cg_spectrum.hpp)
 /// of the run's spectrum estimate and the reduction asked, plus this many. When the new
-/// tolerance is not met within them (or the solve would have to leave its face, or round-off
+/// tolerance is not met within them (or a face solve ends at a bound or a release, or round-off
 /// holds it), the solver returns the point where it went on, which met the last rtol.
 inline constexpr int kGoOnExtraSteps = 20;
 

@@ -189,7 +189,7 @@ struct SmalbeHooks {
   /// The accuracy refinement inside the solve (operator.hpp): asked with x at a converged face
   /// point that passes the global test; a smaller rtol than the one given has the face solve go
   /// on to it (face_cg.hpp, step 3) with the test's tolerances made from it. Where the face solve
-  /// cannot meet it (it would have to change its face, or the steps run out) the solve ends
+  /// cannot meet it (it ends at a bound or a release, or the steps run out) the solve ends
   /// where it went on, with the rtol met there (SmalbeResult::rtol). An MPRGP exit that passes
   /// the test ends the solve without asking.
   Tighten tighten;

@@ -351,15 +351,19 @@ TEST_F(Cli, BadProblemFilesExitWithCode2NamingTheKeyAndWriteNothing) {
 TEST_F(Cli, ContactResultsAreIdenticalOnOneToFourRanks) {
   // Sums are formed in an order that does not depend on how clusters are spread over ranks, so
   // the iterates, iteration counts and every reported number are the same bit for bit: the
-  // cube-obstacle on ESPRESO's default mesh (16 subdomains) and the membranes with clusters.
-  const char* problems[] = {"--problem cube-obstacle",
-                            "--problem membranes -n 64 --subdomains 8 -m 2 --glue corners+averages",
-                            "--problem membranes -n 64 --subdomains 8 -m 2 --preconditioner "
-                            "dirichlet --scaling stiffness",
-                            "--problem cube-obstacle --coarse-steps-per-product 1",
-                            "--problem membranes -n 64 --subdomains 8 -m 2 --glue corners+averages "
-                            "--coarse-steps-per-product 1"};
-  for (const char* p : problems) {
+  // cube-obstacle on ESPRESO's default mesh (16 subdomains), the membranes with clusters, and
+  // sphere-on-block, whose face solve goes on to the accuracy refinement's rtol inside the solve.
+  const std::string sphere = std::string(HTFETI_SOURCE_DIR) + "/examples/sphere-on-block.toml";
+  const std::string problems[] = {
+      sphere,
+      "--problem cube-obstacle",
+      "--problem membranes -n 64 --subdomains 8 -m 2 --glue corners+averages",
+      "--problem membranes -n 64 --subdomains 8 -m 2 --preconditioner "
+      "dirichlet --scaling stiffness",
+      "--problem cube-obstacle --coarse-steps-per-product 1",
+      "--problem membranes -n 64 --subdomains 8 -m 2 --glue corners+averages "
+      "--coarse-steps-per-product 1"};
+  for (const std::string& p : problems) {
     nlohmann::json reports[4];
     for (int r = 1; r <= 4; ++r) {
       const std::string out = "i" + std::to_string(r) + ".json";
@@ -377,6 +381,10 @@ TEST_F(Cli, ContactResultsAreIdenticalOnOneToFourRanks) {
         EXPECT_EQ(a[key], b[key]) << p << ", " << r << " ranks: " << key;
     }
     EXPECT_GT(reports[0]["displacement"]["max_norm"].get<double>(), 0.0);
+    if (p == sphere)
+      EXPECT_TRUE(reports[0]["solver"]["accuracy_checks"]["within_the_solve"].get<bool>() &&
+                  reports[0]["solver"].contains("accuracy_refinements"))
+          << reports[0]["solver"].dump();
   }
 }
 

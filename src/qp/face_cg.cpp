@@ -82,14 +82,12 @@ FaceResult face_cg(Operator& H, const Vec& b, const Vec& l, const Vec& u, Vec& x
   int go_on_until = -1;  // going on to a smaller tol (FaceGoOn): the step limit; -1: not
   double go_free = 0, go_held = 0;
   bool renew_budget = false;  // a change of the face while going on: CG starts over
-  // Going on ends at a bound, a release or the step limit: back to the point where it went on.
-  const auto went_on_in_vain = [&]() {
-    if (go_on_until < 0) return false;
-    x = w.go_x, g = w.go_g, nu = w.go_nu;
-    res.free_gradient = go_free, res.held_gradient = go_held;
-    res.go_on_failed = true;
-    res.outcome = FaceOutcome::converged;
-    return true;
+  // The step limit going on from here to tol: CG's bound for the reduction asked, with the
+  // spectrum seen on every face of this solve, plus kGoOnExtraSteps.
+  const auto go_on_budget = [&](double factor) {
+    SpectrumEstimate seen = res.spectrum;
+    seen.merge(w.lanczos.estimate());
+    return steps + kGoOnExtraSteps + cg_steps_for(seen, factor);
   };
   // A new face (d changed): set, the gradient's projection, CG restarted. False when G D G' is
   // singular: the solve ends (the last face's factor is gone, nu is that of the last face).
@@ -131,7 +129,6 @@ FaceResult face_cg(Operator& H, const Vec& b, const Vec& l, const Vec& u, Vec& x
           if (w.beta[i] != 0.0) d[i] = 1.0;
         if (restart()) continue;
       }
-      if (went_on_in_vain()) break;
       res.outcome = FaceOutcome::release;
       break;
     }
@@ -143,22 +140,15 @@ FaceResult face_cg(Operator& H, const Vec& b, const Vec& l, const Vec& u, Vec& x
       }
       w.go_x = x, w.go_g = g, w.go_nu = nu;
       go_free = res.free_gradient, go_held = res.held_gradient;
-      // The steps CG's bound asks for with the spectrum seen on every face of this solve.
-      SpectrumEstimate seen = res.spectrum;
-      seen.merge(w.lanczos.estimate());
-      go_on_until = steps + kGoOnExtraSteps + cg_steps_for(seen, next / tol);
+      go_on_until = go_on_budget(next / tol);
       tol = next;
       ++res.go_ons;
     }
     if (renew_budget) {  // CG started over on a new face: the bound's steps from here
-      SpectrumEstimate seen = res.spectrum;
-      go_on_until = std::max(go_on_until,
-                             steps + kGoOnExtraSteps + cg_steps_for(seen, tol / res.free_gradient));
+      go_on_until = std::max(go_on_until, go_on_budget(tol / res.free_gradient));
       renew_budget = false;
     }
-    if (go_on_until >= 0 && steps >= go_on_until && went_on_in_vain()) break;
-    if (steps >= max_iterations) {
-      if (went_on_in_vain()) break;
+    if (steps >= max_iterations || (go_on_until >= 0 && steps >= go_on_until)) {
       res.outcome = FaceOutcome::max_iterations;
       break;
     }
@@ -174,7 +164,6 @@ FaceResult face_cg(Operator& H, const Vec& b, const Vec& l, const Vec& u, Vec& x
         step_to_bound(0.0);
         if (restart()) continue;
       }
-      if (went_on_in_vain()) break;
       res.outcome = FaceOutcome::bound;
       break;
     }
@@ -182,7 +171,6 @@ FaceResult face_cg(Operator& H, const Vec& b, const Vec& l, const Vec& u, Vec& x
     ++steps;
     const double pHp = red.dot(p, Hp);
     if (!(pHp > 0)) {
-      if (went_on_in_vain()) break;
       res.outcome = FaceOutcome::breakdown;
       break;
     }
@@ -196,7 +184,6 @@ FaceResult face_cg(Operator& H, const Vec& b, const Vec& l, const Vec& u, Vec& x
         if (restart()) continue;
         // (x moved: the outcome bound keeps it; nu is the last face's)
       }
-      if (went_on_in_vain()) break;
       res.outcome = FaceOutcome::bound;
       break;
     }
@@ -209,6 +196,14 @@ FaceResult face_cg(Operator& H, const Vec& b, const Vec& l, const Vec& u, Vec& x
     w.lanczos.direction(rz_new / rz);
     p = z + (rz_new / rz) * p;
     rz = rz_new;
+  }
+  // Going on that ends short of its tol (a bound, a release, the step limit, a breakdown):
+  // back to the point where it went on, which met the tol before.
+  if (go_on_until >= 0 && res.outcome != FaceOutcome::converged) {
+    x = w.go_x, g = w.go_g, nu = w.go_nu;
+    res.free_gradient = go_free, res.held_gradient = go_held;
+    res.go_on_failed = true;
+    res.outcome = FaceOutcome::converged;
   }
   res.iterations = steps;
   nu = -nu;  // the face's equality multiplier G' mu: D (g + nu) = P_F D g

@@ -75,7 +75,6 @@ PcgResult projected_cg(const QuadraticProgram& qp, Vec& x, const Reducer& red,
       tol = next * scale;
       ++res.go_ons;
     }
-    if (go_on_until >= 0 && it >= go_on_until) return take_best(StopReason::max_iterations);
     if (res.projected_residual < best_residual) {
       best_residual = res.projected_residual;
       best = x;
@@ -85,7 +84,8 @@ PcgResult projected_cg(const QuadraticProgram& qp, Vec& x, const Reducer& red,
     } else if (it - best_iteration >= kStagnation) {
       return take_best(StopReason::stagnated);
     }
-    if (it >= opt.max_iterations) return take_best(StopReason::max_iterations);
+    if (it >= opt.max_iterations || (go_on_until >= 0 && it >= go_on_until))
+      return take_best(StopReason::max_iterations);
     if (!(wz > 0)) {  // a preconditioner that is not positive definite on Ker G
       if (go_on_until >= 0) return take_best(StopReason::breakdown);
       res.reason = StopReason::breakdown;
